@@ -1,0 +1,179 @@
+"""The declarative variable table of a model (``models/<name>/variables.yaml``), loaded and checked.
+
+The table is the single source from which the C variable table and ``modelDescription.xml`` are
+generated. Value references are assigned densely in table order: Real variables first, then
+Integer variables.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+CAUSALITIES = ("parameter", "input", "output")
+TYPES = ("Real", "Integer")
+VARIABLE_KEYS = {"name", "causality", "type", "unit", "start", "min", "max", "positive", "description"}
+MODEL_KEYS = {"name", "description", "version"}
+
+
+class VariableTableError(ValueError):
+    """A variable table or unit table is malformed; the message names the file and the entry."""
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One model variable as declared in the table."""
+
+    name: str
+    causality: str
+    type: str
+    unit: str
+    start: float | int | None
+    min: float | int | None
+    max: float | int | None
+    positive: bool
+    description: str
+    value_reference: int
+
+
+@dataclass(frozen=True)
+class VariableTable:
+    """A model's identity, its variables (in value-reference order) and the unit definitions."""
+
+    name: str
+    description: str
+    version: str
+    variables: tuple[Variable, ...]
+    units: dict[str, dict[str, int]]
+    source: Path
+
+    def of_type(self, type_name: str) -> list[Variable]:
+        """Variables of one FMI base type, in value-reference order."""
+        return [v for v in self.variables if v.type == type_name]
+
+
+def _load_yaml(path: Path) -> Any:
+    try:
+        return yaml.safe_load(path.read_text())
+    except FileNotFoundError as exc:
+        raise VariableTableError(f"{path}: file not found") from exc
+    except yaml.YAMLError as exc:
+        raise VariableTableError(f"{path}: malformed YAML: {exc}") from exc
+
+
+def load_units(path: Path) -> dict[str, dict[str, int]]:
+    """Load the shared unit table: unit name -> SI base-unit exponents."""
+    data = _load_yaml(path)
+    if not isinstance(data, dict):
+        raise VariableTableError(f"{path}: expected a mapping of unit name to base-unit exponents")
+    allowed = {"kg", "m", "s", "A", "K", "mol", "cd", "rad"}
+    for unit, exponents in data.items():
+        if not isinstance(exponents, dict) or not set(exponents) <= allowed:
+            raise VariableTableError(
+                f"{path}: unit {unit!r} must map base units {sorted(allowed)} to integer exponents"
+            )
+    return {str(k): dict(v) for k, v in data.items()}
+
+
+def _check_number(path: Path, name: str, key: str, value: Any, type_name: str) -> None:
+    if type_name == "Integer":
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    else:
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if not ok:
+        expected = "an integer" if type_name == "Integer" else "a finite number"
+        raise VariableTableError(f"{path}: variable {name!r}: {key} must be {expected}, got {value!r}")
+
+
+def _parse_variable(path: Path, entry: Any, units: dict[str, dict[str, int]]) -> dict[str, Any]:
+    if not isinstance(entry, dict) or "name" not in entry:
+        raise VariableTableError(f"{path}: every variable must be a mapping with a 'name'")
+    name = entry["name"]
+    unknown = set(entry) - VARIABLE_KEYS
+    if unknown:
+        raise VariableTableError(
+            f"{path}: variable {name!r}: unknown keys {sorted(unknown)}; allowed {sorted(VARIABLE_KEYS)}"
+        )
+    causality = entry.get("causality")
+    if causality not in CAUSALITIES:
+        raise VariableTableError(f"{path}: variable {name!r}: causality must be one of {CAUSALITIES}")
+    type_name = entry.get("type", "Real")
+    if type_name not in TYPES:
+        raise VariableTableError(f"{path}: variable {name!r}: type must be one of {TYPES}")
+    unit = str(entry.get("unit", "1"))
+    if unit not in units:
+        raise VariableTableError(f"{path}: variable {name!r}: unit {unit!r} is not in the unit table")
+    if causality == "output":
+        if "start" in entry:
+            raise VariableTableError(f"{path}: variable {name!r}: an output takes no start value")
+    elif "start" not in entry:
+        raise VariableTableError(f"{path}: variable {name!r}: a {causality} needs a start value")
+    for key in ("start", "min", "max"):
+        if key in entry:
+            _check_number(path, name, key, entry[key], type_name)
+    lo, hi, start = entry.get("min"), entry.get("max"), entry.get("start")
+    if start is not None and ((lo is not None and start < lo) or (hi is not None and start > hi)):
+        raise VariableTableError(f"{path}: variable {name!r}: start {start} outside [{lo}, {hi}]")
+    if entry.get("positive") and start is not None and start <= 0:
+        raise VariableTableError(f"{path}: variable {name!r}: positive, but start is {start}")
+    if not entry.get("description"):
+        raise VariableTableError(f"{path}: variable {name!r}: a description is required")
+    return {
+        "name": name,
+        "causality": causality,
+        "type": type_name,
+        "unit": unit,
+        "start": start,
+        "min": lo,
+        "max": hi,
+        "positive": bool(entry.get("positive", False)),
+        "description": str(entry["description"]),
+    }
+
+
+def load_variable_table(path: Path, units_path: Path) -> VariableTable:
+    """Load and check a model's variable table.
+
+    Parameters
+    ----------
+    path
+        ``models/<name>/variables.yaml``.
+    units_path
+        The shared unit table ``models/common/units.yaml``.
+
+    Raises
+    ------
+    VariableTableError
+        On malformed YAML, unknown keys, missing fields, duplicate names or inconsistent limits.
+    """
+    units = load_units(units_path)
+    data = _load_yaml(path)
+    if not isinstance(data, dict) or set(data) != {"model", "variables"}:
+        raise VariableTableError(f"{path}: expected exactly the top-level keys 'model' and 'variables'")
+    model = data["model"]
+    if not isinstance(model, dict) or set(model) != MODEL_KEYS:
+        raise VariableTableError(f"{path}: 'model' must have exactly the keys {sorted(MODEL_KEYS)}")
+    if not str(model["name"]).isidentifier():
+        raise VariableTableError(f"{path}: model.name must be a C identifier")
+    parsed = [_parse_variable(path, entry, units) for entry in data["variables"] or []]
+    names = [p["name"] for p in parsed]
+    duplicates = sorted({n for n in names if names.count(n) > 1})
+    if duplicates:
+        raise VariableTableError(f"{path}: duplicate variable names {duplicates}")
+    for name in names:
+        if not name.isidentifier():
+            raise VariableTableError(f"{path}: variable name {name!r} must be a C identifier")
+    ordered = [p for p in parsed if p["type"] == "Real"] + [p for p in parsed if p["type"] != "Real"]
+    variables = tuple(Variable(value_reference=i, **p) for i, p in enumerate(ordered))
+    return VariableTable(
+        name=str(model["name"]),
+        description=str(model["description"]),
+        version=str(model["version"]),
+        variables=variables,
+        units=units,
+        source=path,
+    )
