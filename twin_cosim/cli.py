@@ -1,0 +1,120 @@
+"""The ``twin`` command line: build, simulate, optimize, compare."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from fmu_build.build import DEFAULT_MODEL, BuildError, available_models, build_fmu
+from fmu_build.variable_table import VariableTableError
+from twin_cosim.metrics import compute_metrics
+from twin_cosim.plant import Plant, PlantError
+from twin_cosim.reference import ReferenceError
+from twin_cosim.scenario import ScenarioError, load_scenario, load_tuned_parameters
+
+USER_ERRORS = (BuildError, VariableTableError, PlantError, ScenarioError, ReferenceError, ValueError)
+
+
+def versions() -> dict[str, str]:
+    """Versions of the software a result depends on."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    found = {"python": platform.python_version()}
+    for package in ("twin-cosim", "fmpy", "numpy", "scipy", "numba", "pandas"):
+        try:
+            found[package] = version(package)
+        except PackageNotFoundError:
+            found[package] = "not installed"
+    return found
+
+
+def write_json(path: Path, data: dict[str, Any]) -> None:
+    """Write ``data`` as indented JSON."""
+    path.write_text(json.dumps(data, indent=2) + "\n")
+
+
+def _build(args: argparse.Namespace) -> int:
+    path = build_fmu(args.model, Path(args.out) if args.out else None, force=args.force)
+    print(path)
+    return 0
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from twin_cosim.cosim import run_scenario
+    from twin_cosim.plots import plot_run
+
+    scenario = load_scenario(args.scenario)
+    tuned = load_tuned_parameters(args.params) if args.params else scenario.tuned
+    fmu = Path(args.plant) if args.plant else scenario.fmu
+    out = Path(args.out) if args.out else Path("out") / scenario.name
+    out.mkdir(parents=True, exist_ok=True)
+    with Plant(fmu) as plant:
+        start = time.perf_counter()
+        record = run_scenario(plant, scenario, tuned, fast=not args.reference_path)
+        wall = time.perf_counter() - start
+        fmu_path = str(plant.fmu_path)
+    metrics = compute_metrics(record, scenario.metrics_window)
+    record.to_csv(out / "record.csv", index=False)
+    plot_run(record, metrics, f"{scenario.name}: {args.params or 'scenario parameters'}", out / "run.png")
+    summary = {
+        "scenario": str(scenario.source),
+        "fmu": fmu_path,
+        "params": tuned.as_dict(),
+        "metrics": metrics.as_dict(),
+        "metrics_window_s": list(scenario.metrics_window),
+        "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
+        "wall_s": wall,
+        "outputs": {"record": str(out / "record.csv"), "plot": str(out / "run.png")},
+        "versions": versions(),
+    }
+    write_json(out / "summary.json", summary)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        m = metrics
+        print(f"{scenario.name}: E_pk {m.E_pk_um:.2f} um, ITAE {m.ITAE:.2f} um.s^2, IAU {m.IAU:.3f} A.s, "
+              f"RMS {m.rms_um:.2f} um ({wall:.2f} s wall)")
+        print(f"wrote {out}/record.csv, run.png, summary.json")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``twin``."""
+    parser = argparse.ArgumentParser(prog="twin", description="Digital twin of a CNC feed axis")
+    commands = parser.add_subparsers(dest="command", required=True)
+
+    build = commands.add_parser("build", help="build a plant FMU from models/<MODEL>")
+    build.add_argument("model", nargs="?", default=DEFAULT_MODEL, help=f"one of {available_models()}")
+    build.add_argument("--out", help="output folder (default: build/)")
+    build.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    build.set_defaults(handler=_build)
+
+    simulate = commands.add_parser("simulate", help="run a scenario in closed loop")
+    simulate.add_argument("scenario", help="scenario YAML file")
+    simulate.add_argument("--params", help="ft|ga|ce|sa (paper Table 3) or a YAML/JSON file")
+    simulate.add_argument("--plant", help="another FMU offering the plant contract")
+    simulate.add_argument("--out", help="output folder (default: out/<scenario name>)")
+    simulate.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    simulate.add_argument("--reference-path", action="store_true",
+                          help="step through fmpy in plain Python instead of the compiled loop")
+    simulate.set_defaults(handler=_simulate)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``twin`` console script."""
+    args = build_parser().parse_args(argv)
+    try:
+        return args.handler(args)
+    except USER_ERRORS as exc:
+        print(f"twin {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

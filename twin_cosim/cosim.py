@@ -1,0 +1,255 @@
+"""The co-simulation master: the P-PI cascade stepping a plant FMU at the CNC's rates.
+
+Two paths give the same trajectory:
+
+- :func:`run_reference_path`: a plain Python loop through fmpy's ``FMU2Slave`` calls; the readable
+  reference.
+- :func:`run_fast_path` (the default): the same controller functions compiled by numba, calling
+  fmi2SetReal / fmi2DoStep / fmi2GetReal through their C function pointers from inside the
+  compiled loop.
+
+Per speed-loop sample k (t_k = k * speed_period): current from the speed loop, set the inputs,
+doStep(t_k, speed_period), read the outputs. Every ``position_period`` the position loop runs
+first on the latest measured position. The record holds one row per position-loop sample.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Mapping
+from pathlib import Path
+
+import numba
+import numpy as np
+import pandas as pd
+
+from twin_cosim import controller
+from twin_cosim.controller import ControllerSettings, TunedParameters
+from twin_cosim.plant import Plant, PlantError
+from twin_cosim.reference import ReferenceGrid
+from twin_cosim.scenario import Scenario
+
+RECORD_COLUMNS = (
+    "t",            # s, position-loop sample time
+    "x_ref",        # m, reference carriage position
+    "v_ref",        # m/s, reference carriage speed
+    "x",            # m, measured carriage position (linear scale, noise included)
+    "error",        # m, x_ref - x
+    "motor_angle",  # rad
+    "motor_speed",  # rad/s
+    "speed_cmd",    # rad/s, speed command of the position loop (without reversal pulse)
+    "current",      # A, mean current command over the following position period
+)
+OUTPUT_NAMES = ("motor_speed", "load_position", "motor_angle")
+INPUT_NAMES = ("current_cmd", "disturbance_torque")
+_T, _X_REF, _V_REF, _X, _ERROR, _ANGLE, _SPEED, _SPEED_CMD, _CURRENT = range(len(RECORD_COLUMNS))
+_FMI2_OK_OR_WARNING = 1
+
+_SET_REAL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p)
+_DO_STEP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int)
+
+
+def _value_references(plant: Plant, names: tuple[str, ...]) -> np.ndarray:
+    return np.array([plant.value_reference(n) for n in names], dtype=np.uint32)
+
+
+def _check_inputs(grid: ReferenceGrid, disturbance: np.ndarray | None) -> np.ndarray:
+    n = len(grid.position)
+    if disturbance is None:
+        return np.zeros(n)
+    disturbance = np.ascontiguousarray(disturbance, dtype=np.float64)
+    if disturbance.shape != (n,) or not np.all(np.isfinite(disturbance)):
+        raise ValueError(f"disturbance torque must be {n} finite values (N.m), one per position sample")
+    return disturbance
+
+
+def _to_frame(record: np.ndarray) -> pd.DataFrame:
+    return pd.DataFrame(record, columns=list(RECORD_COLUMNS))
+
+
+def run_reference_path(
+    plant: Plant,
+    grid: ReferenceGrid,
+    tuned: TunedParameters,
+    settings: ControllerSettings,
+    plant_parameters: Mapping[str, float] | None = None,
+    disturbance: np.ndarray | None = None,
+) -> pd.DataFrame:
+    """Closed-loop run in plain Python through fmpy (the readable reference path).
+
+    Parameters
+    ----------
+    plant
+        The plant; reset and parametrised here.
+    grid
+        Reference on the position-loop grid (its period must equal settings.position_period).
+    tuned, settings
+        Controller parameters.
+    plant_parameters
+        FMU parameter values by name.
+    disturbance
+        Disturbance torque (N.m) per position sample; zero when None.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per position-loop sample, columns :data:`RECORD_COLUMNS`.
+    """
+    disturbance = _check_inputs(grid, disturbance)
+    p = controller.parameter_vector(tuned, settings)
+    s = controller.initial_state()
+    ratio = settings.speed_steps_per_position_step
+    h = settings.speed_period
+    vr_in = [int(v) for v in _value_references(plant, INPUT_NAMES)]
+    vr_out = [int(v) for v in _value_references(plant, OUTPUT_NAMES)]
+    plant.start_run(plant_parameters)
+    fmu = plant.fmu
+    speed, position, angle = plant.call("fmi2GetReal", fmu.getReal, vr_out)
+    record = np.empty((len(grid.position), len(RECORD_COLUMNS)))
+    for i in range(len(grid.position)):
+        t = i * grid.period
+        controller.position_loop(p, s, t, grid.position[i], grid.velocity[i], grid.acceleration[i], position)
+        record[i, :_CURRENT] = (t, grid.position[i], grid.velocity[i], position,
+                                grid.position[i] - position, angle, speed, s[controller.SPEED_CMD])
+        current_sum = 0.0
+        for j in range(ratio):
+            k = i * ratio + j
+            current = controller.speed_loop(p, s, k * h, speed)
+            current_sum += current
+            plant.call("fmi2SetReal", fmu.setReal, vr_in, [current, disturbance[i]])
+            plant.call("fmi2DoStep", fmu.doStep, k * h, h)
+            speed, position, angle = plant.call("fmi2GetReal", fmu.getReal, vr_out)
+        record[i, _CURRENT] = current_sum / ratio
+    return _to_frame(record)
+
+
+_position_loop = numba.njit(cache=True)(controller.position_loop)
+_speed_loop = numba.njit(cache=True)(controller.speed_loop)
+
+
+@numba.njit(cache=True)
+def _closed_loop(set_real, do_step, get_real, component, vr_in, vr_out, p, s, period, ratio,
+                 x_ref, v_ref, a_ref, disturbance, record):  # pragma: no cover - compiled
+    inputs = np.zeros(2)
+    outputs = np.zeros(3)
+    h = period / ratio
+    status = get_real(component, vr_out.ctypes, 3, outputs.ctypes)
+    if status > _FMI2_OK_OR_WARNING:
+        return status, -1
+    for i in range(x_ref.shape[0]):
+        t = i * period
+        _position_loop(p, s, t, x_ref[i], v_ref[i], a_ref[i], outputs[1])
+        record[i, 0] = t
+        record[i, 1] = x_ref[i]
+        record[i, 2] = v_ref[i]
+        record[i, 3] = outputs[1]
+        record[i, 4] = x_ref[i] - outputs[1]
+        record[i, 5] = outputs[2]
+        record[i, 6] = outputs[0]
+        record[i, 7] = s[0]
+        current_sum = 0.0
+        for j in range(ratio):
+            k = i * ratio + j
+            inputs[0] = _speed_loop(p, s, k * h, outputs[0])
+            inputs[1] = disturbance[i]
+            current_sum += inputs[0]
+            status = set_real(component, vr_in.ctypes, 2, inputs.ctypes)
+            if status > _FMI2_OK_OR_WARNING:
+                return status, k
+            status = do_step(component, k * h, h, 1)
+            if status > _FMI2_OK_OR_WARNING:
+                return status, k
+            status = get_real(component, vr_out.ctypes, 3, outputs.ctypes)
+            if status > _FMI2_OK_OR_WARNING:
+                return status, k
+        record[i, 8] = current_sum / ratio
+    return 0, -1
+
+
+def _drop_stale_compiled_loop() -> None:
+    """Delete cached machine code of the loop when controller.py is newer than it.
+
+    numba's cache checks only the source file of the cached function itself; the compiled loop
+    inlines the controller functions of controller.py, so an edited controller would otherwise
+    keep running its old compiled form.
+    """
+    cache_dir = Path(_closed_loop._cache._cache_path)
+    changed = Path(controller.__file__).stat().st_mtime
+    for path in cache_dir.glob("cosim._closed_loop-*.nb[ic]"):
+        if path.stat().st_mtime < changed:
+            path.unlink(missing_ok=True)
+
+
+_drop_stale_compiled_loop()
+
+
+class FastCalls:
+    """C function pointers of one loaded plant, typed for the compiled loop."""
+
+    def __init__(self, plant: Plant) -> None:
+        dll = plant.fmu.dll
+        address = {name: ctypes.cast(getattr(dll, name), ctypes.c_void_p).value
+                   for name in ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal")}
+        self.set_real = _SET_REAL(address["fmi2SetReal"])
+        self.do_step = _DO_STEP(address["fmi2DoStep"])
+        self.get_real = _SET_REAL(address["fmi2GetReal"])
+        self.vr_in = _value_references(plant, INPUT_NAMES)
+        self.vr_out = _value_references(plant, OUTPUT_NAMES)
+
+
+def run_fast_path(
+    plant: Plant,
+    grid: ReferenceGrid,
+    tuned: TunedParameters,
+    settings: ControllerSettings,
+    plant_parameters: Mapping[str, float] | None = None,
+    disturbance: np.ndarray | None = None,
+) -> pd.DataFrame:
+    """Closed-loop run compiled by numba; same arguments and record as :func:`run_reference_path`."""
+    disturbance = _check_inputs(grid, disturbance)
+    calls = getattr(plant, "_fast_calls", None)
+    if calls is None:
+        calls = plant._fast_calls = FastCalls(plant)
+    p = controller.parameter_vector(tuned, settings)
+    s = controller.initial_state()
+    record = np.empty((len(grid.position), len(RECORD_COLUMNS)))
+    plant.start_run(plant_parameters)
+    status, step = _closed_loop(
+        calls.set_real, calls.do_step, calls.get_real, plant.fmu.component, calls.vr_in,
+        calls.vr_out, p, s, grid.period, settings.speed_steps_per_position_step,
+        grid.position, grid.velocity, grid.acceleration, disturbance, record,
+    )
+    if status != 0:
+        log = "\n  ".join(plant.messages[-10:]) or "(no message logged)"
+        raise PlantError(
+            f"{plant.fmu_path}: fmi2 call failed with status {status} at speed-loop step {step} "
+            f"(t = {max(step, 0) * settings.speed_period:.6f} s). FMU log:\n  {log}"
+        )
+    return _to_frame(record)
+
+
+def run_scenario(
+    plant: Plant,
+    scenario: Scenario,
+    tuned: TunedParameters | None = None,
+    fast: bool = True,
+    plant_overrides: Mapping[str, float] | None = None,
+) -> pd.DataFrame:
+    """Run a scenario's reference in closed loop.
+
+    Parameters
+    ----------
+    plant
+        The plant to step (any FMU offering the plant contract).
+    scenario
+        Reference, controller settings and plant parameters.
+    tuned
+        Controller parameters; the scenario's own when None.
+    fast
+        The numba path (default) or the fmpy reference path.
+    plant_overrides
+        FMU parameters applied on top of the scenario's.
+    """
+    parameters = {**scenario.plant_parameters, **(plant_overrides or {})}
+    run = run_fast_path if fast else run_reference_path
+    return run(plant, scenario.reference, tuned or scenario.tuned, scenario.settings, parameters)

@@ -1,0 +1,187 @@
+"""Access to a plant FMU: load once, instantiate once, reset and parametrise per run.
+
+Any FMI 2.0 co-simulation FMU that offers the plant contract runs in the twin:
+
+- inputs ``current_cmd`` [A] and ``disturbance_torque`` [N.m];
+- outputs ``motor_angle`` [rad], ``motor_speed`` [rad/s], ``load_position`` [m] (the linear
+  scale's reading) and ``load_speed`` [m/s].
+
+Every fmi2 call is checked; a failure raises :class:`PlantError` with the FMU's logged messages.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import shutil
+import zipfile
+from collections.abc import Mapping
+from pathlib import Path
+
+from fmpy import calloc, extract, free, read_model_description
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+)
+from fmpy.logging import addLoggerProxy
+
+from fmu_build.build import DEFAULT_MODEL, build_fmu
+
+CONTRACT_INPUTS = ("current_cmd", "disturbance_torque")
+CONTRACT_OUTPUTS = ("motor_angle", "motor_speed", "load_position", "load_speed")
+
+
+class PlantError(RuntimeError):
+    """The plant FMU is missing, corrupt, lacks the plant contract, or an fmi2 call failed."""
+
+
+def default_fmu(model: str = DEFAULT_MODEL) -> Path:
+    """The project's FMU of ``model``, built from ``models/<model>`` when missing or stale."""
+    return build_fmu(model)
+
+
+class Plant:
+    """One plant FMU, extracted and instantiated once, reset between runs.
+
+    Parameters
+    ----------
+    fmu_path
+        The .fmu file; the project's drive2mass FMU (built on first use) when None.
+    instance_name
+        Name given to fmi2Instantiate.
+    """
+
+    def __init__(self, fmu_path: Path | str | None = None, instance_name: str = "plant") -> None:
+        self.fmu_path = Path(fmu_path) if fmu_path is not None else default_fmu()
+        self.messages: list[str] = []
+        if not self.fmu_path.is_file():
+            raise PlantError(f"{self.fmu_path}: FMU file not found")
+        if not zipfile.is_zipfile(self.fmu_path):
+            raise PlantError(f"{self.fmu_path}: not an FMU (not a zip archive)")
+        try:
+            self.description = read_model_description(str(self.fmu_path), validate=False)
+        except Exception as exc:  # fmpy raises bare Exceptions for every kind of bad archive
+            raise PlantError(f"{self.fmu_path}: cannot read modelDescription.xml: {exc}") from exc
+        if self.description.coSimulation is None:
+            raise PlantError(f"{self.fmu_path}: the FMU does not support co-simulation")
+        self.variables = {v.name: v for v in self.description.modelVariables}
+        self._check_contract()
+        self._unzip_dir = extract(str(self.fmu_path))
+        self._callbacks = self._make_callbacks()
+        try:
+            self.fmu = FMU2Slave(
+                guid=self.description.guid,
+                unzipDirectory=self._unzip_dir,
+                modelIdentifier=self.description.coSimulation.modelIdentifier,
+                instanceName=instance_name,
+            )
+            self.fmu.instantiate(callbacks=self._callbacks)
+        except Exception as exc:
+            shutil.rmtree(self._unzip_dir, ignore_errors=True)
+            raise PlantError(f"{self.fmu_path}: cannot load or instantiate: {exc}{self._log()}") from exc
+        self._fresh = True
+
+    # ------------------------------------------------------------------ set-up
+
+    def _check_contract(self) -> None:
+        problems = []
+        for name, causality in [(n, "input") for n in CONTRACT_INPUTS] + [
+            (n, "output") for n in CONTRACT_OUTPUTS
+        ]:
+            variable = self.variables.get(name)
+            if variable is None:
+                problems.append(f"missing {causality} {name!r}")
+            elif variable.causality != causality or variable.type != "Real":
+                problems.append(f"{name!r} must be a Real {causality}")
+        if problems:
+            raise PlantError(f"{self.fmu_path}: does not offer the plant contract: {'; '.join(problems)}")
+
+    def _make_callbacks(self) -> fmi2CallbackFunctions:
+        def log(_env, instance, status, category, message) -> None:
+            self.messages.append(f"[{category.decode(errors='replace')}] {message.decode(errors='replace')}")
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(log)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(ctypes.byref(callbacks))
+        return callbacks
+
+    def _log(self) -> str:
+        return ("\nFMU log:\n  " + "\n  ".join(self.messages[-10:])) if self.messages else ""
+
+    # ------------------------------------------------------------------ variables
+
+    def value_reference(self, name: str) -> int:
+        """Value reference of a variable; :class:`PlantError` names the FMU when it is missing."""
+        variable = self.variables.get(name)
+        if variable is None:
+            raise PlantError(f"{self.fmu_path}: no variable named {name!r}")
+        return variable.valueReference
+
+    def parameter_names(self) -> list[str]:
+        """Names of the FMU's parameters."""
+        return [v.name for v in self.description.modelVariables if v.causality == "parameter"]
+
+    def start_values(self) -> dict[str, float]:
+        """Start values of the FMU's parameters, as declared in modelDescription.xml."""
+        return {
+            v.name: float(v.start) for v in self.description.modelVariables
+            if v.causality == "parameter" and v.start is not None
+        }
+
+    # ------------------------------------------------------------------ runs
+
+    def call(self, what: str, function, *args):
+        """Call an fmpy method and turn any failure into :class:`PlantError` with the FMU's log."""
+        try:
+            return function(*args)
+        except Exception as exc:
+            raise PlantError(f"{self.fmu_path}: {what} failed: {exc}{self._log()}") from exc
+
+    def start_run(self, parameters: Mapping[str, float] | None = None, start_time: float = 0.0) -> None:
+        """Reset the instance, apply parameters by name and initialise at ``start_time`` (s).
+
+        Parameters
+        ----------
+        parameters
+            Parameter values by FMU variable name; a name the FMU lacks raises PlantError.
+        start_time
+            Model time of the first communication point, s.
+        """
+        self.messages.clear()
+        if not self._fresh:
+            self.call("fmi2Reset", self.fmu.reset)
+        self._fresh = False
+        for name, value in (parameters or {}).items():
+            variable = self.variables.get(name)
+            if variable is None or variable.causality != "parameter":
+                raise PlantError(
+                    f"{self.fmu_path}: the FMU has no parameter named {name!r}; "
+                    f"its parameters are {self.parameter_names()}"
+                )
+            if variable.type == "Integer":
+                if float(value) != int(value):
+                    raise PlantError(f"{self.fmu_path}: parameter {name!r} needs an integer, got {value}")
+                self.call(f"setting {name}", self.fmu.setInteger, [variable.valueReference], [int(value)])
+            else:
+                self.call(f"setting {name}", self.fmu.setReal, [variable.valueReference], [float(value)])
+        self.call("fmi2SetupExperiment", self.fmu.setupExperiment, None, start_time)
+        self.call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
+        self.call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
+
+    def close(self) -> None:
+        """Free the instance and delete the extracted files."""
+        fmu = getattr(self, "fmu", None)
+        if fmu is not None:
+            fmu.freeInstance()
+            self.fmu = None
+        shutil.rmtree(getattr(self, "_unzip_dir", ""), ignore_errors=True)
+
+    def __enter__(self) -> Plant:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()

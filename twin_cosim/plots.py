@@ -1,0 +1,82 @@
+"""Figures a servo engineer looks at (written as PNG files with matplotlib's Agg backend)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from twin_cosim.metrics import UM_PER_M, Metrics  # noqa: E402
+
+CLOSE_UP_HALF_WIDTH_S = 0.35
+
+
+def _close_up(ax, records: Mapping[str, pd.DataFrame], centre: float, column: str, scale: float) -> None:
+    for label, record in records.items():
+        near = (record["t"] - centre).abs() <= CLOSE_UP_HALF_WIDTH_S
+        ax.plot(record["t"][near], record[column][near] * scale, label=label, lw=1)
+
+
+def plot_run(record: pd.DataFrame, metrics: Metrics, title: str, path: Path) -> Path:
+    """One run: reference and speed; position error with a close-up on its peak; current.
+
+    Like the paper's Figs. 3, 4, 6 and 7. Returns the written path.
+    """
+    fig, axes = plt.subplots(4, 1, figsize=(10, 11))
+    t = record["t"]
+    ax = axes[0]
+    ax.plot(t, record["x_ref"] * 1e3, color="k", lw=1)
+    ax.set_ylabel("reference [mm]")
+    speed_ax = ax.twinx()
+    speed_ax.plot(t, record["v_ref"] * 1e3, color="tab:orange", lw=1)
+    speed_ax.set_ylabel("reference speed [mm/s]", color="tab:orange")
+    ax.set_title(title)
+    axes[1].plot(t, record["error"] * UM_PER_M, lw=0.8)
+    axes[1].axvline(metrics.t_E_pk, color="r", ls=":", lw=1)
+    axes[1].set_ylabel("position error [um]")
+    axes[1].set_title(
+        f"E_pk {metrics.E_pk_um:.2f} um at {metrics.t_E_pk:.3f} s, RMS {metrics.rms_um:.2f} um, "
+        f"mean |e| {metrics.mean_abs_um:.2f} um, ITAE {metrics.ITAE:.2f} um.s^2"
+    )
+    _close_up(axes[2], {"error": record}, metrics.t_E_pk, "error", UM_PER_M)
+    axes[2].set_ylabel("error, close-up [um]")
+    current_ax = axes[2].twinx()
+    _close_up(current_ax, {"current": record}, metrics.t_E_pk, "current", 1.0)
+    current_ax.lines[0].set_color("tab:green")
+    current_ax.set_ylabel("current [A]", color="tab:green")
+    axes[3].plot(t, record["current"], color="tab:green", lw=0.8)
+    axes[3].set_ylabel("current command [A]")
+    axes[3].set_title(f"IAU {metrics.IAU:.3f} A.s, max |i| {metrics.max_current_A:.2f} A")
+    for ax in axes:
+        ax.set_xlabel("t [s]")
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_error_comparison(records: Mapping[str, pd.DataFrame], centre: float, title: str, path: Path) -> Path:
+    """Position errors of several parameter sets, whole run and close-up (paper Figs. 6-7, 11)."""
+    fig, axes = plt.subplots(3, 1, figsize=(10, 9))
+    for label, record in records.items():
+        axes[0].plot(record["t"], record["error"] * UM_PER_M, label=label, lw=0.8)
+    axes[0].set_title(title)
+    axes[0].set_ylabel("position error [um]")
+    _close_up(axes[1], records, centre, "error", UM_PER_M)
+    axes[1].set_ylabel("error, close-up [um]")
+    _close_up(axes[2], records, centre, "current", 1.0)
+    axes[2].set_ylabel("current, close-up [A]")
+    for ax in axes:
+        ax.set_xlabel("t [s]")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,249 @@
+"""Reference trajectories: position samples every 4 ms, cubic interpolation to the position loop.
+
+A reference is described either as segments (dwells, trapezoidal moves, cosine oscillations) or
+as samples read from a CSV file. Either way the CNC's interpolator sees samples every
+``sample_period`` (4 ms) and interpolates them with a cubic spline onto the position-loop grid
+(250 us); the spline's first and second derivatives are the velocity and acceleration
+feedforward.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.interpolate import CubicSpline
+
+
+class ReferenceError(ValueError):
+    """A reference description or CSV is invalid; the message names the source and the item."""
+
+
+@dataclass(frozen=True)
+class Dwell:
+    """Stand still for ``duration`` (s)."""
+
+    duration: float
+
+
+@dataclass(frozen=True)
+class Move:
+    """Trapezoidal move to the absolute position ``to`` (m) with speed and acceleration limits.
+
+    ``velocity`` in m/s, ``acceleration`` in m/s^2; a short move becomes triangular.
+    """
+
+    to: float
+    velocity: float
+    acceleration: float
+
+
+@dataclass(frozen=True)
+class Oscillation:
+    """``cycles`` cycles of x0 + amplitude (1 - cos(2 pi frequency t)) / 2: smooth reversals.
+
+    ``amplitude`` (m, peak to peak, may be negative to go backwards first), ``frequency`` (Hz).
+    """
+
+    amplitude: float
+    frequency: float
+    cycles: float
+
+
+@dataclass(frozen=True)
+class Ramp:
+    """Change the speed to ``velocity`` (m/s) at ``acceleration`` (m/s^2), then hold it.
+
+    The segment lasts ``duration`` (s), which must cover the speed change. Ramps chain moves
+    without stopping (velocity levels); dwells, moves and oscillations must start at rest.
+    """
+
+    velocity: float
+    acceleration: float
+    duration: float
+
+
+Segment = Dwell | Move | Oscillation | Ramp
+Profile = Callable[[np.ndarray], np.ndarray]
+
+
+def _move_profile(distance: float, v_max: float, a_max: float) -> tuple[float, Profile]:
+    """Duration (s) and relative position (m) of a rest-to-rest trapezoidal move."""
+    sign = math.copysign(1.0, distance)
+    d = abs(distance)
+    t_acc = v_max / a_max
+    if a_max * t_acc**2 >= d:  # triangular
+        t_acc = math.sqrt(d / a_max)
+        t_flat = 0.0
+    else:
+        t_flat = (d - a_max * t_acc**2) / v_max
+    v_peak = a_max * t_acc
+    duration = 2 * t_acc + t_flat
+
+    def position(t: np.ndarray) -> np.ndarray:
+        t = np.clip(t, 0.0, duration)
+        up = 0.5 * a_max * np.minimum(t, t_acc) ** 2
+        flat = v_peak * np.clip(t - t_acc, 0.0, t_flat)
+        t_down = np.clip(t - t_acc - t_flat, 0.0, t_acc)
+        down = v_peak * t_down - 0.5 * a_max * t_down**2
+        return sign * (up + flat + down)
+
+    return duration, position
+
+
+def _ramp_profile(v0: float, ramp: Ramp, where: str) -> tuple[float, Profile]:
+    t_ramp = abs(ramp.velocity - v0) / ramp.acceleration
+    if t_ramp > ramp.duration + 1e-12:
+        raise ReferenceError(
+            f"{where}: the speed change from {v0} to {ramp.velocity} m/s takes {t_ramp:g} s at "
+            f"{ramp.acceleration} m/s^2, longer than the segment's duration {ramp.duration} s"
+        )
+    a = math.copysign(ramp.acceleration, ramp.velocity - v0)
+
+    def position(t: np.ndarray) -> np.ndarray:
+        t = np.clip(t, 0.0, ramp.duration)
+        t_r = np.minimum(t, t_ramp)
+        return v0 * t_r + 0.5 * a * t_r**2 + ramp.velocity * (t - t_r)
+
+    return ramp.duration, position
+
+
+def _oscillation_profile(segment: Oscillation) -> tuple[float, Profile]:
+    omega = 2 * math.pi * segment.frequency
+    duration = segment.cycles / segment.frequency
+
+    def position(t: np.ndarray) -> np.ndarray:
+        return 0.5 * segment.amplitude * (1 - np.cos(omega * np.clip(t, 0.0, duration)))
+
+    return duration, position
+
+
+def _profile(segment: Segment, x0: float, v0: float, where: str) -> tuple[float, Profile, float]:
+    """Duration (s), relative position function and end speed (m/s) of one segment."""
+    if isinstance(segment, Ramp):
+        duration, shape = _ramp_profile(v0, segment, where)
+        return duration, shape, segment.velocity
+    if v0 != 0.0:
+        raise ReferenceError(f"{where}: starts at {v0} m/s; only a ramp may follow a ramp that ends moving")
+    if isinstance(segment, Dwell):
+        return segment.duration, np.zeros_like, 0.0
+    if isinstance(segment, Move):
+        duration, shape = _move_profile(segment.to - x0, segment.velocity, segment.acceleration)
+        return duration, shape, 0.0
+    duration, shape = _oscillation_profile(segment)
+    return duration, shape, 0.0
+
+
+def sample_segments(segments: list[Segment], sample_period: float, start_position: float = 0.0) -> np.ndarray:
+    """Sample a segment list every ``sample_period`` (s), starting at rest at ``start_position`` (m).
+
+    Returns
+    -------
+    numpy.ndarray
+        Positions (m) at t = 0, T, 2T, ... up to the end of the last segment.
+
+    Raises
+    ------
+    ReferenceError
+        When the list is empty, a segment cannot follow the speed left by the one before, or the
+        reference does not end at rest.
+    """
+    if not segments:
+        raise ReferenceError("a reference needs at least one segment")
+    pieces: list[tuple[float, float, float, Profile]] = []  # (start s, duration s, base m, shape)
+    t0, x0, v0 = 0.0, start_position, 0.0
+    for index, segment in enumerate(segments):
+        duration, shape, v_end = _profile(segment, x0, v0, f"segment {index}")
+        pieces.append((t0, duration, x0, shape))
+        x0 += float(shape(np.array([duration]))[0])
+        t0 += duration
+        v0 = v_end
+    if v0 != 0.0:
+        raise ReferenceError(f"the reference ends moving at {v0} m/s; end with a ramp to 0")
+    times = np.arange(int(math.floor(t0 / sample_period + 1e-9)) + 1) * sample_period
+    positions = np.full(len(times), start_position)
+    for start, duration, base, shape in pieces:
+        after = times >= start - 1e-12
+        positions[after] = base + shape(times[after] - start)
+    return positions
+
+
+def read_reference_csv(path: Path, sample_period: float) -> np.ndarray:
+    """Read reference samples from a CSV with columns ``t`` (s) and ``x_ref`` (m).
+
+    The samples must be finite and equally spaced by ``sample_period`` starting at t = 0.
+    """
+    try:
+        table = pd.read_csv(path)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise ReferenceError(f"{path}: cannot read reference CSV: {exc}") from exc
+    for column in ("t", "x_ref"):
+        if column not in table.columns:
+            raise ReferenceError(f"{path}: missing column {column!r} (expected t [s], x_ref [m])")
+    t = pd.to_numeric(table["t"], errors="coerce").to_numpy()
+    x = pd.to_numeric(table["x_ref"], errors="coerce").to_numpy()
+    bad = ~(np.isfinite(t) & np.isfinite(x))
+    if bad.any():
+        raise ReferenceError(f"{path}: non-numeric or non-finite values in rows {np.flatnonzero(bad)[:5] + 2}")
+    expected = np.arange(len(t)) * sample_period
+    if len(t) < 4 or not np.allclose(t, expected, atol=1e-9 + 1e-6 * sample_period):
+        raise ReferenceError(
+            f"{path}: column 't' must start at 0 and step by sample_period = {sample_period} s "
+            "(at least 4 samples)"
+        )
+    return x
+
+
+@dataclass(frozen=True)
+class ReferenceGrid:
+    """The reference on the position-loop grid.
+
+    Attributes
+    ----------
+    period : float
+        Position-loop period, s.
+    position, velocity, acceleration : numpy.ndarray
+        Carriage reference in m, m/s, m/s^2 at t = k * period.
+    """
+
+    period: float
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times, s (index times period)."""
+        return np.arange(len(self.position)) * self.period
+
+    @property
+    def duration(self) -> float:
+        """Length of the reference, s."""
+        return (len(self.position) - 1) * self.period
+
+
+def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -> ReferenceGrid:
+    """Cubic-spline interpolation of 4-ms samples onto the position-loop grid.
+
+    Parameters
+    ----------
+    samples
+        Positions, m, at t = k * sample_period.
+    sample_period
+        Interpolator input period, s (4 ms on the paper's CNC).
+    loop_period
+        Position-loop period, s (250 us); must divide sample_period.
+    """
+    ratio = sample_period / loop_period
+    if abs(ratio - round(ratio)) > 1e-9:
+        raise ReferenceError(
+            f"reference sample_period {sample_period} s must be a whole multiple of the "
+            f"position-loop period {loop_period} s"
+        )
+    spline = CubicSpline(np.arange(len(samples)) * sample_period, samples, bc_type="clamped")
+    t = np.arange((len(samples) - 1) * round(ratio) + 1) * loop_period
+    return ReferenceGrid(loop_period, spline(t), spline(t, 1), spline(t, 2))

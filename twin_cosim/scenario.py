@@ -1,0 +1,301 @@
+"""Scenario files: plant, controller, reference and run settings in one YAML file, checked on load.
+
+Layout (every section but ``reference`` is optional)::
+
+    name: reference1
+    description: free text
+    plant:
+      fmu: other.fmu            # relative to the scenario file; default: the project's drive2mass
+      parameters: {backlash: 12.2e-6}        # FMU parameters by name
+    controller:
+      parameters: {Kp_pos: 66.667, ...}      # the six tuned parameters (default: Fine-Tune, eq. 8)
+      settings: {current_limit: 20.0, ...}   # see twin_cosim.controller.ControllerSettings
+    reference:
+      sample_period: 0.004                   # s
+      start_position: 0.0                    # m
+      segments:                              # or  csv: samples.csv  (columns t [s], x_ref [m])
+        - dwell: 0.5                         # s
+        - move: {to: 0.02, velocity: 0.02, acceleration: 0.5}   # m, m/s, m/s^2
+        - oscillation: {amplitude: 0.01, frequency: 1.0, cycles: 2}  # m, Hz, 1
+        - ramp: {velocity: 0.01, acceleration: 0.1, duration: 1.0}   # m/s, m/s^2, s
+    run:
+      metrics_window: [0.0, null]            # s; null: to the end
+    optimize: {...}                          # see twin_cosim.optimize.config
+
+Every error names the file and the key path, and says what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from twin_cosim import paper
+from twin_cosim.controller import TUNED_NAMES, ControllerSettings, TunedParameters
+from twin_cosim.reference import (
+    Dwell,
+    Move,
+    Oscillation,
+    Ramp,
+    ReferenceError,
+    ReferenceGrid,
+    interpolate,
+    read_reference_csv,
+    sample_segments,
+)
+
+TOP_KEYS = {"name", "description", "plant", "controller", "reference", "run", "optimize"}
+
+
+class ScenarioError(ValueError):
+    """A scenario file is invalid; the message names the file, the key and what was expected."""
+
+
+class _Loader(yaml.SafeLoader):
+    """YAML loader that also reads 1e6 and 2.5e-3 (no dot or no exponent sign) as floats."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$|^[-+]?\.(?:inf|Inf|INF)$|^\.(?:nan|NaN|NAN)$"),
+    list("-+0123456789."),
+)
+
+
+def load_yaml(path: Path) -> Any:
+    """Read a YAML file; ScenarioError names the file on a read or syntax error."""
+    try:
+        return yaml.load(Path(path).read_text(), Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
+    except FileNotFoundError as exc:
+        raise ScenarioError(f"{path}: file not found") from exc
+    except yaml.YAMLError as exc:
+        raise ScenarioError(f"{path}: malformed YAML: {exc}") from exc
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A loaded, checked scenario.
+
+    Attributes
+    ----------
+    reference : ReferenceGrid
+        The reference on the position-loop grid.
+    plant_parameters : dict
+        FMU parameter values by name (``load_position_start`` defaults to the reference start).
+    metrics_window : tuple
+        (t0, tF) in s for the metrics; tF None means the end of the run.
+    optimize : dict
+        The raw ``optimize`` section, checked by :mod:`twin_cosim.optimize.config`.
+    """
+
+    name: str
+    description: str
+    source: Path
+    fmu: Path | None
+    plant_parameters: dict[str, float]
+    tuned: TunedParameters
+    settings: ControllerSettings
+    reference: ReferenceGrid
+    metrics_window: tuple[float, float | None]
+    optimize: dict[str, Any] = field(default_factory=dict)
+
+
+class _Checker:
+    """Helpers that raise ScenarioError naming the file and the key path."""
+
+    def __init__(self, source: Path) -> None:
+        self.source = source
+
+    def fail(self, key: str, expected: str, got: Any = None) -> ScenarioError:
+        suffix = "" if got is None else f", got {got!r}"
+        return ScenarioError(f"{self.source}: {key}: expected {expected}{suffix}")
+
+    def mapping(self, value: Any, key: str, allowed: set[str] | None = None) -> dict[str, Any]:
+        if value is None:
+            return {}
+        if not isinstance(value, dict):
+            raise self.fail(key, "a mapping", value)
+        if allowed is not None:
+            unknown = sorted(set(value) - allowed)
+            if unknown:
+                raise ScenarioError(
+                    f"{self.source}: {key}: unknown key(s) {unknown}; allowed: {sorted(allowed)}"
+                )
+        return value
+
+    def number(self, value: Any, key: str, minimum: float | None = None, positive: bool = False) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(key, "a number", value)
+        value = float(value)
+        if not math.isfinite(value):
+            raise self.fail(key, "a finite number", value)
+        if positive and value <= 0:
+            raise self.fail(key, "a number > 0", value)
+        if minimum is not None and value < minimum:
+            raise self.fail(key, f"a number >= {minimum}", value)
+        return value
+
+
+def _segment(check: _Checker, item: Any, key: str):
+    if not isinstance(item, dict) or len(item) != 1:
+        raise check.fail(key, "a one-key mapping: dwell, move, oscillation or ramp", item)
+    (kind, body), = item.items()
+    if kind == "dwell":
+        return Dwell(check.number(body, f"{key}.dwell", positive=True))
+    if kind == "move":
+        body = check.mapping(body, f"{key}.move", {"to", "velocity", "acceleration"})
+        for required in ("to", "velocity", "acceleration"):
+            if required not in body:
+                raise check.fail(f"{key}.move.{required}", "a value (m, m/s, m/s^2)")
+        return Move(
+            check.number(body["to"], f"{key}.move.to"),
+            check.number(body["velocity"], f"{key}.move.velocity", positive=True),
+            check.number(body["acceleration"], f"{key}.move.acceleration", positive=True),
+        )
+    if kind == "oscillation":
+        body = check.mapping(body, f"{key}.oscillation", {"amplitude", "frequency", "cycles"})
+        for required in ("amplitude", "frequency", "cycles"):
+            if required not in body:
+                raise check.fail(f"{key}.oscillation.{required}", "a value (m, Hz, 1)")
+        return Oscillation(
+            check.number(body["amplitude"], f"{key}.oscillation.amplitude"),
+            check.number(body["frequency"], f"{key}.oscillation.frequency", positive=True),
+            check.number(body["cycles"], f"{key}.oscillation.cycles", positive=True),
+        )
+    if kind == "ramp":
+        body = check.mapping(body, f"{key}.ramp", {"velocity", "acceleration", "duration"})
+        for required in ("velocity", "acceleration", "duration"):
+            if required not in body:
+                raise check.fail(f"{key}.ramp.{required}", "a value (m/s, m/s^2, s)")
+        return Ramp(
+            check.number(body["velocity"], f"{key}.ramp.velocity"),
+            check.number(body["acceleration"], f"{key}.ramp.acceleration", positive=True),
+            check.number(body["duration"], f"{key}.ramp.duration", positive=True),
+        )
+    raise check.fail(key, "one of dwell, move, oscillation, ramp", kind)
+
+
+def _reference(check: _Checker, data: Any, position_period: float) -> tuple[ReferenceGrid, float]:
+    data = check.mapping(data, "reference", {"sample_period", "start_position", "segments", "csv"})
+    if ("segments" in data) == ("csv" in data):
+        raise check.fail("reference", "exactly one of 'segments' or 'csv'")
+    sample_period = check.number(data.get("sample_period", 0.004), "reference.sample_period", positive=True)
+    start = check.number(data.get("start_position", 0.0), "reference.start_position")
+    try:
+        if "csv" in data:
+            samples = read_reference_csv(check.source.parent / str(data["csv"]), sample_period)
+            start = float(samples[0])
+        else:
+            segments = data["segments"]
+            if not isinstance(segments, list) or not segments:
+                raise check.fail("reference.segments", "a non-empty list", segments)
+            parsed = [_segment(check, s, f"reference.segments[{i}]") for i, s in enumerate(segments)]
+            samples = sample_segments(parsed, sample_period, start)
+        return interpolate(samples, sample_period, position_period), start
+    except ReferenceError as exc:
+        raise ScenarioError(f"{check.source}: reference: {exc}") from exc
+
+
+def tuned_from_mapping(data: Any, where: str) -> TunedParameters:
+    """The six tuned parameters from a mapping that must hold exactly those names.
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``where`` (file and key) on a missing, unknown or invalid value.
+    """
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{where}: expected a mapping of {list(TUNED_NAMES)}")
+    missing = [n for n in TUNED_NAMES if n not in data]
+    unknown = sorted(set(data) - set(TUNED_NAMES))
+    if missing or unknown:
+        raise ScenarioError(f"{where}: missing {missing}, unknown {unknown}; expected exactly {list(TUNED_NAMES)}")
+    values = {}
+    for name in TUNED_NAMES:
+        value = data[name]
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ScenarioError(f"{where}.{name}: expected a number, got {value!r}")
+        values[name] = float(value)
+    try:
+        return TunedParameters(**values)
+    except ValueError as exc:
+        raise ScenarioError(f"{where}: {exc}") from exc
+
+
+def load_scenario(path: Path | str) -> Scenario:
+    """Load and check a scenario file.
+
+    Raises
+    ------
+    ScenarioError
+        On malformed YAML, unknown keys, wrong types, non-finite or out-of-range values.
+    """
+    source = Path(path)
+    check = _Checker(source)
+    data = check.mapping(load_yaml(source), "(top level)", TOP_KEYS)
+    if "reference" not in data:
+        raise check.fail("reference", "a reference section")
+    plant = check.mapping(data.get("plant"), "plant", {"fmu", "parameters"})
+    plant_parameters = {
+        str(k): check.number(v, f"plant.parameters.{k}")
+        for k, v in check.mapping(plant.get("parameters"), "plant.parameters").items()
+    }
+    fmu = plant.get("fmu")
+    fmu_path = None if fmu is None else (source.parent / str(fmu))
+    control = check.mapping(data.get("controller"), "controller", {"parameters", "settings"})
+    tuned = (
+        tuned_from_mapping(control["parameters"], f"{source}: controller.parameters")
+        if "parameters" in control else paper.FINE_TUNE
+    )
+    setting_names = {f.name for f in fields(ControllerSettings)}
+    raw_settings = check.mapping(control.get("settings"), "controller.settings", setting_names)
+    try:
+        settings = ControllerSettings(
+            **{k: check.number(v, f"controller.settings.{k}") for k, v in raw_settings.items()}
+        )
+    except ValueError as exc:
+        raise ScenarioError(f"{source}: controller.settings: {exc}") from exc
+    reference, start = _reference(check, data["reference"], settings.position_period)
+    plant_parameters.setdefault("load_position_start", start)
+    run = check.mapping(data.get("run"), "run", {"metrics_window"})
+    window = run.get("metrics_window", [0.0, None])
+    if not isinstance(window, list) or len(window) != 2:
+        raise check.fail("run.metrics_window", "[t0, tF] in s (tF may be null)", window)
+    t0 = check.number(window[0], "run.metrics_window[0]", minimum=0.0)
+    t_end = None if window[1] is None else check.number(window[1], "run.metrics_window[1]")
+    if t_end is not None and not t0 < t_end <= reference.duration + 1e-9:
+        raise check.fail("run.metrics_window", f"0 <= t0 < tF <= {reference.duration:g} s", window)
+    return Scenario(
+        name=str(data.get("name", source.stem)),
+        description=str(data.get("description", "")),
+        source=source,
+        fmu=fmu_path,
+        plant_parameters=plant_parameters,
+        tuned=tuned,
+        settings=settings,
+        reference=reference,
+        metrics_window=(t0, t_end),
+        optimize=check.mapping(data.get("optimize"), "optimize"),
+    )
+
+
+def load_tuned_parameters(spec: str) -> TunedParameters:
+    """Parameters for ``--params``: a Table 3 set name (ft, ga, ce, sa) or a YAML/JSON file.
+
+    The file holds the six names at the top level or under ``best_params`` (the summary that
+    ``twin optimize`` writes).
+    """
+    if spec.lower() in paper.TABLE3:
+        return paper.TABLE3[spec.lower()]
+    path = Path(spec)
+    if not path.is_file():
+        raise ScenarioError(f"--params {spec}: neither a set of Table 3 {sorted(paper.TABLE3)} nor a file")
+    data = load_yaml(path)
+    if isinstance(data, dict) and "best_params" in data:
+        return tuned_from_mapping(data["best_params"], f"{path}: best_params")
+    return tuned_from_mapping(data, str(path))
