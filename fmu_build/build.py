@@ -78,13 +78,17 @@ def fingerprint(model: str) -> str:
     return digest.hexdigest()
 
 
-def _compile(table: VariableTable, sources: list[Path], include_dirs: list[Path], output: Path) -> None:
+def _compile(
+    table: VariableTable, sources: list[Path], include_dirs: list[Path], output: Path
+) -> None:
     command = ["gcc", *CFLAGS, *(f"-I{d}" for d in include_dirs), "-o", str(output)]
     command += [str(s) for s in sources] + ["-lm"]
     try:
         result = subprocess.run(command, capture_output=True, text=True, check=False)
     except FileNotFoundError as exc:
-        raise BuildError("gcc not found: install the system C compiler (apt-get install gcc)") from exc
+        raise BuildError(
+            "gcc not found: install the system C compiler (apt-get install gcc)"
+        ) from exc
     if result.returncode != 0:
         raise BuildError(f"compiling {table.name} failed:\n{result.stderr}")
 

@@ -16,7 +16,17 @@ import yaml
 
 CAUSALITIES = ("parameter", "input", "output")
 TYPES = ("Real", "Integer")
-VARIABLE_KEYS = {"name", "causality", "type", "unit", "start", "min", "max", "positive", "description"}
+VARIABLE_KEYS = {
+    "name",
+    "causality",
+    "type",
+    "unit",
+    "start",
+    "min",
+    "max",
+    "positive",
+    "description",
+}
 MODEL_KEYS = {"name", "description", "version"}
 
 
@@ -83,10 +93,14 @@ def _check_number(path: Path, name: str, key: str, value: Any, type_name: str) -
     if type_name == "Integer":
         ok = isinstance(value, int) and not isinstance(value, bool)
     else:
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        ok = (
+            isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        )
     if not ok:
         expected = "an integer" if type_name == "Integer" else "a finite number"
-        raise VariableTableError(f"{path}: variable {name!r}: {key} must be {expected}, got {value!r}")
+        raise VariableTableError(
+            f"{path}: variable {name!r}: {key} must be {expected}, got {value!r}"
+        )
 
 
 def _parse_variable(path: Path, entry: Any, units: dict[str, dict[str, int]]) -> dict[str, Any]:
@@ -96,17 +110,22 @@ def _parse_variable(path: Path, entry: Any, units: dict[str, dict[str, int]]) ->
     unknown = set(entry) - VARIABLE_KEYS
     if unknown:
         raise VariableTableError(
-            f"{path}: variable {name!r}: unknown keys {sorted(unknown)}; allowed {sorted(VARIABLE_KEYS)}"
+            f"{path}: variable {name!r}: unknown keys {sorted(unknown)}; "
+            f"allowed {sorted(VARIABLE_KEYS)}"
         )
     causality = entry.get("causality")
     if causality not in CAUSALITIES:
-        raise VariableTableError(f"{path}: variable {name!r}: causality must be one of {CAUSALITIES}")
+        raise VariableTableError(
+            f"{path}: variable {name!r}: causality must be one of {CAUSALITIES}"
+        )
     type_name = entry.get("type", "Real")
     if type_name not in TYPES:
         raise VariableTableError(f"{path}: variable {name!r}: type must be one of {TYPES}")
     unit = str(entry.get("unit", "1"))
     if unit not in units:
-        raise VariableTableError(f"{path}: variable {name!r}: unit {unit!r} is not in the unit table")
+        raise VariableTableError(
+            f"{path}: variable {name!r}: unit {unit!r} is not in the unit table"
+        )
     if causality == "output":
         if "start" in entry:
             raise VariableTableError(f"{path}: variable {name!r}: an output takes no start value")
@@ -153,7 +172,9 @@ def load_variable_table(path: Path, units_path: Path) -> VariableTable:
     units = load_units(units_path)
     data = _load_yaml(path)
     if not isinstance(data, dict) or set(data) != {"model", "variables"}:
-        raise VariableTableError(f"{path}: expected exactly the top-level keys 'model' and 'variables'")
+        raise VariableTableError(
+            f"{path}: expected exactly the top-level keys 'model' and 'variables'"
+        )
     model = data["model"]
     if not isinstance(model, dict) or set(model) != MODEL_KEYS:
         raise VariableTableError(f"{path}: 'model' must have exactly the keys {sorted(MODEL_KEYS)}")
@@ -167,7 +188,9 @@ def load_variable_table(path: Path, units_path: Path) -> VariableTable:
     for name in names:
         if not name.isidentifier():
             raise VariableTableError(f"{path}: variable name {name!r} must be a C identifier")
-    ordered = [p for p in parsed if p["type"] == "Real"] + [p for p in parsed if p["type"] != "Real"]
+    ordered = [p for p in parsed if p["type"] == "Real"] + [
+        p for p in parsed if p["type"] != "Real"
+    ]
     variables = tuple(Variable(value_reference=i, **p) for i, p in enumerate(ordered))
     return VariableTable(
         name=str(model["name"]),

@@ -17,7 +17,14 @@ from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceError
 from twin_cosim.scenario import ScenarioError, load_scenario, load_tuned_parameters
 
-USER_ERRORS = (BuildError, VariableTableError, PlantError, ScenarioError, ReferenceError, ValueError)
+USER_ERRORS = (
+    BuildError,
+    VariableTableError,
+    PlantError,
+    ScenarioError,
+    ReferenceError,
+    ValueError,
+)
 
 
 def versions() -> dict[str, str]:
@@ -60,7 +67,9 @@ def _simulate(args: argparse.Namespace) -> int:
         fmu_path = str(plant.fmu_path)
     metrics = compute_metrics(record, scenario.metrics_window)
     record.to_csv(out / "record.csv", index=False)
-    plot_run(record, metrics, f"{scenario.name}: {args.params or 'scenario parameters'}", out / "run.png")
+    plot_run(
+        record, metrics, f"{scenario.name}: {args.params or 'scenario parameters'}", out / "run.png"
+    )
     summary = {
         "scenario": str(scenario.source),
         "fmu": fmu_path,
@@ -77,9 +86,44 @@ def _simulate(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
     else:
         m = metrics
-        print(f"{scenario.name}: E_pk {m.E_pk_um:.2f} um, ITAE {m.ITAE:.2f} um.s^2, IAU {m.IAU:.3f} A.s, "
-              f"RMS {m.rms_um:.2f} um ({wall:.2f} s wall)")
+        print(
+            f"{scenario.name}: E_pk {m.E_pk_um:.2f} um, ITAE {m.ITAE:.2f} um.s^2, "
+            f"IAU {m.IAU:.3f} A.s, "
+            f"RMS {m.rms_um:.2f} um ({wall:.2f} s wall)"
+        )
         print(f"wrote {out}/record.csv, run.png, summary.json")
+    return 0
+
+
+def _table3(args: argparse.Namespace) -> int:
+    from twin_cosim import paper
+    from twin_cosim.plots import plot_error_comparison
+    from twin_cosim.report import evaluate_sets, markdown_table
+
+    scenarios = [load_scenario(path) for path in args.scenarios]
+    out = Path(args.out) if args.out else Path("out") / "table3"
+    out.mkdir(parents=True, exist_ok=True)
+    sets = {name.upper(): tuned for name, tuned in paper.TABLE3.items()}
+    with Plant(Path(args.plant) if args.plant else scenarios[0].fmu) as plant:
+        table, records = evaluate_sets(plant, scenarios, sets)
+    table.to_csv(out / "table3.csv")
+    flat = table.reset_index().set_index("set")
+    text = "".join(
+        f"\n{name}:\n\n" + markdown_table(flat[flat["scenario"] == name].drop(columns="scenario"))
+        for name in table.index.unique(level="scenario")
+    )
+    (out / "table3.md").write_text(text)
+    for scenario in scenarios:
+        runs = {name: records[(scenario.name, name)] for name in sets}
+        peak = compute_metrics(runs["FT"], scenario.metrics_window).t_E_pk
+        plot_error_comparison(
+            runs,
+            peak,
+            f"{scenario.name}: paper Table 3 parameter sets",
+            out / f"{scenario.name}_errors.png",
+        )
+    print(text)
+    print(f"wrote {out}/table3.md, table3.csv and error plots")
     return 0
 
 
@@ -89,7 +133,9 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True)
 
     build = commands.add_parser("build", help="build a plant FMU from models/<MODEL>")
-    build.add_argument("model", nargs="?", default=DEFAULT_MODEL, help=f"one of {available_models()}")
+    build.add_argument(
+        "model", nargs="?", default=DEFAULT_MODEL, help=f"one of {available_models()}"
+    )
     build.add_argument("--out", help="output folder (default: build/)")
     build.add_argument("--force", action="store_true", help="rebuild even if up to date")
     build.set_defaults(handler=_build)
@@ -99,10 +145,23 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("--params", help="ft|ga|ce|sa (paper Table 3) or a YAML/JSON file")
     simulate.add_argument("--plant", help="another FMU offering the plant contract")
     simulate.add_argument("--out", help="output folder (default: out/<scenario name>)")
-    simulate.add_argument("--json", action="store_true", help="print the summary as one JSON object")
-    simulate.add_argument("--reference-path", action="store_true",
-                          help="step through fmpy in plain Python instead of the compiled loop")
+    simulate.add_argument(
+        "--json", action="store_true", help="print the summary as one JSON object"
+    )
+    simulate.add_argument(
+        "--reference-path",
+        action="store_true",
+        help="step through fmpy in plain Python instead of the compiled loop",
+    )
     simulate.set_defaults(handler=_simulate)
+
+    table3 = commands.add_parser(
+        "table3", help="run the paper's Table 3 parameter sets on scenarios"
+    )
+    table3.add_argument("scenarios", nargs="+", help="scenario YAML files")
+    table3.add_argument("--plant", help="another FMU offering the plant contract")
+    table3.add_argument("--out", help="output folder (default: out/table3)")
+    table3.set_defaults(handler=_table3)
     return parser
 
 

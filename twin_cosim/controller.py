@@ -81,10 +81,14 @@ class TunedParameters:
                 raise ValueError(f"controller parameter {name} must be finite, got {value}")
         for name in ("Kp_pos", "Kp_vel", "PP3"):
             if getattr(self, name) <= 0:
-                raise ValueError(f"controller parameter {name} must be > 0, got {getattr(self, name)}")
+                raise ValueError(
+                    f"controller parameter {name} must be > 0, got {getattr(self, name)}"
+                )
         for name in ("Ki_vel", "PP2", "f_H"):
             if getattr(self, name) < 0:
-                raise ValueError(f"controller parameter {name} must be >= 0, got {getattr(self, name)}")
+                raise ValueError(
+                    f"controller parameter {name} must be >= 0, got {getattr(self, name)}"
+                )
 
     def as_array(self) -> np.ndarray:
         """[Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] as float64."""
@@ -140,8 +144,16 @@ class ControllerSettings:
         for f in fields(self):
             value = getattr(self, f.name)
             if not math.isfinite(value) or value < 0:
-                raise ValueError(f"controller setting {f.name} must be finite and >= 0, got {value}")
-        for name in ("travel_per_rad", "torque_constant", "current_limit", "position_period", "speed_period"):
+                raise ValueError(
+                    f"controller setting {f.name} must be finite and >= 0, got {value}"
+                )
+        for name in (
+            "travel_per_rad",
+            "torque_constant",
+            "current_limit",
+            "position_period",
+            "speed_period",
+        ):
             if getattr(self, name) <= 0:
                 raise ValueError(f"controller setting {name} must be > 0")
         ratio = self.position_period / self.speed_period
@@ -178,8 +190,9 @@ def initial_state() -> np.ndarray:
     return s
 
 
-def position_loop(p: np.ndarray, s: np.ndarray, t: float, x_ref: float, v_ref: float,
-                  a_ref: float, x: float) -> None:
+def position_loop(
+    p: np.ndarray, s: np.ndarray, t: float, x_ref: float, v_ref: float, a_ref: float, x: float
+) -> None:
     """One position-loop sample at time ``t`` (s): update the speed command and feedforward.
 
     Parameters

@@ -30,23 +30,27 @@ from twin_cosim.reference import ReferenceGrid
 from twin_cosim.scenario import Scenario
 
 RECORD_COLUMNS = (
-    "t",            # s, position-loop sample time
-    "x_ref",        # m, reference carriage position
-    "v_ref",        # m/s, reference carriage speed
-    "x",            # m, measured carriage position (linear scale, noise included)
-    "error",        # m, x_ref - x
+    "t",  # s, position-loop sample time
+    "x_ref",  # m, reference carriage position
+    "v_ref",  # m/s, reference carriage speed
+    "x",  # m, measured carriage position (linear scale, noise included)
+    "error",  # m, x_ref - x
     "motor_angle",  # rad
     "motor_speed",  # rad/s
-    "speed_cmd",    # rad/s, speed command of the position loop (without reversal pulse)
-    "current",      # A, mean current command over the following position period
+    "speed_cmd",  # rad/s, speed command of the position loop (without reversal pulse)
+    "current",  # A, mean current command over the following position period
 )
 OUTPUT_NAMES = ("motor_speed", "load_position", "motor_angle")
 INPUT_NAMES = ("current_cmd", "disturbance_torque")
 _T, _X_REF, _V_REF, _X, _ERROR, _ANGLE, _SPEED, _SPEED_CMD, _CURRENT = range(len(RECORD_COLUMNS))
 _FMI2_OK_OR_WARNING = 1
 
-_SET_REAL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p)
-_DO_STEP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int)
+_SET_REAL = ctypes.CFUNCTYPE(
+    ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p
+)
+_DO_STEP = ctypes.CFUNCTYPE(
+    ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int
+)
 
 
 def _value_references(plant: Plant, names: tuple[str, ...]) -> np.ndarray:
@@ -59,7 +63,9 @@ def _check_inputs(grid: ReferenceGrid, disturbance: np.ndarray | None) -> np.nda
         return np.zeros(n)
     disturbance = np.ascontiguousarray(disturbance, dtype=np.float64)
     if disturbance.shape != (n,) or not np.all(np.isfinite(disturbance)):
-        raise ValueError(f"disturbance torque must be {n} finite values (N.m), one per position sample")
+        raise ValueError(
+            f"disturbance torque must be {n} finite values (N.m), one per position sample"
+        )
     return disturbance
 
 
@@ -108,9 +114,19 @@ def run_reference_path(
     record = np.empty((len(grid.position), len(RECORD_COLUMNS)))
     for i in range(len(grid.position)):
         t = i * grid.period
-        controller.position_loop(p, s, t, grid.position[i], grid.velocity[i], grid.acceleration[i], position)
-        record[i, :_CURRENT] = (t, grid.position[i], grid.velocity[i], position,
-                                grid.position[i] - position, angle, speed, s[controller.SPEED_CMD])
+        controller.position_loop(
+            p, s, t, grid.position[i], grid.velocity[i], grid.acceleration[i], position
+        )
+        record[i, :_CURRENT] = (
+            t,
+            grid.position[i],
+            grid.velocity[i],
+            position,
+            grid.position[i] - position,
+            angle,
+            speed,
+            s[controller.SPEED_CMD],
+        )
         current_sum = 0.0
         for j in range(ratio):
             k = i * ratio + j
@@ -128,8 +144,23 @@ _speed_loop = numba.njit(cache=True)(controller.speed_loop)
 
 
 @numba.njit(cache=True)
-def _closed_loop(set_real, do_step, get_real, component, vr_in, vr_out, p, s, period, ratio,
-                 x_ref, v_ref, a_ref, disturbance, record):  # pragma: no cover - compiled
+def _closed_loop(
+    set_real,
+    do_step,
+    get_real,
+    component,
+    vr_in,
+    vr_out,
+    p,
+    s,
+    period,
+    ratio,
+    x_ref,
+    v_ref,
+    a_ref,
+    disturbance,
+    record,
+):  # pragma: no cover - compiled
     inputs = np.zeros(2)
     outputs = np.zeros(3)
     h = period / ratio
@@ -188,8 +219,10 @@ class FastCalls:
 
     def __init__(self, plant: Plant) -> None:
         dll = plant.fmu.dll
-        address = {name: ctypes.cast(getattr(dll, name), ctypes.c_void_p).value
-                   for name in ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal")}
+        address = {
+            name: ctypes.cast(getattr(dll, name), ctypes.c_void_p).value
+            for name in ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
+        }
         self.set_real = _SET_REAL(address["fmi2SetReal"])
         self.do_step = _DO_STEP(address["fmi2DoStep"])
         self.get_real = _SET_REAL(address["fmi2GetReal"])
@@ -205,7 +238,7 @@ def run_fast_path(
     plant_parameters: Mapping[str, float] | None = None,
     disturbance: np.ndarray | None = None,
 ) -> pd.DataFrame:
-    """Closed-loop run compiled by numba; same arguments and record as :func:`run_reference_path`."""
+    """Closed-loop run compiled by numba; arguments and record as :func:`run_reference_path`."""
     disturbance = _check_inputs(grid, disturbance)
     calls = getattr(plant, "_fast_calls", None)
     if calls is None:
@@ -215,9 +248,21 @@ def run_fast_path(
     record = np.empty((len(grid.position), len(RECORD_COLUMNS)))
     plant.start_run(plant_parameters)
     status, step = _closed_loop(
-        calls.set_real, calls.do_step, calls.get_real, plant.fmu.component, calls.vr_in,
-        calls.vr_out, p, s, grid.period, settings.speed_steps_per_position_step,
-        grid.position, grid.velocity, grid.acceleration, disturbance, record,
+        calls.set_real,
+        calls.do_step,
+        calls.get_real,
+        plant.fmu.component,
+        calls.vr_in,
+        calls.vr_out,
+        p,
+        s,
+        grid.period,
+        settings.speed_steps_per_position_step,
+        grid.position,
+        grid.velocity,
+        grid.acceleration,
+        disturbance,
+        record,
     )
     if status != 0:
         log = "\n  ".join(plant.messages[-10:]) or "(no message logged)"

@@ -36,7 +36,9 @@ class Metrics:
         return asdict(self)
 
 
-def compute_metrics(record: pd.DataFrame, window: tuple[float, float | None] = (0.0, None)) -> Metrics:
+def compute_metrics(
+    record: pd.DataFrame, window: tuple[float, float | None] = (0.0, None)
+) -> Metrics:
     """Compute the indices of a record over ``window`` = (t0, tF) in s (tF None: to the end).
 
     Raises

@@ -10,9 +10,17 @@ from __future__ import annotations
 from twin_cosim.controller import TunedParameters
 
 TABLE3: dict[str, TunedParameters] = {
-    "ft": TunedParameters(Kp_pos=66.6667, Kp_vel=0.2865, Ki_vel=0.0080, PP2=0.7184, PP3=0.0082, f_H=0.1288),
-    "ga": TunedParameters(Kp_pos=74.8709, Kp_vel=0.3008, Ki_vel=0.00151, PP2=0.3012, PP3=0.03097, f_H=0.02605),
-    "ce": TunedParameters(Kp_pos=74.5483, Kp_vel=0.4976, Ki_vel=0.0028, PP2=0.1085, PP3=0.0437, f_H=0.0262),
-    "sa": TunedParameters(Kp_pos=64.4926, Kp_vel=0.4970, Ki_vel=0.00305, PP2=0.1715, PP3=0.0695, f_H=0.0006),
+    "ft": TunedParameters(
+        Kp_pos=66.6667, Kp_vel=0.2865, Ki_vel=0.0080, PP2=0.7184, PP3=0.0082, f_H=0.1288
+    ),
+    "ga": TunedParameters(
+        Kp_pos=74.8709, Kp_vel=0.3008, Ki_vel=0.00151, PP2=0.3012, PP3=0.03097, f_H=0.02605
+    ),
+    "ce": TunedParameters(
+        Kp_pos=74.5483, Kp_vel=0.4976, Ki_vel=0.0028, PP2=0.1085, PP3=0.0437, f_H=0.0262
+    ),
+    "sa": TunedParameters(
+        Kp_pos=64.4926, Kp_vel=0.4970, Ki_vel=0.00305, PP2=0.1715, PP3=0.0695, f_H=0.0006
+    ),
 }
 FINE_TUNE = TABLE3["ft"]

@@ -80,7 +80,9 @@ class Plant:
             self.fmu.instantiate(callbacks=self._callbacks)
         except Exception as exc:
             shutil.rmtree(self._unzip_dir, ignore_errors=True)
-            raise PlantError(f"{self.fmu_path}: cannot load or instantiate: {exc}{self._log()}") from exc
+            raise PlantError(
+                f"{self.fmu_path}: cannot load or instantiate: {exc}{self._log()}"
+            ) from exc
         self._fresh = True
 
     # ------------------------------------------------------------------ set-up
@@ -96,11 +98,15 @@ class Plant:
             elif variable.causality != causality or variable.type != "Real":
                 problems.append(f"{name!r} must be a Real {causality}")
         if problems:
-            raise PlantError(f"{self.fmu_path}: does not offer the plant contract: {'; '.join(problems)}")
+            raise PlantError(
+                f"{self.fmu_path}: does not offer the plant contract: {'; '.join(problems)}"
+            )
 
     def _make_callbacks(self) -> fmi2CallbackFunctions:
         def log(_env, instance, status, category, message) -> None:
-            self.messages.append(f"[{category.decode(errors='replace')}] {message.decode(errors='replace')}")
+            self.messages.append(
+                f"[{category.decode(errors='replace')}] {message.decode(errors='replace')}"
+            )
 
         callbacks = fmi2CallbackFunctions()
         callbacks.logger = fmi2CallbackLoggerTYPE(log)
@@ -128,7 +134,8 @@ class Plant:
     def start_values(self) -> dict[str, float]:
         """Start values of the FMU's parameters, as declared in modelDescription.xml."""
         return {
-            v.name: float(v.start) for v in self.description.modelVariables
+            v.name: float(v.start)
+            for v in self.description.modelVariables
             if v.causality == "parameter" and v.start is not None
         }
 
@@ -141,7 +148,9 @@ class Plant:
         except Exception as exc:
             raise PlantError(f"{self.fmu_path}: {what} failed: {exc}{self._log()}") from exc
 
-    def start_run(self, parameters: Mapping[str, float] | None = None, start_time: float = 0.0) -> None:
+    def start_run(
+        self, parameters: Mapping[str, float] | None = None, start_time: float = 0.0
+    ) -> None:
         """Reset the instance, apply parameters by name and initialise at ``start_time`` (s).
 
         Parameters
@@ -164,10 +173,16 @@ class Plant:
                 )
             if variable.type == "Integer":
                 if float(value) != int(value):
-                    raise PlantError(f"{self.fmu_path}: parameter {name!r} needs an integer, got {value}")
-                self.call(f"setting {name}", self.fmu.setInteger, [variable.valueReference], [int(value)])
+                    raise PlantError(
+                        f"{self.fmu_path}: parameter {name!r} needs an integer, got {value}"
+                    )
+                self.call(
+                    f"setting {name}", self.fmu.setInteger, [variable.valueReference], [int(value)]
+                )
             else:
-                self.call(f"setting {name}", self.fmu.setReal, [variable.valueReference], [float(value)])
+                self.call(
+                    f"setting {name}", self.fmu.setReal, [variable.valueReference], [float(value)]
+                )
         self.call("fmi2SetupExperiment", self.fmu.setupExperiment, None, start_time)
         self.call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
         self.call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)

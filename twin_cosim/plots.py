@@ -16,7 +16,9 @@ from twin_cosim.metrics import UM_PER_M, Metrics  # noqa: E402
 CLOSE_UP_HALF_WIDTH_S = 0.35
 
 
-def _close_up(ax, records: Mapping[str, pd.DataFrame], centre: float, column: str, scale: float) -> None:
+def _close_up(
+    ax, records: Mapping[str, pd.DataFrame], centre: float, column: str, scale: float
+) -> None:
     for label, record in records.items():
         near = (record["t"] - centre).abs() <= CLOSE_UP_HALF_WIDTH_S
         ax.plot(record["t"][near], record[column][near] * scale, label=label, lw=1)
@@ -61,7 +63,9 @@ def plot_run(record: pd.DataFrame, metrics: Metrics, title: str, path: Path) -> 
     return path
 
 
-def plot_error_comparison(records: Mapping[str, pd.DataFrame], centre: float, title: str, path: Path) -> Path:
+def plot_error_comparison(
+    records: Mapping[str, pd.DataFrame], centre: float, title: str, path: Path
+) -> Path:
     """Position errors of several parameter sets, whole run and close-up (paper Figs. 6-7, 11)."""
     fig, axes = plt.subplots(3, 1, figsize=(10, 9))
     for label, record in records.items():

@@ -10,8 +10,8 @@ feedforward.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -128,7 +128,9 @@ def _profile(segment: Segment, x0: float, v0: float, where: str) -> tuple[float,
         duration, shape = _ramp_profile(v0, segment, where)
         return duration, shape, segment.velocity
     if v0 != 0.0:
-        raise ReferenceError(f"{where}: starts at {v0} m/s; only a ramp may follow a ramp that ends moving")
+        raise ReferenceError(
+            f"{where}: starts at {v0} m/s; only a ramp may follow a ramp that ends moving"
+        )
     if isinstance(segment, Dwell):
         return segment.duration, np.zeros_like, 0.0
     if isinstance(segment, Move):
@@ -138,8 +140,10 @@ def _profile(segment: Segment, x0: float, v0: float, where: str) -> tuple[float,
     return duration, shape, 0.0
 
 
-def sample_segments(segments: list[Segment], sample_period: float, start_position: float = 0.0) -> np.ndarray:
-    """Sample a segment list every ``sample_period`` (s), starting at rest at ``start_position`` (m).
+def sample_segments(
+    segments: list[Segment], sample_period: float, start_position: float = 0.0
+) -> np.ndarray:
+    """Sample segments every ``sample_period`` (s), starting at rest at ``start_position`` (m).
 
     Returns
     -------
@@ -154,11 +158,11 @@ def sample_segments(segments: list[Segment], sample_period: float, start_positio
     """
     if not segments:
         raise ReferenceError("a reference needs at least one segment")
-    pieces: list[tuple[float, float, float, Profile]] = []  # (start s, duration s, base m, shape)
+    pieces: list[tuple[float, float, Profile]] = []  # (start s, base position m, shape)
     t0, x0, v0 = 0.0, start_position, 0.0
     for index, segment in enumerate(segments):
         duration, shape, v_end = _profile(segment, x0, v0, f"segment {index}")
-        pieces.append((t0, duration, x0, shape))
+        pieces.append((t0, x0, shape))
         x0 += float(shape(np.array([duration]))[0])
         t0 += duration
         v0 = v_end
@@ -166,7 +170,7 @@ def sample_segments(segments: list[Segment], sample_period: float, start_positio
         raise ReferenceError(f"the reference ends moving at {v0} m/s; end with a ramp to 0")
     times = np.arange(int(math.floor(t0 / sample_period + 1e-9)) + 1) * sample_period
     positions = np.full(len(times), start_position)
-    for start, duration, base, shape in pieces:
+    for start, base, shape in pieces:
         after = times >= start - 1e-12
         positions[after] = base + shape(times[after] - start)
     return positions
@@ -188,7 +192,9 @@ def read_reference_csv(path: Path, sample_period: float) -> np.ndarray:
     x = pd.to_numeric(table["x_ref"], errors="coerce").to_numpy()
     bad = ~(np.isfinite(t) & np.isfinite(x))
     if bad.any():
-        raise ReferenceError(f"{path}: non-numeric or non-finite values in rows {np.flatnonzero(bad)[:5] + 2}")
+        raise ReferenceError(
+            f"{path}: non-numeric or non-finite values in rows {np.flatnonzero(bad)[:5] + 2}"
+        )
     expected = np.arange(len(t)) * sample_period
     if len(t) < 4 or not np.allclose(t, expected, atol=1e-9 + 1e-6 * sample_period):
         raise ReferenceError(

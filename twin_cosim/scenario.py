@@ -62,7 +62,9 @@ class _Loader(yaml.SafeLoader):
 
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$|^[-+]?\.(?:inf|Inf|INF)$|^\.(?:nan|NaN|NAN)$"),
+    re.compile(
+        r"^[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$|^[-+]?\.(?:inf|Inf|INF)$|^\.(?:nan|NaN|NAN)$"
+    ),
     list("-+0123456789."),
 )
 
@@ -128,7 +130,9 @@ class _Checker:
                 )
         return value
 
-    def number(self, value: Any, key: str, minimum: float | None = None, positive: bool = False) -> float:
+    def number(
+        self, value: Any, key: str, minimum: float | None = None, positive: bool = False
+    ) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(key, "a number", value)
         value = float(value)
@@ -144,7 +148,7 @@ class _Checker:
 def _segment(check: _Checker, item: Any, key: str):
     if not isinstance(item, dict) or len(item) != 1:
         raise check.fail(key, "a one-key mapping: dwell, move, oscillation or ramp", item)
-    (kind, body), = item.items()
+    ((kind, body),) = item.items()
     if kind == "dwell":
         return Dwell(check.number(body, f"{key}.dwell", positive=True))
     if kind == "move":
@@ -184,7 +188,9 @@ def _reference(check: _Checker, data: Any, position_period: float) -> tuple[Refe
     data = check.mapping(data, "reference", {"sample_period", "start_position", "segments", "csv"})
     if ("segments" in data) == ("csv" in data):
         raise check.fail("reference", "exactly one of 'segments' or 'csv'")
-    sample_period = check.number(data.get("sample_period", 0.004), "reference.sample_period", positive=True)
+    sample_period = check.number(
+        data.get("sample_period", 0.004), "reference.sample_period", positive=True
+    )
     start = check.number(data.get("start_position", 0.0), "reference.start_position")
     try:
         if "csv" in data:
@@ -194,7 +200,9 @@ def _reference(check: _Checker, data: Any, position_period: float) -> tuple[Refe
             segments = data["segments"]
             if not isinstance(segments, list) or not segments:
                 raise check.fail("reference.segments", "a non-empty list", segments)
-            parsed = [_segment(check, s, f"reference.segments[{i}]") for i, s in enumerate(segments)]
+            parsed = [
+                _segment(check, s, f"reference.segments[{i}]") for i, s in enumerate(segments)
+            ]
             samples = sample_segments(parsed, sample_period, start)
         return interpolate(samples, sample_period, position_period), start
     except ReferenceError as exc:
@@ -214,7 +222,9 @@ def tuned_from_mapping(data: Any, where: str) -> TunedParameters:
     missing = [n for n in TUNED_NAMES if n not in data]
     unknown = sorted(set(data) - set(TUNED_NAMES))
     if missing or unknown:
-        raise ScenarioError(f"{where}: missing {missing}, unknown {unknown}; expected exactly {list(TUNED_NAMES)}")
+        raise ScenarioError(
+            f"{where}: missing {missing}, unknown {unknown}; expected exactly {list(TUNED_NAMES)}"
+        )
     values = {}
     for name in TUNED_NAMES:
         value = data[name]
@@ -250,7 +260,8 @@ def load_scenario(path: Path | str) -> Scenario:
     control = check.mapping(data.get("controller"), "controller", {"parameters", "settings"})
     tuned = (
         tuned_from_mapping(control["parameters"], f"{source}: controller.parameters")
-        if "parameters" in control else paper.FINE_TUNE
+        if "parameters" in control
+        else paper.FINE_TUNE
     )
     setting_names = {f.name for f in fields(ControllerSettings)}
     raw_settings = check.mapping(control.get("settings"), "controller.settings", setting_names)
@@ -294,7 +305,9 @@ def load_tuned_parameters(spec: str) -> TunedParameters:
         return paper.TABLE3[spec.lower()]
     path = Path(spec)
     if not path.is_file():
-        raise ScenarioError(f"--params {spec}: neither a set of Table 3 {sorted(paper.TABLE3)} nor a file")
+        raise ScenarioError(
+            f"--params {spec}: neither a set of Table 3 {sorted(paper.TABLE3)} nor a file"
+        )
     data = load_yaml(path)
     if isinstance(data, dict) and "best_params" in data:
         return tuned_from_mapping(data["best_params"], f"{path}: best_params")

@@ -1,0 +1,62 @@
+"""Shared fixtures: the project's FMU (built once per session) and open-loop stepping."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fmu_build.build import build_fmu
+from twin_cosim.plant import Plant
+
+EMPS_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "emps"
+
+
+@pytest.fixture(scope="session")
+def fmu_path() -> Path:
+    """The drive2mass FMU, built from source if missing or stale."""
+    return build_fmu("drive2mass")
+
+
+@pytest.fixture()
+def plant(fmu_path: Path):
+    """A fresh drive2mass plant, freed after the test."""
+    with Plant(fmu_path) as instance:
+        yield instance
+
+
+OpenLoop = Callable[..., dict[str, np.ndarray]]
+
+
+@pytest.fixture()
+def open_loop(plant: Plant) -> OpenLoop:
+    """Step the plant in open loop with a given current sequence.
+
+    Returns a function ``run(current, h, parameters, outputs, disturbance=None)`` giving a dict
+    of output arrays sampled after every step (plus ``t``, the end time of each step, s).
+    """
+
+    def run(
+        current: np.ndarray,
+        h: float,
+        parameters: Mapping[str, float],
+        outputs: tuple[str, ...],
+        disturbance: np.ndarray | None = None,
+    ) -> dict[str, np.ndarray]:
+        plant.start_run(parameters)
+        fmu = plant.fmu
+        vr_in = [plant.value_reference("current_cmd"), plant.value_reference("disturbance_torque")]
+        vr_out = [plant.value_reference(n) for n in outputs]
+        dist = np.zeros(len(current)) if disturbance is None else disturbance
+        values = np.empty((len(current), len(outputs)))
+        for k, (u, d) in enumerate(zip(current, dist, strict=True)):
+            fmu.setReal(vr_in, [float(u), float(d)])
+            fmu.doStep(k * h, h)
+            values[k] = fmu.getReal(vr_out)
+        result = {name: values[:, i] for i, name in enumerate(outputs)}
+        result["t"] = (np.arange(len(current)) + 1) * h
+        return result
+
+    return run

@@ -1,0 +1,63 @@
+"""1,000 instantiate / initialise / step / reset / free cycles under valgrind memcheck: no leak."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
+
+import pytest
+from fmpy import read_model_description
+
+from fmu_build.build import fmi_headers_dir
+
+HERE = Path(__file__).parent
+
+
+@pytest.mark.slow
+def test_no_leak_over_1000_cycles(fmu_path, tmp_path):
+    if shutil.which("valgrind") is None:
+        pytest.fail("valgrind is not installed (.ci/run installs it with apt-get)")
+    with zipfile.ZipFile(fmu_path) as archive:
+        archive.extract("binaries/linux64/drive2mass.so", tmp_path)
+    binary = tmp_path / "binaries" / "linux64" / "drive2mass.so"
+    driver = tmp_path / "leak_check"
+    subprocess.run(
+        [
+            "gcc",
+            "-std=c99",
+            "-Wall",
+            "-Werror",
+            f"-I{fmi_headers_dir()}",
+            "-o",
+            str(driver),
+            str(HERE / "leak_check.c"),
+            "-ldl",
+        ],
+        check=True,
+    )
+    guid = read_model_description(str(fmu_path)).guid
+    result = subprocess.run(
+        [
+            "valgrind",
+            "--leak-check=full",
+            "--errors-for-leak-kinds=definite,indirect,possible",
+            "--error-exitcode=99",
+            str(driver),
+            str(binary),
+            guid,
+            "1000",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "ERROR SUMMARY: 0 errors" in result.stderr
+    assert "All heap blocks were freed -- no leaks are possible" in result.stderr
+    allocations = int(
+        re.search(r"total heap usage: ([\d,]+) allocs", result.stderr).group(1).replace(",", "")
+    )
+    assert allocations >= 2 * 1000  # instance and its name, every cycle: the cycles really ran

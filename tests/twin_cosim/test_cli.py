@@ -1,0 +1,44 @@
+"""The twin command line, run as a user would."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def twin(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "twin_cosim", *args], capture_output=True, text=True, cwd=cwd
+    )
+
+
+def test_build_prints_the_fmu_path(tmp_path):
+    result = twin("build", "--out", str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    assert Path(result.stdout.strip()) == tmp_path / "drive2mass.fmu"
+
+
+def test_simulate_json_and_files(tmp_path):
+    result = twin(
+        "simulate", "scenarios/reference1.yaml", "--params", "ga", "--out", str(tmp_path), "--json"
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert set(summary["metrics"]) >= {"E_pk_um", "ITAE", "IAU", "rms_um"}
+    assert summary["params"]["Kp_pos"] == 74.8709
+    assert 1.0 < summary["metrics"]["E_pk_um"] < 100.0
+    for name in ("record.csv", "summary.json", "run.png"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+def test_bad_scenario_is_a_clear_error(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("reference:\n  segments:\n    - dwell: -1\n")
+    result = twin("simulate", str(bad), "--out", str(tmp_path))
+    assert result.returncode == 2
+    assert "bad.yaml: reference.segments[0].dwell: expected a number > 0" in result.stderr
+    assert "Traceback" not in result.stderr

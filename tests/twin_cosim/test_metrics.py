@@ -1,0 +1,39 @@
+"""Metrics of records whose indices are known in closed form."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from twin_cosim.metrics import compute_metrics
+
+
+def record(error: np.ndarray, current: np.ndarray, dt: float = 250e-6) -> pd.DataFrame:
+    return pd.DataFrame({"t": np.arange(len(error)) * dt, "error": error, "current": current})
+
+
+def test_constant_error_and_current():
+    n = 40001  # 10 s at 250 us
+    m = compute_metrics(record(np.full(n, -2e-6), np.full(n, 0.5)))
+    assert m.E_pk_um == pytest.approx(2.0)
+    assert m.rms_um == pytest.approx(2.0)
+    assert m.ITAE == pytest.approx(2.0 * 10.0**2 / 2, rel=1e-3)  # int t |e| dt = e T^2 / 2
+    assert m.IAU == pytest.approx(0.5 * 10.0, rel=1e-3)
+    assert m.max_current_A == 0.5
+
+
+def test_peak_and_window():
+    error = np.zeros(4001)
+    error[1000] = 5e-6
+    error[3000] = -9e-6
+    m = compute_metrics(record(error, np.zeros(4001)), window=(0.0, 0.5))
+    assert (m.E_pk_um, m.t_E_pk) == (pytest.approx(5.0), pytest.approx(0.25))
+    assert compute_metrics(record(error, np.zeros(4001))).E_pk_um == pytest.approx(9.0)
+
+
+def test_bad_records_are_refused():
+    with pytest.raises(ValueError, match="fewer than two samples"):
+        compute_metrics(record(np.zeros(10), np.zeros(10)), window=(5.0, 6.0))
+    with pytest.raises(ValueError, match="non-finite"):
+        compute_metrics(record(np.array([0.0, np.nan, 0.0]), np.zeros(3)))

@@ -1,0 +1,57 @@
+"""Tables of results: several parameter sets on several scenarios, as Markdown and CSV."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import pandas as pd
+
+from twin_cosim.controller import TunedParameters
+from twin_cosim.cosim import run_scenario
+from twin_cosim.metrics import compute_metrics
+from twin_cosim.plant import Plant
+from twin_cosim.scenario import Scenario
+
+METRIC_COLUMNS = {
+    "E_pk_um": "E_pk [um]",
+    "ITAE": "ITAE [um.s^2]",
+    "IAU": "IAU [A.s]",
+    "rms_um": "RMS [um]",
+}
+
+
+def markdown_table(frame: pd.DataFrame, float_format: str = "{:.4g}") -> str:
+    """A GitHub-flavoured Markdown table of ``frame`` (index included as the first column)."""
+    header = [frame.index.name or ""] + [str(c) for c in frame.columns]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for index, row in frame.iterrows():
+        cells = [float_format.format(v) if isinstance(v, float) else str(v) for v in row]
+        lines.append("| " + " | ".join([str(index), *cells]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def evaluate_sets(
+    plant: Plant, scenarios: list[Scenario], sets: Mapping[str, TunedParameters]
+) -> tuple[pd.DataFrame, dict[tuple[str, str], pd.DataFrame]]:
+    """Run every parameter set on every scenario.
+
+    Returns
+    -------
+    tuple
+        A table with one row per (scenario, set) and the metric columns, and the run records
+        keyed by (scenario name, set name).
+    """
+    rows, records = [], {}
+    for scenario in scenarios:
+        for name, tuned in sets.items():
+            record = run_scenario(plant, scenario, tuned)
+            metrics = compute_metrics(record, scenario.metrics_window)
+            records[(scenario.name, name)] = record
+            rows.append(
+                {
+                    "scenario": scenario.name,
+                    "set": name,
+                    **{label: getattr(metrics, key) for key, label in METRIC_COLUMNS.items()},
+                }
+            )
+    return pd.DataFrame(rows).set_index(["scenario", "set"]), records
