@@ -46,20 +46,44 @@ def main() -> None:
         record = run_scenario(plant, scenario)  # compiles or loads the compiled loop
         fast = best_of(args.repeats, lambda: run_scenario(plant, scenario))
         slow = best_of(1, lambda: run_scenario(plant, scenario, fast=False))
-        currents = np.repeat(record["current"].to_numpy(), scenario.settings.speed_steps_per_position_step)
+        currents = np.repeat(
+            record["current"].to_numpy(), scenario.settings.speed_steps_per_position_step
+        )
         currents.astype(np.float64).tofile(tmp / "currents.f64")
         with zipfile.ZipFile(plant.fmu_path) as archive:
             archive.extract("binaries/linux64/drive2mass.so", tmp)
-        subprocess.run(["gcc", "-O2", "-std=c99", f"-I{fmi_headers_dir()}", "-o", str(tmp / "c_loop"),
-                        str(ROOT / "benchmarks" / "c_loop.c"), "-ldl"], check=True)
-        command = [str(tmp / "c_loop"), str(tmp / "binaries/linux64/drive2mass.so"), plant.description.guid,
-                   str(tmp / "currents.f64"), repr(scenario.settings.speed_period),
-                   *(str(plant.value_reference(n)) for n in INPUT_NAMES + OUTPUT_NAMES)]
-        c_loop = min(float(subprocess.run(command, capture_output=True, text=True, check=True).stdout)
-                     for _ in range(args.repeats))
+        subprocess.run(
+            [
+                "gcc",
+                "-O2",
+                "-std=c99",
+                f"-I{fmi_headers_dir()}",
+                "-o",
+                str(tmp / "c_loop"),
+                str(ROOT / "benchmarks" / "c_loop.c"),
+                "-ldl",
+            ],
+            check=True,
+        )
+        command = [
+            str(tmp / "c_loop"),
+            str(tmp / "binaries/linux64/drive2mass.so"),
+            plant.description.guid,
+            str(tmp / "currents.f64"),
+            repr(scenario.settings.speed_period),
+            *(str(plant.value_reference(n)) for n in INPUT_NAMES + OUTPUT_NAMES),
+        ]
+        c_loop = min(
+            float(subprocess.run(command, capture_output=True, text=True, check=True).stdout)
+            for _ in range(args.repeats)
+        )
     print(f"reference 1: {scenario.reference.duration:.2f} s simulated, {steps} speed-loop steps")
     print(f"{'path':<22}{'wall [s]':>10}{'us/step':>10}{'x C loop':>10}")
-    for name, wall in (("C loop (limit)", c_loop), ("fast path (numba)", fast), ("fmpy path (Python)", slow)):
+    for name, wall in (
+        ("C loop (limit)", c_loop),
+        ("fast path (numba)", fast),
+        ("fmpy path (Python)", slow),
+    ):
         print(f"{name:<22}{wall:>10.4f}{wall / steps * 1e6:>10.3f}{wall / c_loop:>10.2f}")
 
 

@@ -100,11 +100,12 @@ def _table3(args: argparse.Namespace) -> int:
     from twin_cosim.plots import plot_error_comparison
     from twin_cosim.report import evaluate_sets, markdown_table
 
-    scenarios = [load_scenario(path) for path in args.scenarios]
+    scenarios = {str(path): load_scenario(path) for path in args.scenarios}
     out = Path(args.out) if args.out else Path("out") / "table3"
     out.mkdir(parents=True, exist_ok=True)
     sets = {name.upper(): tuned for name, tuned in paper.TABLE3.items()}
-    with Plant(Path(args.plant) if args.plant else scenarios[0].fmu) as plant:
+    first = next(iter(scenarios.values()))
+    with Plant(Path(args.plant) if args.plant else first.fmu) as plant:
         table, records = evaluate_sets(plant, scenarios, sets)
     table.to_csv(out / "table3.csv")
     flat = table.reset_index().set_index("set")
@@ -113,8 +114,8 @@ def _table3(args: argparse.Namespace) -> int:
         for name in table.index.unique(level="scenario")
     )
     (out / "table3.md").write_text(text)
-    for scenario in scenarios:
-        runs = {name: records[(scenario.name, name)] for name in sets}
+    for label, scenario in scenarios.items():
+        runs = {name: records[(label, name)] for name in sets}
         peak = compute_metrics(runs["FT"], scenario.metrics_window).t_E_pk
         plot_error_comparison(
             runs,
@@ -124,6 +125,92 @@ def _table3(args: argparse.Namespace) -> int:
         )
     print(text)
     print(f"wrote {out}/table3.md, table3.csv and error plots")
+    return 0
+
+
+def _optimize(args: argparse.Namespace) -> int:
+    from twin_cosim.optimize.campaign import CampaignSpec, load_spec, run_campaign
+    from twin_cosim.optimize.outputs import write_campaign_plots
+
+    if args.resume:
+        spec = load_spec(Path(args.resume))
+        given = {"method": args.method, "seed": args.seed, "budget": args.budget}
+        stored = {"method": spec.method, "seed": spec.seed, "budget": spec.budget}
+        conflicts = {
+            k: (v, stored[k]) for k, v in given.items() if v is not None and v != stored[k]
+        }
+        if conflicts:
+            raise ValueError(
+                f"--resume {args.resume}: options differ from the stored campaign: {conflicts}"
+            )
+        out = Path(args.resume)
+    else:
+        if args.method is None:
+            raise ValueError(
+                "--method is required (ce, ga, sa, cmaes or de) unless --resume is given"
+            )
+        spec = CampaignSpec(
+            scenario=args.scenario,
+            method=args.method,
+            seed=0 if args.seed is None else args.seed,
+            budget=args.budget,
+            fmu=args.plant,
+        )
+        out = (
+            Path(args.out) if args.out else Path("out") / f"optimize-{spec.method}-seed{spec.seed}"
+        )
+    result = run_campaign(
+        spec,
+        out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        resume=bool(args.resume),
+        progress=not args.quiet,
+    )
+    write_campaign_plots(out)
+    summary = {
+        "best_params": result.best_params,
+        "metrics": result.metrics,
+        "reference_metrics": result.reference,
+        "evaluations": result.evaluations,
+        "evaluations_reused": result.evaluations_reused,
+        "generations": result.generations,
+        "stop_reason": result.stop_reason,
+        "wall_s": result.wall_s,
+        "out": str(out),
+    }
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        m = result.metrics or {}
+        print(
+            f"{spec.method}: best E_pk {m.get('E_pk_um', float('nan')):.3f} um "
+            f"(reference {result.reference['E_pk_um']:.3f} um) after {result.evaluations} "
+            f"evaluations in {result.wall_s:.1f} s; {result.stop_reason}"
+        )
+        print(
+            "best parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in result.best_params.items())
+        )
+        print(f"wrote {out}/result.json, evaluations.jsonl, convergence.png, best_run.png")
+    return 0
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from twin_cosim.optimize.comparison import load_comparison, run_comparison
+
+    comparison = load_comparison(Path(args.campaign))
+    methods = args.methods.split(",") if args.methods else None
+    out = Path(args.out) if args.out else Path("out") / comparison.name
+    text = run_comparison(
+        comparison,
+        out,
+        methods=methods,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=not args.quiet,
+    )
+    print(text)
+    print(f"wrote {out}/tables.md, tables.json, convergence.png and error plots")
     return 0
 
 
@@ -154,6 +241,35 @@ def build_parser() -> argparse.ArgumentParser:
         help="step through fmpy in plain Python instead of the compiled loop",
     )
     simulate.set_defaults(handler=_simulate)
+
+    optimize = commands.add_parser(
+        "optimize", help="tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H]"
+    )
+    optimize.add_argument("scenario", help="scenario YAML file (its optimize section)")
+    optimize.add_argument("--method", choices=["ce", "ga", "sa", "cmaes", "de"])
+    optimize.add_argument("--seed", type=int, help="seed (default 0)")
+    optimize.add_argument("--budget", type=int, help="maximum evaluations (default: the method's)")
+    optimize.add_argument(
+        "--workers", type=int, help="local processes (default: all cores; 1: serial)"
+    )
+    optimize.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://host:8786")
+    optimize.add_argument("--plant", help="another FMU offering the plant contract")
+    optimize.add_argument("--out", help="campaign folder (default: out/optimize-<method>-seed<N>)")
+    optimize.add_argument("--resume", help="campaign folder to resume")
+    optimize.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    optimize.add_argument("--quiet", action="store_true", help="no progress bar")
+    optimize.set_defaults(handler=_optimize)
+
+    compare = commands.add_parser(
+        "compare", help="several methods on one campaign file: Tables 3-5"
+    )
+    compare.add_argument("campaign", help="campaign YAML file (see scenarios/paper_campaign.yaml)")
+    compare.add_argument("--methods", help="comma-separated subset of the campaign's methods")
+    compare.add_argument("--workers", type=int, help="local processes (default: all cores)")
+    compare.add_argument("--scheduler", help="Dask scheduler address")
+    compare.add_argument("--out", help="output folder (default: out/<campaign name>)")
+    compare.add_argument("--quiet", action="store_true", help="no progress bars")
+    compare.set_defaults(handler=_compare)
 
     table3 = commands.add_parser(
         "table3", help="run the paper's Table 3 parameter sets on scenarios"

@@ -16,6 +16,7 @@ first on the latest measured position. The record holds one row per position-loo
 from __future__ import annotations
 
 import ctypes
+import math
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -44,6 +45,12 @@ OUTPUT_NAMES = ("motor_speed", "load_position", "motor_angle")
 INPUT_NAMES = ("current_cmd", "disturbance_torque")
 _T, _X_REF, _V_REF, _X, _ERROR, _ANGLE, _SPEED, _SPEED_CMD, _CURRENT = range(len(RECORD_COLUMNS))
 _FMI2_OK_OR_WARNING = 1
+_ABORTED = -2
+
+
+class RunAborted(RuntimeError):
+    """The position error left the allowed band: the closed loop is unstable or runs away."""
+
 
 _SET_REAL = ctypes.CFUNCTYPE(
     ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p
@@ -69,6 +76,10 @@ def _check_inputs(grid: ReferenceGrid, disturbance: np.ndarray | None) -> np.nda
     return disturbance
 
 
+def _raise_aborted(abort_error: float, t: float) -> None:
+    raise RunAborted(f"|x_ref - x| exceeded {abort_error * 1e6:g} um at t = {t:.4f} s")
+
+
 def _to_frame(record: np.ndarray) -> pd.DataFrame:
     return pd.DataFrame(record, columns=list(RECORD_COLUMNS))
 
@@ -80,6 +91,7 @@ def run_reference_path(
     settings: ControllerSettings,
     plant_parameters: Mapping[str, float] | None = None,
     disturbance: np.ndarray | None = None,
+    abort_error: float = math.inf,
 ) -> pd.DataFrame:
     """Closed-loop run in plain Python through fmpy (the readable reference path).
 
@@ -95,6 +107,8 @@ def run_reference_path(
         FMU parameter values by name.
     disturbance
         Disturbance torque (N.m) per position sample; zero when None.
+    abort_error
+        Stop with :class:`RunAborted` once |x_ref - x| exceeds this (m).
 
     Returns
     -------
@@ -127,6 +141,8 @@ def run_reference_path(
             speed,
             s[controller.SPEED_CMD],
         )
+        if abs(grid.position[i] - position) > abort_error:
+            _raise_aborted(abort_error, t)
         current_sum = 0.0
         for j in range(ratio):
             k = i * ratio + j
@@ -159,6 +175,7 @@ def _closed_loop(
     v_ref,
     a_ref,
     disturbance,
+    abort_error,
     record,
 ):  # pragma: no cover - compiled
     inputs = np.zeros(2)
@@ -178,6 +195,8 @@ def _closed_loop(
         record[i, 5] = outputs[2]
         record[i, 6] = outputs[0]
         record[i, 7] = s[0]
+        if abs(record[i, 4]) > abort_error:
+            return _ABORTED, i * ratio
         current_sum = 0.0
         for j in range(ratio):
             k = i * ratio + j
@@ -237,6 +256,7 @@ def run_fast_path(
     settings: ControllerSettings,
     plant_parameters: Mapping[str, float] | None = None,
     disturbance: np.ndarray | None = None,
+    abort_error: float = math.inf,
 ) -> pd.DataFrame:
     """Closed-loop run compiled by numba; arguments and record as :func:`run_reference_path`."""
     disturbance = _check_inputs(grid, disturbance)
@@ -262,8 +282,11 @@ def run_fast_path(
         grid.velocity,
         grid.acceleration,
         disturbance,
+        abort_error,
         record,
     )
+    if status == _ABORTED:
+        _raise_aborted(abort_error, step * settings.speed_period)
     if status != 0:
         log = "\n  ".join(plant.messages[-10:]) or "(no message logged)"
         raise PlantError(
@@ -279,6 +302,7 @@ def run_scenario(
     tuned: TunedParameters | None = None,
     fast: bool = True,
     plant_overrides: Mapping[str, float] | None = None,
+    abort_error: float = math.inf,
 ) -> pd.DataFrame:
     """Run a scenario's reference in closed loop.
 
@@ -294,7 +318,10 @@ def run_scenario(
         The numba path (default) or the fmpy reference path.
     plant_overrides
         FMU parameters applied on top of the scenario's.
+    abort_error
+        Stop with :class:`RunAborted` once |x_ref - x| exceeds this (m).
     """
     parameters = {**scenario.plant_parameters, **(plant_overrides or {})}
     run = run_fast_path if fast else run_reference_path
-    return run(plant, scenario.reference, tuned or scenario.tuned, scenario.settings, parameters)
+    tuned = tuned or scenario.tuned
+    return run(plant, scenario.reference, tuned, scenario.settings, parameters, None, abort_error)

@@ -31,25 +31,34 @@ def markdown_table(frame: pd.DataFrame, float_format: str = "{:.4g}") -> str:
 
 
 def evaluate_sets(
-    plant: Plant, scenarios: list[Scenario], sets: Mapping[str, TunedParameters]
+    plant: Plant, scenarios: Mapping[str, Scenario], sets: Mapping[str, TunedParameters]
 ) -> tuple[pd.DataFrame, dict[tuple[str, str], pd.DataFrame]]:
     """Run every parameter set on every scenario.
+
+    Parameters
+    ----------
+    plant
+        The plant to step.
+    scenarios
+        Scenarios by label.
+    sets
+        Parameter sets by name.
 
     Returns
     -------
     tuple
-        A table with one row per (scenario, set) and the metric columns, and the run records
-        keyed by (scenario name, set name).
+        A table with one row per (scenario label, set) and the metric columns, and the run
+        records keyed by (scenario label, set name).
     """
     rows, records = [], {}
-    for scenario in scenarios:
+    for label, scenario in scenarios.items():
         for name, tuned in sets.items():
             record = run_scenario(plant, scenario, tuned)
             metrics = compute_metrics(record, scenario.metrics_window)
-            records[(scenario.name, name)] = record
+            records[(label, name)] = record
             rows.append(
                 {
-                    "scenario": scenario.name,
+                    "scenario": label,
                     "set": name,
                     **{label: getattr(metrics, key) for key, label in METRIC_COLUMNS.items()},
                 }

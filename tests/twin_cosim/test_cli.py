@@ -42,3 +42,35 @@ def test_bad_scenario_is_a_clear_error(tmp_path):
     assert result.returncode == 2
     assert "bad.yaml: reference.segments[0].dwell: expected a number > 0" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_optimize_json(tmp_path):
+    result = twin(
+        "optimize",
+        "scenarios/reference1.yaml",
+        "--method",
+        "cmaes",
+        "--budget",
+        "12",
+        "--workers",
+        "1",
+        "--quiet",
+        "--json",
+        "--out",
+        str(tmp_path / "c"),
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert set(summary) >= {"best_params", "metrics", "evaluations", "wall_s"}
+    assert set(summary["metrics"]) >= {"E_pk_um", "ITAE", "IAU"}
+    assert summary["evaluations"] == 12
+    assert summary["metrics"]["E_pk_um"] <= summary["reference_metrics"]["E_pk_um"]
+    for name in (
+        "campaign.json",
+        "evaluations.jsonl",
+        "progress.json",
+        "result.json",
+        "convergence.png",
+        "best_run.png",
+    ):
+        assert (tmp_path / "c" / name).stat().st_size > 0

@@ -1,0 +1,206 @@
+"""Campaigns: evaluators agree, kill -9 and resume loses nothing, Dask, comparison tables."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
+from twin_cosim.optimize.comparison import load_comparison, run_comparison
+
+ROOT = Path(__file__).resolve().parents[3]
+SHORT = """
+name: short
+reference:
+  segments:
+    - dwell: 0.1
+    - ramp: {velocity: 0.005, acceleration: 0.05, duration: 0.3}
+    - ramp: {velocity: -0.005, acceleration: 0.05, duration: 0.3}
+    - ramp: {velocity: 0.0, acceleration: 0.05, duration: 0.1}
+    - dwell: 0.1
+optimize:
+  bounds: {Kp_pos: [20.0, 3000.0]}   # wide enough to hold runaway candidates
+  abort_error_um: 50.0               # ... which the abort band stops early
+"""
+
+
+@pytest.fixture(scope="module")
+def short_scenario(tmp_path_factory) -> str:
+    path = tmp_path_factory.mktemp("scenario") / "short.yaml"
+    path.write_text(SHORT)
+    return str(path)
+
+
+def campaign(short_scenario, tmp_path, name, workers, method="ce", budget=60, scheduler=None):
+    spec = CampaignSpec(short_scenario, method, seed=3, budget=budget)
+    return run_campaign(spec, tmp_path / name, workers=workers, scheduler=scheduler, progress=False)
+
+
+def test_serial_and_pool_give_the_same_campaign(short_scenario, tmp_path):
+    serial = campaign(short_scenario, tmp_path, "serial", workers=1)
+    pool = campaign(short_scenario, tmp_path, "pool", workers=2)
+    assert serial.best_params == pool.best_params
+    assert serial.fitness == pool.fitness
+    assert serial.evaluations == pool.evaluations == 60
+    assert serial.fitness < serial.reference["E_pk_um"]
+    assert (tmp_path / "pool" / "progress.json").exists()
+
+
+def test_failing_candidates_do_not_stop_the_campaign(short_scenario, tmp_path):
+    result = campaign(short_scenario, tmp_path, "ga", workers=1, method="ga", budget=100)
+    entries = [
+        json.loads(line)
+        for line in (tmp_path / "ga" / "evaluations.jsonl").read_text().splitlines()
+    ]
+    assert any(e["status"] == "unstable" for e in entries)  # error beyond 50 um: stopped
+    assert result.status == "ok"
+
+
+def test_existing_folder_needs_resume(short_scenario, tmp_path):
+    campaign(short_scenario, tmp_path, "once", workers=1, budget=20)
+    with pytest.raises(CampaignError, match="already holds a campaign"):
+        campaign(short_scenario, tmp_path, "once", workers=1, budget=20)
+
+
+def test_kill_9_mid_generation_then_resume_loses_nothing(short_scenario, tmp_path):
+    reference = campaign(short_scenario, tmp_path, "uninterrupted", workers=1, budget=100)
+    out = tmp_path / "killed"
+    command = [
+        sys.executable,
+        "-m",
+        "twin_cosim",
+        "optimize",
+        short_scenario,
+        "--method",
+        "ce",
+        "--seed",
+        "3",
+        "--budget",
+        "100",
+        "--workers",
+        "1",
+        "--quiet",
+        "--out",
+        str(out),
+    ]
+    process = subprocess.Popen(
+        command, cwd=ROOT, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
+    log = out / "evaluations.jsonl"
+    deadline = time.time() + 120
+    while time.time() < deadline and process.poll() is None:
+        if log.exists() and len(log.read_text().splitlines()) >= 30:  # inside generation 2
+            break
+        time.sleep(0.005)
+    assert process.poll() is None, process.stderr.read().decode()
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+    before = {
+        json.loads(line)["key"] for line in log.read_text().splitlines() if line.endswith("}")
+    }
+    assert 30 <= len(before) < 100
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "twin_cosim",
+            "optimize",
+            short_scenario,
+            "--resume",
+            str(out),
+            "--quiet",
+            "--json",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert result.returncode == 0, result.stderr
+    resumed = json.loads(result.stdout)
+    after = [json.loads(line)["key"] for line in log.read_text().splitlines()]
+    assert before <= set(after)  # nothing completed before the kill was lost
+    assert len(after) == len(set(after))  # nothing evaluated twice
+    assert resumed["evaluations_reused"] >= len(before)
+    assert resumed["best_params"] == reference.best_params
+    assert resumed["evaluations"] == reference.evaluations
+
+
+def test_resume_refuses_other_options(short_scenario, tmp_path):
+    campaign(short_scenario, tmp_path, "done", workers=1, budget=20)
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "twin_cosim",
+            "optimize",
+            short_scenario,
+            "--resume",
+            str(tmp_path / "done"),
+            "--seed",
+            "4",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert result.returncode == 2
+    assert "options differ from the stored campaign" in result.stderr
+
+
+def test_dask_local_cluster_gives_the_same_campaign(short_scenario, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    serial = campaign(short_scenario, tmp_path, "serial", workers=1, budget=40)
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        on_dask = campaign(
+            short_scenario,
+            tmp_path,
+            "dask",
+            workers=None,
+            budget=40,
+            scheduler=cluster.scheduler_address,
+        )
+    assert on_dask.best_params == serial.best_params
+    assert on_dask.evaluations == serial.evaluations
+
+
+def test_comparison_writes_tables_3_to_5(short_scenario, tmp_path):
+    path = tmp_path / "campaign.yaml"
+    path.write_text(
+        f"name: small\nscenario: {short_scenario}\nvalidation: {short_scenario}\n"
+        "methods: [ce, cmaes]\nseed: 1\nbudgets: {ce: 40, cmaes: 40}\n"
+    )
+    text = run_comparison(load_comparison(path), tmp_path / "out", workers=1, progress=False)
+    for heading in ("Table 3", "Table 4", "Table 5"):
+        assert heading in text
+    for row in ("| FT |", "| CE |", "| CMAES |"):
+        assert row in text
+    for name in (
+        "tables.md",
+        "tables.json",
+        "convergence.png",
+        "errors_optimized.png",
+        "errors_validation.png",
+    ):
+        assert (tmp_path / "out" / name).stat().st_size > 0
+    # A second call reuses the finished campaigns.
+    assert (
+        run_comparison(load_comparison(path), tmp_path / "out", workers=1, progress=False) == text
+    )
+
+
+def test_comparison_file_mistakes_are_named(tmp_path):
+    from twin_cosim.scenario import ScenarioError
+
+    path = tmp_path / "c.yaml"
+    path.write_text("scenario: s.yaml\nmethods: [ce, pso]\n")
+    with pytest.raises(ScenarioError, match="c.yaml: methods: expected a list from"):
+        load_comparison(path)

@@ -1,0 +1,263 @@
+"""Optimizer campaigns: ask/tell loop, evaluation log, checkpoints, resume, results.
+
+A campaign folder holds
+
+- ``campaign.json``: what was asked (scenario, method, seed, budget, settings, bounds, the
+  Fine-Tune reference metrics and the IAU limit); ``--resume`` reads it back;
+- ``evaluations.jsonl``: every completed evaluation, flushed at once (the checkpoint);
+- ``progress.json``: rewritten after every generation (generation, evaluations, best so far);
+- ``result.json``: the outcome (best parameters and metrics, evaluations, wall time).
+
+The optimizer starts from the scenario's parameters (the Fine-Tune set by default) when they lie
+inside the bounds. Resuming replays the optimizer from its seed, answering from the log every
+batch already evaluated, so a resumed campaign ends exactly where an uninterrupted one would.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from twin_cosim.controller import TUNED_NAMES, TunedParameters
+from twin_cosim.cosim import run_scenario
+from twin_cosim.metrics import compute_metrics
+from twin_cosim.optimize.algorithms import make_optimizer
+from twin_cosim.optimize.config import OptimizeConfig, load_config, within_bounds
+from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
+from twin_cosim.optimize.evaluators import make_evaluator
+from twin_cosim.optimize.objective import ObjectiveSpec
+from twin_cosim.plant import Plant
+from twin_cosim.scenario import Scenario, load_scenario
+
+LOG = logging.getLogger(__name__)
+
+
+class CampaignError(ValueError):
+    """A campaign cannot start or resume; the message says why."""
+
+
+@dataclass(frozen=True)
+class CampaignSpec:
+    """What a campaign optimizes and how (stored in ``campaign.json``).
+
+    Attributes
+    ----------
+    scenario : str
+        Scenario file (its ``optimize`` section configures the objective).
+    method : str
+        ce, ga, sa, cmaes or de.
+    seed : int
+        Seed of the optimizer.
+    budget : int or None
+        Maximum evaluations; the method's default when None.
+    fmu : str or None
+        Plant FMU; the scenario's when None.
+    settings : dict
+        Method settings (overrides of the scenario's ``optimize.methods.<method>``).
+    """
+
+    scenario: str
+    method: str
+    seed: int = 0
+    budget: int | None = None
+    fmu: str | None = None
+    settings: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class CampaignResult:
+    """Outcome of a campaign (also written to ``result.json``)."""
+
+    method: str
+    best_params: dict[str, float]
+    fitness: float
+    status: str
+    metrics: dict[str, float] | None
+    evaluations: int
+    evaluations_reused: int
+    generations: int
+    stop_reason: str
+    wall_s: float
+    reference: dict[str, float]
+    out_dir: str
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return asdict(self)
+
+
+def reference_metrics(
+    scenario: Scenario, config: OptimizeConfig, fmu: str | None
+) -> dict[str, float]:
+    """Metrics of the scenario's own parameters (Fine-Tune by default) over the objective window."""
+    with Plant(Path(fmu) if fmu else scenario.fmu) as plant:
+        record = run_scenario(plant, scenario)
+    return compute_metrics(record, config.window).as_dict()
+
+
+def _prepare(
+    spec: CampaignSpec, out_dir: Path, resume: bool
+) -> tuple[dict[str, Any], OptimizeConfig]:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    header_path = out_dir / "campaign.json"
+    scenario = load_scenario(spec.scenario)
+    config = load_config(scenario)
+    if resume:
+        if not header_path.exists():
+            raise CampaignError(f"{out_dir}: no campaign.json to resume from")
+        return json.loads(header_path.read_text()), config
+    if header_path.exists():
+        raise CampaignError(
+            f"{out_dir}: already holds a campaign; use --resume {out_dir} or another --out"
+        )
+    reference = reference_metrics(scenario, config, spec.fmu)
+    header = {
+        "spec": asdict(spec),
+        "config": config.as_dict(),
+        "reference": {"params": scenario.tuned.as_dict(), "metrics": reference},
+        "iau_limit": None if config.iau_cap is None else config.iau_cap * reference["IAU"],
+    }
+    header_path.write_text(json.dumps(header, indent=2) + "\n")
+    return header, config
+
+
+def load_spec(out_dir: Path) -> CampaignSpec:
+    """The spec of the campaign stored in ``out_dir`` (for ``--resume``)."""
+    path = Path(out_dir) / "campaign.json"
+    if not path.exists():
+        raise CampaignError(f"{out_dir}: no campaign.json to resume from")
+    return CampaignSpec(**json.loads(path.read_text())["spec"])
+
+
+def run_campaign(
+    spec: CampaignSpec,
+    out_dir: Path,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    resume: bool = False,
+    progress: bool = True,
+) -> CampaignResult:
+    """Run (or resume) a campaign and write its folder.
+
+    Parameters
+    ----------
+    spec
+        What to optimize.
+    out_dir
+        Campaign folder.
+    workers
+        Local processes (1: serial in this process; None: all cores).
+    scheduler
+        Dask scheduler address; overrides ``workers``.
+    resume
+        Continue the campaign already in ``out_dir``.
+    progress
+        Show a progress bar on stderr.
+    """
+    out_dir = Path(out_dir)
+    header, config = _prepare(spec, out_dir, resume)
+    if resume and header["spec"] != asdict(spec):
+        raise CampaignError(
+            f"{out_dir}: holds a different campaign {header['spec']}, not {asdict(spec)}"
+        )
+    scenario = load_scenario(spec.scenario)
+    settings = {**config.methods.get(spec.method, {}), **spec.settings}
+    if spec.budget is not None:
+        settings["budget"] = spec.budget
+    x0 = (
+        config.to_unit(scenario.tuned.as_array()) if within_bounds(config, scenario.tuned) else None
+    )
+    optimizer = make_optimizer(spec.method, len(TUNED_NAMES), spec.seed, x0, **settings)
+    log = EvaluationLog(out_dir / "evaluations.jsonl")
+    logged_before = {entry["key"] for entry in log.entries}
+    objective_spec = ObjectiveSpec(spec.scenario, spec.fmu, header["iau_limit"])
+    evaluator = make_evaluator(objective_spec, workers, scheduler)
+    start = time.perf_counter()
+    bar = tqdm(total=optimizer.budget, unit="eval", disable=not progress, desc=spec.method)
+    reused = 0
+    try:
+        while optimizer.stop_reason is None:
+            unit = optimizer.ask()
+            if len(unit) == 0:
+                break
+            candidates = config.from_unit(unit)
+            fitness = np.empty(len(candidates))
+            missing = []
+            for i, x in enumerate(candidates):
+                entry = log.lookup(x)
+                if entry is None:
+                    missing.append(i)
+                else:
+                    fitness[i] = entry["fitness"]
+                    reused += entry["key"] in logged_before
+            bar.update(len(candidates) - len(missing))
+            unique = {}
+            for i in missing:
+                unique.setdefault(candidate_key(candidates[i]), []).append(i)
+            firsts = [rows[0] for rows in unique.values()]
+            for j, result in evaluator.imap(candidates[firsts]):
+                entry = log.append(candidates[firsts[j]], result, optimizer.generation)
+                if result["status"] != "ok":
+                    LOG.info(
+                        "candidate %s: %s (%s)", entry["x"], result["status"], result["reason"]
+                    )
+                rows = unique[entry["key"]]
+                fitness[rows] = result["fitness"]
+                bar.update(len(rows))
+            optimizer.tell(fitness)
+            _write_progress(out_dir, optimizer, config, time.perf_counter() - start)
+            best = optimizer.best[1]
+            bar.set_postfix(gen=optimizer.generation, best_um=f"{best:.3f}")
+    finally:
+        bar.close()
+        evaluator.close()
+        log.close()
+        optimizer.close()
+    best_unit, best_fitness = optimizer.best
+    best_x = config.from_unit(best_unit)
+    best_entry = log.lookup(best_x)
+    result = CampaignResult(
+        method=spec.method,
+        best_params=TunedParameters.from_array(best_x).as_dict(),
+        fitness=best_fitness,
+        status=best_entry["status"],
+        metrics=best_entry["metrics"],
+        evaluations=optimizer.evaluations,
+        evaluations_reused=reused,
+        generations=optimizer.generation,
+        stop_reason=optimizer.stop_reason or "",
+        wall_s=time.perf_counter() - start,
+        reference=header["reference"]["metrics"],
+        out_dir=str(out_dir),
+    )
+    (out_dir / "result.json").write_text(json.dumps(result.as_dict(), indent=2) + "\n")
+    return result
+
+
+def _write_progress(out_dir: Path, optimizer, config: OptimizeConfig, elapsed: float) -> None:
+    best_unit, best_fitness = optimizer.best
+    progress = {
+        "generation": optimizer.generation,
+        "evaluations": optimizer.evaluations,
+        "best_fitness_um": best_fitness,
+        "best_params": TunedParameters.from_array(config.from_unit(best_unit)).as_dict(),
+        "elapsed_s": elapsed,
+    }
+    partial = out_dir / "progress.json.partial"
+    partial.write_text(json.dumps(progress, indent=2) + "\n")
+    partial.replace(out_dir / "progress.json")
+
+
+def convergence(out_dir: Path) -> np.ndarray:
+    """Best fitness so far (um) after each logged evaluation, in log order."""
+    entries = EvaluationLog(Path(out_dir) / "evaluations.jsonl")
+    fitness = np.array([e["fitness"] for e in entries.entries])
+    entries.close()
+    return np.minimum.accumulate(fitness) if len(fitness) else fitness

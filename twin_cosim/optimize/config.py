@@ -1,0 +1,182 @@
+"""The ``optimize`` section of a scenario: bounds, objective window, control-effort cap, penalty.
+
+Every key is optional; the defaults make ``twin optimize scenarios/reference1.yaml --method ce``
+work as it is::
+
+    optimize:
+      bounds:                      # physical [low, high] per tuned parameter
+        Kp_pos: [20.0, 150.0]      # 1/s
+        Kp_vel: [0.05, 1.5]        # A/(rad/s)
+        Ki_vel: [0.0, 0.03]        # A/(rad/s) per speed-loop sample
+        PP2: [0.0, 5.0]            # rad/s
+        PP3: [0.001, 0.1]          # s
+        f_H: [0.0, 0.5]            # rad/s
+      window: null                 # [t0, tF] s of the objective; null: the scenario's window
+      iau_cap: 1.05                # IAU at most 1.05 x the Fine-Tune set's IAU; null: no cap
+      abort_error_um: 1000.0       # a run whose |error| exceeds this is stopped: unstable
+      penalty_um: 1.0e+6           # violation: penalty + E_pk; failure: 2 x penalty
+      methods: {ce: {q: 0.1}}      # per-method setting overrides (see docs/optimizers.md)
+
+The objective is eq. (12): minimise E_pk (um) over the window, subject to the IAU cap.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from twin_cosim.controller import TUNED_NAMES, TunedParameters
+from twin_cosim.scenario import Scenario, ScenarioError
+
+DEFAULT_BOUNDS: dict[str, tuple[float, float]] = {
+    "Kp_pos": (20.0, 150.0),
+    "Kp_vel": (0.05, 1.5),
+    "Ki_vel": (0.0, 0.03),
+    "PP2": (0.0, 5.0),
+    "PP3": (0.001, 0.1),
+    "f_H": (0.0, 0.5),
+}
+KEYS = {"bounds", "window", "iau_cap", "abort_error_um", "penalty_um", "methods"}
+
+
+@dataclass(frozen=True)
+class OptimizeConfig:
+    """Checked ``optimize`` section.
+
+    Attributes
+    ----------
+    lower, upper : numpy.ndarray
+        Physical bounds of [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] (units of the controller).
+    window : tuple
+        Objective window (t0, tF) in s; tF None: to the end.
+    iau_cap : float or None
+        Allowed IAU relative to the Fine-Tune set's IAU.
+    abort_error_um : float
+        Error (um) beyond which a run is stopped and scored as unstable.
+    penalty_um : float
+        Penalty (um) of a constraint violation; a failure scores twice this.
+    methods : dict
+        Per-method setting overrides.
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    window: tuple[float, float | None]
+    iau_cap: float | None = 1.05
+    abort_error_um: float = 1000.0
+    penalty_um: float = 1.0e6
+    methods: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def to_unit(self, x: np.ndarray) -> np.ndarray:
+        """Physical parameters -> normalised [0, 1] box."""
+        return (np.asarray(x, dtype=np.float64) - self.lower) / (self.upper - self.lower)
+
+    def from_unit(self, u: np.ndarray) -> np.ndarray:
+        """Normalised [0, 1] box -> physical parameters."""
+        return self.lower + np.clip(np.asarray(u, dtype=np.float64), 0.0, 1.0) * (
+            self.upper - self.lower
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready form (for the campaign's record)."""
+        return {
+            "bounds": {
+                n: [float(lo), float(hi)]
+                for n, lo, hi in zip(TUNED_NAMES, self.lower, self.upper, strict=True)
+            },
+            "window": list(self.window),
+            "iau_cap": self.iau_cap,
+            "abort_error_um": self.abort_error_um,
+            "penalty_um": self.penalty_um,
+            "methods": self.methods,
+        }
+
+
+def _number(source: str, key: str, value: Any, positive: bool = True) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ScenarioError(f"{source}: optimize.{key}: expected a finite number, got {value!r}")
+    if positive and value <= 0:
+        raise ScenarioError(f"{source}: optimize.{key}: expected a number > 0, got {value!r}")
+    return float(value)
+
+
+def load_config(scenario: Scenario) -> OptimizeConfig:
+    """Check the scenario's ``optimize`` section and fill in the defaults.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and key on unknown keys, bad bounds or values.
+    """
+    source = str(scenario.source)
+    data = scenario.optimize
+    unknown = sorted(set(data) - KEYS)
+    if unknown:
+        raise ScenarioError(
+            f"{source}: optimize: unknown key(s) {unknown}; allowed: {sorted(KEYS)}"
+        )
+    bounds = dict(DEFAULT_BOUNDS)
+    raw_bounds = data.get("bounds") or {}
+    if not isinstance(raw_bounds, dict):
+        raise ScenarioError(f"{source}: optimize.bounds: expected a mapping of {list(TUNED_NAMES)}")
+    for name, pair in raw_bounds.items():
+        if name not in bounds:
+            raise ScenarioError(
+                f"{source}: optimize.bounds: unknown parameter {name!r}; "
+                f"expected {list(TUNED_NAMES)}"
+            )
+        if not isinstance(pair, list) or len(pair) != 2:
+            raise ScenarioError(
+                f"{source}: optimize.bounds.{name}: expected [low, high], got {pair!r}"
+            )
+        low = _number(source, f"bounds.{name}[0]", pair[0], positive=False)
+        high = _number(source, f"bounds.{name}[1]", pair[1], positive=False)
+        if not low < high:
+            raise ScenarioError(
+                f"{source}: optimize.bounds.{name}: expected low < high, got {pair}"
+            )
+        bounds[name] = (low, high)
+    lower = np.array([bounds[n][0] for n in TUNED_NAMES])
+    upper = np.array([bounds[n][1] for n in TUNED_NAMES])
+    for name, low in zip(TUNED_NAMES, lower, strict=True):
+        positive_only = name in ("Kp_pos", "Kp_vel", "PP3")
+        if low < 0 or (positive_only and low <= 0):
+            raise ScenarioError(
+                f"{source}: optimize.bounds.{name}: lower bound {low} allows invalid values "
+                f"(must be {'> 0' if positive_only else '>= 0'})"
+            )
+    window = data.get("window")
+    if window is None:
+        window = scenario.metrics_window
+    else:
+        if not isinstance(window, list) or len(window) != 2:
+            raise ScenarioError(
+                f"{source}: optimize.window: expected [t0, tF] in s, got {window!r}"
+            )
+        window = (
+            _number(source, "window[0]", window[0], positive=False),
+            None if window[1] is None else _number(source, "window[1]", window[1]),
+        )
+    iau_cap = data.get("iau_cap", 1.05)
+    iau_cap = None if iau_cap is None else _number(source, "iau_cap", iau_cap)
+    methods = data.get("methods") or {}
+    if not isinstance(methods, dict) or not all(isinstance(v, dict) for v in methods.values()):
+        raise ScenarioError(f"{source}: optimize.methods: expected a mapping method -> settings")
+    return OptimizeConfig(
+        lower=lower,
+        upper=upper,
+        window=window,
+        iau_cap=iau_cap,
+        abort_error_um=_number(source, "abort_error_um", data.get("abort_error_um", 1000.0)),
+        penalty_um=_number(source, "penalty_um", data.get("penalty_um", 1.0e6)),
+        methods=methods,
+    )
+
+
+def within_bounds(config: OptimizeConfig, tuned: TunedParameters) -> bool:
+    """Whether a parameter set lies inside the bounds."""
+    x = tuned.as_array()
+    return bool(np.all((x >= config.lower) & (x <= config.upper)))
