@@ -19,9 +19,9 @@ import numpy as np
 
 from twin_cosim.optimize.campaign import CampaignSpec, run_campaign
 from twin_cosim.optimize.config import load_config
-from twin_cosim.optimize.evaluators import PoolEvaluator, SerialEvaluator
 from twin_cosim.optimize.objective import ObjectiveSpec
 from twin_cosim.scenario import load_scenario
+from twin_cosim.workers import ProcessPool, SerialPool
 
 SCENARIO = str(Path(__file__).resolve().parents[1] / "scenarios" / "reference1.yaml")
 
@@ -43,12 +43,12 @@ def main() -> None:
     config = load_config(load_scenario(SCENARIO))
     candidates = config.from_unit(np.random.default_rng(0).uniform(0.2, 0.8, (args.evaluations, 6)))
     spec = ObjectiveSpec(SCENARIO, None, None)
-    serial = SerialEvaluator(spec)
+    serial = SerialPool(spec)
     timed_batch(serial, candidates[:2])  # compiled loop loaded
     t_serial = timed_batch(serial, candidates)
     serial.close()
     start = time.perf_counter()
-    pool = PoolEvaluator(spec, workers)
+    pool = ProcessPool(spec, workers)
     timed_batch(pool, candidates[: 2 * workers])  # workers started and warm
     startup = time.perf_counter() - start
     t_pool = timed_batch(pool, candidates)

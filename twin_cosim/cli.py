@@ -214,6 +214,64 @@ def _compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _synth(args: argparse.Namespace) -> int:
+    from twin_cosim.gap.synth import parse_effect, synthesize
+
+    scenario = load_scenario(args.scenario)
+    effects = [parse_effect(text) for text in args.effect]
+    synthesis = synthesize(
+        scenario,
+        effects,
+        args.perturb,
+        args.seed,
+        Path(args.plant) if args.plant else None,
+        args.noise_position,
+        args.noise_current,
+    )
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    synthesis.run.to_csv(out, index=False)
+    truth = out.with_name(out.name + ".truth.json")
+    write_json(truth, synthesis.truth)
+    print(f"wrote {out} ({len(synthesis.run)} samples) and the known answer in {truth}")
+    return 0
+
+
+def _diagnose(args: argparse.Namespace) -> int:
+    from twin_cosim.gap.diagnosis import DiagnosisSettings, diagnose
+    from twin_cosim.gap.loaders import read_measured
+    from twin_cosim.gap.report import write_report
+
+    scenario = load_scenario(args.scenario)
+    measured = [read_measured(path, scenario) for path in args.measured]
+    holdout = [read_measured(path, scenario) for path in args.holdout or []]
+    settings = DiagnosisSettings(split=args.split)
+    start = time.perf_counter()
+    result = diagnose(scenario, measured, holdout, args.plant, settings, workers=args.workers)
+    result.summary["wall_s"] = time.perf_counter() - start
+    result.summary["versions"] = versions()
+    out = Path(args.out) if args.out else Path("out") / f"diagnosis-{scenario.name}"
+    with Plant(Path(args.plant) if args.plant else scenario.fmu) as plant:
+        gear_ratio = plant.start_values().get("gear_ratio", 1.5)
+    files = write_report(result, out, gear_ratio)
+    if args.json:
+        print(json.dumps(result.summary))
+    else:
+        print(result.summary["gap"]["verdict"])
+        for step in result.summary["steps"]:
+            print(
+                f"  {step['effect']}: held-out position gap {step['holdout_gap_before_um']:.3f} -> "
+                f"{step['holdout_gap_after_um']:.3f} um, current "
+                f"{step['holdout_current_before_A']:.4f} -> "
+                f"{step['holdout_current_after_A']:.4f} A; fitted {step['params']}"
+            )
+        print(
+            f"wrote {files['markdown']}, {files['html']}, {files['json']} "
+            f"({result.summary['wall_s']:.1f} s)"
+        )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``twin``."""
     parser = argparse.ArgumentParser(prog="twin", description="Digital twin of a CNC feed axis")
@@ -270,6 +328,48 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", help="output folder (default: out/<campaign name>)")
     compare.add_argument("--quiet", action="store_true", help="no progress bars")
     compare.set_defaults(handler=_compare)
+
+    synth = commands.add_parser(
+        "synth", help="the virtual machine: a measured run with known effects"
+    )
+    synth.add_argument("scenario", help="scenario YAML file")
+    synth.add_argument(
+        "--effect",
+        action="append",
+        default=[],
+        metavar="NAME:param=value,...",
+        help="effect to switch on (repeatable); NAME from the library or 'plant'",
+    )
+    synth.add_argument(
+        "--perturb", type=float, default=0.0, help="calibration error, relative (e.g. 0.03)"
+    )
+    synth.add_argument("--seed", type=int, default=0)
+    synth.add_argument(
+        "--noise-position", type=float, default=20e-9, help="white noise on x, m (20e-9)"
+    )
+    synth.add_argument(
+        "--noise-current", type=float, default=5e-3, help="white noise on the current, A"
+    )
+    synth.add_argument("--plant", help="another FMU offering the plant contract")
+    synth.add_argument("--out", required=True, help="measured-run CSV to write")
+    synth.set_defaults(handler=_synth)
+
+    diag = commands.add_parser("diagnose", help="where the twin is wrong, why, and by how much")
+    diag.add_argument("scenario", help="scenario YAML file the measured runs followed")
+    diag.add_argument(
+        "--measured", action="append", required=True, help="measured run (CSV or EMPS .mat)"
+    )
+    diag.add_argument("--holdout", action="append", help="held-out run(s); default: a time split")
+    diag.add_argument(
+        "--split", type=float, default=0.5, help="training fraction of the time split (0.5)"
+    )
+    diag.add_argument("--plant", help="another FMU offering the plant contract")
+    diag.add_argument(
+        "--workers", type=int, help="local processes for the fits (default: all cores)"
+    )
+    diag.add_argument("--out", help="report folder (default: out/diagnosis-<scenario name>)")
+    diag.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    diag.set_defaults(handler=_diagnose)
 
     table3 = commands.add_parser(
         "table3", help="run the paper's Table 3 parameter sets on scenarios"

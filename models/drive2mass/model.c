@@ -1,23 +1,34 @@
 /* drive2mass: two-mass feed axis with leadscrew backlash, friction and measurement noise.
  *
- *   J_M dw_M/dt = K_t i - M_S
+ *   J_M dw_M/dt = M_M - M_S,   M_M = K_t i_a (+ torque ripple)
  *   J_L dw_L/dt = M_S - M_F - M_D
  *   M_S = K dz(q_M - q_L) + B d(q_M - q_L)/dt   in contact, 0 inside the gap
  *
  * dz is the dead zone of half-width b; in contact the coupling can only push (M_S keeps the sign
  * of the penetration). M_F is Coulomb + viscous friction with a hysteretic sign and a stuck mode
- * that holds the load while the torque on it stays within the Coulomb level. Fixed-step RK4 with
+ * that holds the load while the torque on it stays within the static level. Fixed-step RK4 with
  * `substeps` substeps per communication step; the friction mode is updated between substeps.
- * See README.md in this folder for the conversions from Table 1 of the paper.
+ *
+ * Effect blocks, all off by default: Stribeck, asymmetric and position-dependent friction levels,
+ * LuGre friction (state z), lead error, thermal drift, scale quantisation, torque ripple, current
+ * lag (state i_a) and dead time of the current command. Each is skipped while its parameter is
+ * zero, so that the default model computes exactly what it computes without them.
+ * See README.md in this folder for the equations and the conversions from Table 1 of the paper.
  */
 #include <math.h>
+#include <string.h>
 
 #include "slave.h"
 
 #define PI 3.14159265358979323846
 #define RK4_STABILITY_MARGIN 2.0 /* omega * h below this keeps RK4 well inside its limit 2.8 */
 
-enum { MOTOR_ANGLE, MOTOR_SPEED, LOAD_ANGLE, LOAD_SPEED, STATE_COUNT };
+enum {
+    MOTOR_ANGLE, MOTOR_SPEED, LOAD_ANGLE, LOAD_SPEED,  /* always integrated */
+    CURRENT_APPLIED, BRISTLE,                          /* only with current lag or LuGre friction */
+    STATE_COUNT
+};
+enum { MECHANICAL_STATE_COUNT = CURRENT_APPLIED };
 
 static double sign_of(double x) { return (x > 0.0) - (x < 0.0); }
 
@@ -36,37 +47,104 @@ static double shaft_torque(const ModelState *s, double twist, double twist_rate)
     return 0.0;
 }
 
-static double sliding_friction(const ModelVariables *v, const ModelState *s, double load_speed) {
-    return v->coulomb_friction * s->direction + v->viscous_friction * load_speed;
+/* Motor torque (N.m) for an applied current (A) at a motor angle (rad): K_t i_a plus ripple. */
+static double motor_torque(const ModelVariables *v, double current, double motor_angle) {
+    double torque = v->torque_constant * current;
+    if (v->ripple_amplitude == 0.0) return torque;
+    return torque + v->ripple_amplitude * sin(v->ripple_order * motor_angle + v->ripple_phase);
+}
+
+/* Factor (1) on the friction levels at a load angle (rad): 1 + a cos(k theta_screw + phi). */
+static double friction_position_factor(const ModelVariables *v, double load_angle) {
+    if (v->position_friction_amplitude == 0.0) return 1.0;
+    return 1.0 + v->position_friction_amplitude *
+                     cos(v->position_friction_order * load_angle / v->gear_ratio +
+                         v->position_friction_phase);
+}
+
+/* Breakaway level (N.m) for a driving torque of sign `direction` at a load angle (rad). */
+static double static_friction(const ModelVariables *v, double direction, double load_angle) {
+    return (v->coulomb_friction + v->coulomb_asymmetry * direction + v->stribeck_friction) *
+           friction_position_factor(v, load_angle);
+}
+
+/* Sliding friction level g (N.m) for motion of sign `direction` at a load speed (rad/s) and
+ * angle (rad): (F_C + a direction + F_x exp(-(w_L/v_s)^2)) times the position factor. */
+static double friction_level(const ModelVariables *v, double direction, double load_speed,
+                             double load_angle) {
+    double level = v->coulomb_friction + v->coulomb_asymmetry * direction;
+    if (v->stribeck_friction != 0.0) {
+        double ratio = load_speed / v->stribeck_speed;   /* 1 */
+        level += v->stribeck_friction * exp(-ratio * ratio);
+    }
+    return level * friction_position_factor(v, load_angle);
+}
+
+/* Friction torque (N.m) while sliding at a load speed (rad/s) and angle (rad). */
+static double sliding_friction(const ModelVariables *v, const ModelState *s, double load_speed,
+                               double load_angle) {
+    return friction_level(v, s->direction, load_speed, load_angle) * s->direction +
+           v->viscous_friction * load_speed;
+}
+
+/* LuGre bristle rate dz/dt (rad/s) = w_L - sigma_0 |w_L| z / g(w_L), for a load speed (rad/s),
+ * load angle (rad) and bristle deflection z (rad). */
+static double bristle_rate(const ModelVariables *v, double load_speed, double load_angle,
+                           double bristle) {
+    double level = friction_level(v, sign_of(load_speed), load_speed, load_angle);
+    return load_speed - v->lugre_stiffness * fabs(load_speed) * bristle / level;
+}
+
+/* LuGre friction torque (N.m) = sigma_0 z + sigma_1 dz/dt + F_V w_L. */
+static double lugre_friction(const ModelVariables *v, double load_speed, double bristle,
+                             double rate) {
+    return v->lugre_stiffness * bristle + v->lugre_damping * rate +
+           v->viscous_friction * load_speed;
+}
+
+/* Derivatives of the load angle, load speed and bristle deflection for a coupling torque (N.m). */
+static void load_derivatives(const ModelVariables *v, const ModelState *s, const double x[],
+                             double coupling, double dx[]) {
+    dx[BRISTLE] = 0.0;
+    if (v->lugre_stiffness > 0.0) {
+        dx[BRISTLE] = bristle_rate(v, x[LOAD_SPEED], x[LOAD_ANGLE], x[BRISTLE]);
+        dx[LOAD_ANGLE] = x[LOAD_SPEED];
+        dx[LOAD_SPEED] = (coupling - lugre_friction(v, x[LOAD_SPEED], x[BRISTLE], dx[BRISTLE]) -
+                          v->disturbance_torque) / v->load_inertia;
+    } else if (s->stuck) {
+        dx[LOAD_ANGLE] = 0.0;
+        dx[LOAD_SPEED] = 0.0;
+    } else {
+        dx[LOAD_ANGLE] = x[LOAD_SPEED];
+        dx[LOAD_SPEED] = (coupling - sliding_friction(v, s, x[LOAD_SPEED], x[LOAD_ANGLE]) -
+                          v->disturbance_torque) / v->load_inertia;
+    }
 }
 
 static void derivatives(const ModelVariables *v, const ModelState *s, const double x[],
                         double dx[]) {
     double coupling = shaft_torque(s, x[MOTOR_ANGLE] - x[LOAD_ANGLE],
                                    x[MOTOR_SPEED] - x[LOAD_SPEED]);
+    double lag = v->current_time_constant;   /* s */
+    double current = lag > 0.0 ? x[CURRENT_APPLIED] : s->command;   /* A */
     dx[MOTOR_ANGLE] = x[MOTOR_SPEED];
-    dx[MOTOR_SPEED] = (v->torque_constant * v->current_cmd - coupling) / v->motor_inertia;
-    if (s->stuck) {
-        dx[LOAD_ANGLE] = 0.0;
-        dx[LOAD_SPEED] = 0.0;
-    } else {
-        dx[LOAD_ANGLE] = x[LOAD_SPEED];
-        dx[LOAD_SPEED] = (coupling - sliding_friction(v, s, x[LOAD_SPEED]) -
-                          v->disturbance_torque) / v->load_inertia;
-    }
+    dx[MOTOR_SPEED] = (motor_torque(v, current, x[MOTOR_ANGLE]) - coupling) / v->motor_inertia;
+    dx[CURRENT_APPLIED] = lag > 0.0 ? (s->command - x[CURRENT_APPLIED]) / lag : 0.0;
+    load_derivatives(v, s, x, coupling, dx);
 }
 
-static void rk4_step(const ModelVariables *v, const ModelState *s, double x[], double h) {
+/* One RK4 step of length h (s) over the first n states. */
+static void rk4_step(const ModelVariables *v, const ModelState *s, double x[], double h, int n) {
     double k1[STATE_COUNT], k2[STATE_COUNT], k3[STATE_COUNT], k4[STATE_COUNT], y[STATE_COUNT];
     int i;
     derivatives(v, s, x, k1);
-    for (i = 0; i < STATE_COUNT; i++) y[i] = x[i] + 0.5 * h * k1[i];
+    for (i = 0; i < n; i++) y[i] = x[i] + 0.5 * h * k1[i];
     derivatives(v, s, y, k2);
-    for (i = 0; i < STATE_COUNT; i++) y[i] = x[i] + 0.5 * h * k2[i];
+    for (i = 0; i < n; i++) y[i] = x[i] + 0.5 * h * k2[i];
     derivatives(v, s, y, k3);
-    for (i = 0; i < STATE_COUNT; i++) y[i] = x[i] + h * k3[i];
+    for (i = 0; i < n; i++) y[i] = x[i] + h * k3[i];
     derivatives(v, s, y, k4);
-    for (i = 0; i < STATE_COUNT; i++) x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    for (i = 0; i < n; i++) x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
 }
 
 /* Torque (N.m) that drives the load apart from friction. */
@@ -80,20 +158,153 @@ static void update_friction_mode(const ModelVariables *v, ModelState *s, double 
                                  double previous_load_speed) {
     double drive = driving_torque(v, s, x);
     if (s->stuck) {
-        if (fabs(drive) > v->coulomb_friction) {
+        if (drive > static_friction(v, 1.0, x[LOAD_ANGLE]) ||
+            -drive > static_friction(v, -1.0, x[LOAD_ANGLE])) {
             s->stuck = 0;
             s->direction = (int)sign_of(drive);
         }
         return;
     }
-    if (v->coulomb_friction > 0.0 && previous_load_speed * x[LOAD_SPEED] <= 0.0 &&
-        fabs(drive) <= v->coulomb_friction) {
+    if (v->coulomb_friction + v->stribeck_friction > 0.0 &&
+        previous_load_speed * x[LOAD_SPEED] <= 0.0 &&
+        drive <= static_friction(v, 1.0, x[LOAD_ANGLE]) &&
+        -drive <= static_friction(v, -1.0, x[LOAD_ANGLE])) {
         s->stuck = 1;
         x[LOAD_SPEED] = 0.0;
         return;
     }
     if (x[LOAD_SPEED] > 0.5 * v->friction_hysteresis) s->direction = 1;
     if (x[LOAD_SPEED] < -0.5 * v->friction_hysteresis) s->direction = -1;
+}
+
+/* Friction torque (N.m) on the load in the current state. */
+static double friction_torque(const ModelVariables *v, const ModelState *s, const double x[]) {
+    if (v->lugre_stiffness > 0.0) {
+        return lugre_friction(v, x[LOAD_SPEED], x[BRISTLE],
+                              bristle_rate(v, x[LOAD_SPEED], x[LOAD_ANGLE], x[BRISTLE]));
+    }
+    if (s->stuck) return driving_torque(v, s, x);
+    return sliding_friction(v, s, x[LOAD_SPEED], x[LOAD_ANGLE]);
+}
+
+/* Queues current_cmd behind the dead time; returns the command (A) the drive acts on in this
+ * step: current_cmd of dead_time_steps doSteps ago (0 A before), current_cmd itself without. */
+static double release_command(const ModelVariables *v, ModelState *s) {
+    double released;
+    if (v->dead_time_steps == 0) return v->current_cmd;
+    released = s->command_history[s->command_index];
+    s->command_history[s->command_index] = v->current_cmd;
+    s->command_index = (s->command_index + 1) % v->dead_time_steps;
+    return released;
+}
+
+/* Current (A) that produces the motor torque: the current-loop state with a lag, else the
+ * command of the last step after the dead time (current_cmd itself without dead time). */
+static double applied_current(const ModelVariables *v, const ModelState *s) {
+    if (v->current_time_constant > 0.0) return s->current_applied;
+    return v->dead_time_steps > 0 ? s->command : v->current_cmd;
+}
+
+/* Lead-error harmonics (m) at a screw angle (rad): sum_k e_k sin(k theta_screw + phi_k). */
+static double pitch_harmonics(const ModelState *s, double screw_angle) {
+    double error = 0.0;
+    int k;
+    for (k = 0; k < PITCH_HARMONICS; k++) {
+        if (s->pitch_amplitude[k] == 0.0) continue;
+        error += s->pitch_amplitude[k] * sin((k + 1) * screw_angle + s->pitch_phase[k]);
+    }
+    return error;
+}
+
+/* Slope (m/rad) of pitch_harmonics with respect to the screw angle (rad). */
+static double pitch_harmonics_slope(const ModelState *s, double screw_angle) {
+    double slope = 0.0;
+    int k;
+    for (k = 0; k < PITCH_HARMONICS; k++) {
+        if (s->pitch_amplitude[k] == 0.0) continue;
+        slope += (k + 1) * s->pitch_amplitude[k] * cos((k + 1) * screw_angle + s->pitch_phase[k]);
+    }
+    return slope;
+}
+
+/* Relative error (1) of the travel per radian at time t (s): (1 + c)(1 + rate t) - 1. */
+static double scale_error(const ModelVariables *v, double t) {
+    return v->pitch_error_linear + v->thermal_expansion_rate * t * (1.0 + v->pitch_error_linear);
+}
+
+/* Carriage position error (m) at time t (s) from the lead error and thermal drift; zero at the
+ * start: travel (q_L - q_L0) scale_error(t) + E(theta_screw) - E(theta_screw0). */
+static double transmission_error(const ModelVariables *v, const ModelState *s, double t) {
+    return s->travel_per_rad * (s->load_angle - s->start_load_angle) * scale_error(v, t) +
+           pitch_harmonics(s, s->load_angle / v->gear_ratio) - s->pitch_error_start;
+}
+
+/* Time derivative (m/s) of transmission_error at time t (s). */
+static double transmission_error_rate(const ModelVariables *v, const ModelState *s, double t) {
+    double scale_rate = v->thermal_expansion_rate * (1.0 + v->pitch_error_linear);   /* 1/s */
+    return s->travel_per_rad * (s->load_speed * scale_error(v, t) +
+                                (s->load_angle - s->start_load_angle) * scale_rate) +
+           pitch_harmonics_slope(s, s->load_angle / v->gear_ratio) * s->load_speed / v->gear_ratio;
+}
+
+/* The linear scale's reading (m) of a position (m): quantised to position_resolution when set. */
+static double scale_reading(const ModelVariables *v, double position) {
+    if (v->position_resolution == 0.0) return position;
+    return v->position_resolution * round(position / v->position_resolution);
+}
+
+/* Checks the effect parameters against each other and against the dead-time buffer. */
+static fmi2Status check_effect_parameters(ModelInstance *inst) {
+    const ModelVariables *v = &inst->v;
+    double lowest_coulomb = v->coulomb_friction - fabs(v->coulomb_asymmetry);   /* N.m */
+    if (lowest_coulomb < 0.0) {
+        slave_log_error(inst, "drive2mass: coulomb_asymmetry = %g is invalid (expected "
+                        "|coulomb_asymmetry| <= coulomb_friction = %g)", v->coulomb_asymmetry,
+                        v->coulomb_friction);
+        return fmi2Error;
+    }
+    if (v->lugre_stiffness > 0.0 && !(lowest_coulomb > 0.0)) {
+        slave_log_error(inst, "drive2mass: lugre_stiffness = %g needs a positive Coulomb level in "
+                        "both directions (coulomb_friction - |coulomb_asymmetry| = %g)",
+                        v->lugre_stiffness, lowest_coulomb);
+        return fmi2Error;
+    }
+    if (v->dead_time_steps > DEAD_TIME_MAX_STEPS) {
+        slave_log_error(inst, "drive2mass: dead_time_steps = %d exceeds the buffer of %d steps",
+                        v->dead_time_steps, DEAD_TIME_MAX_STEPS);
+        return fmi2Error;
+    }
+    return fmi2OK;
+}
+
+/* Step-size limits of the effect-extended model: fastest natural frequency and decay rate. */
+static void derive_step_limits(const ModelVariables *v, ModelState *s, double omega_02) {
+    s->max_frequency = sqrt(omega_02 * omega_02 + v->lugre_stiffness / v->load_inertia);
+    s->max_decay_rate = s->damping * (1.0 / v->motor_inertia + 1.0 / v->load_inertia) +
+                        v->lugre_damping / v->load_inertia;
+    if (v->current_time_constant > 0.0 && 1.0 / v->current_time_constant > s->max_decay_rate) {
+        s->max_decay_rate = 1.0 / v->current_time_constant;
+    }
+    s->lugre_level_min = (v->coulomb_friction - fabs(v->coulomb_asymmetry)) *
+                         (1.0 - v->position_friction_amplitude);
+}
+
+/* Lead-error harmonics and the flag that switches the transmission error on. */
+static void derive_transmission(const ModelVariables *v, ModelState *s) {
+    const double amplitude[PITCH_HARMONICS] = {v->pitch_error_amplitude_1,
+                                               v->pitch_error_amplitude_2,
+                                               v->pitch_error_amplitude_3};
+    const double phase[PITCH_HARMONICS] = {v->pitch_error_phase_1, v->pitch_error_phase_2,
+                                           v->pitch_error_phase_3};
+    int k;
+    s->transmission_error = v->pitch_error_linear != 0.0 || v->thermal_expansion_rate != 0.0;
+    for (k = 0; k < PITCH_HARMONICS; k++) {
+        s->pitch_amplitude[k] = amplitude[k];
+        s->pitch_phase[k] = phase[k];
+        if (amplitude[k] != 0.0) s->transmission_error = 1;
+    }
+    s->start_load_angle = s->load_angle;
+    s->pitch_error_start = pitch_harmonics(s, s->load_angle / v->gear_ratio);
 }
 
 fmi2Status model_initialize(ModelInstance *inst) {
@@ -108,12 +319,13 @@ fmi2Status model_initialize(ModelInstance *inst) {
                                            v->noise_phase_4};
     int k;
 
+    if (check_effect_parameters(inst) != fmi2OK) return fmi2Error;
     s->stiffness = v->load_inertia * omega_01 * omega_01;
     s->damping = 2.0 * v->damping_ratio * omega_01 * v->load_inertia;
     s->travel_per_rad = v->spindle_constant / v->gear_ratio;
     s->half_gap = 0.5 * v->backlash / s->travel_per_rad;
     /* omega_02 = omega_01 sqrt(1 + J_L/J_M), eq. (1); the damped pair's modulus is the same. */
-    s->max_frequency = omega_01 * sqrt(1.0 + v->load_inertia / v->motor_inertia);
+    derive_step_limits(v, s, omega_01 * sqrt(1.0 + v->load_inertia / v->motor_inertia));
     for (k = 0; k < NOISE_HARMONICS; k++) {
         s->noise_amplitude[k] = amplitude[k];
         s->noise_omega[k] = 2.0 * PI * frequency[k];
@@ -123,35 +335,58 @@ fmi2Status model_initialize(ModelInstance *inst) {
     s->motor_angle = s->load_angle;
     s->motor_speed = 0.0;
     s->load_speed = 0.0;
-    s->stuck = v->coulomb_friction > 0.0;
+    s->current_applied = 0.0;
+    s->bristle = 0.0;
+    s->stuck = v->coulomb_friction + v->stribeck_friction > 0.0 && v->lugre_stiffness == 0.0;
     s->direction = 0;
-    if (!isfinite(s->load_angle) || !isfinite(s->half_gap) || !isfinite(s->stiffness)) {
+    s->command = 0.0;
+    memset(s->command_history, 0, sizeof(s->command_history));
+    s->command_index = 0;
+    derive_transmission(v, s);
+    s->state_count = v->current_time_constant > 0.0 || v->lugre_stiffness > 0.0
+                         ? STATE_COUNT : MECHANICAL_STATE_COUNT;
+    if (!isfinite(s->load_angle) || !isfinite(s->half_gap) || !isfinite(s->stiffness) ||
+        !isfinite(s->pitch_error_start)) {
         slave_log_error(inst, "drive2mass: parameters give a non-finite initial state");
         return fmi2Error;
     }
     return fmi2OK;
 }
 
+/* Fastest relaxation rate (1/s) of the LuGre bristles at the present load speed. */
+static double bristle_relaxation_rate(const ModelVariables *v, const ModelState *s) {
+    return v->lugre_stiffness * fabs(s->load_speed) / s->lugre_level_min;
+}
+
 fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
     const ModelVariables *v = &inst->v;
     ModelState *s = &inst->s;
-    double x[STATE_COUNT] = {s->motor_angle, s->motor_speed, s->load_angle, s->load_speed};
+    double x[STATE_COUNT] = {s->motor_angle, s->motor_speed, s->load_angle, s->load_speed,
+                             s->current_applied, s->bristle};
     double substep = h / v->substeps;
-    double damping_rate = s->damping * (1.0 / v->motor_inertia + 1.0 / v->load_inertia);
     int k;
-    (void)t;
     if (s->max_frequency * substep > RK4_STABILITY_MARGIN ||
-        damping_rate * substep > RK4_STABILITY_MARGIN) {
-        slave_log_error(inst, "drive2mass: substep %g s is too long for the %g rad/s mode "
-                        "(increase substeps)", substep, s->max_frequency);
+        s->max_decay_rate * substep > RK4_STABILITY_MARGIN) {
+        slave_log_error(inst, "drive2mass: substep %g s is too long for the %g rad/s mode or the "
+                        "%g 1/s decay (increase substeps)", substep, s->max_frequency,
+                        s->max_decay_rate);
         return fmi2Error;
     }
+    if (v->lugre_stiffness > 0.0 &&
+        bristle_relaxation_rate(v, s) * substep > RK4_STABILITY_MARGIN) {
+        slave_log_error(inst, "drive2mass: substep %g s is too long for the LuGre bristles at "
+                        "%g rad/s (rate %g 1/s; increase substeps)", substep, s->load_speed,
+                        bristle_relaxation_rate(v, s));
+        return fmi2Error;
+    }
+    s->command = release_command(v, s);
     for (k = 0; k < v->substeps; k++) {
         double previous_load_speed = x[LOAD_SPEED];
-        rk4_step(v, s, x, substep);
-        update_friction_mode(v, s, x, previous_load_speed);
+        rk4_step(v, s, x, substep, s->state_count);
+        if (v->lugre_stiffness == 0.0) update_friction_mode(v, s, x, previous_load_speed);
     }
-    if (!isfinite(x[MOTOR_ANGLE] + x[MOTOR_SPEED] + x[LOAD_ANGLE] + x[LOAD_SPEED])) {
+    if (!isfinite(x[MOTOR_ANGLE] + x[MOTOR_SPEED] + x[LOAD_ANGLE] + x[LOAD_SPEED] +
+                  x[CURRENT_APPLIED] + x[BRISTLE])) {
         slave_log_error(inst, "drive2mass: state became non-finite at t = %g s", t + h);
         return fmi2Error;
     }
@@ -159,13 +394,17 @@ fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
     s->motor_speed = x[MOTOR_SPEED];
     s->load_angle = x[LOAD_ANGLE];
     s->load_speed = x[LOAD_SPEED];
+    s->current_applied = x[CURRENT_APPLIED];
+    s->bristle = x[BRISTLE];
     return fmi2OK;
 }
 
 void model_update_outputs(ModelInstance *inst, double t) {
     ModelVariables *v = &inst->v;
     const ModelState *s = &inst->s;
-    const double x[STATE_COUNT] = {s->motor_angle, s->motor_speed, s->load_angle, s->load_speed};
+    const double x[STATE_COUNT] = {s->motor_angle, s->motor_speed, s->load_angle, s->load_speed,
+                                   s->current_applied, s->bristle};
+    double current = applied_current(v, s);   /* A */
     double noise = 0.0;
     int k;
     for (k = 0; k < NOISE_HARMONICS; k++) {
@@ -174,10 +413,16 @@ void model_update_outputs(ModelInstance *inst, double t) {
     v->motor_angle = s->motor_angle;
     v->motor_speed = s->motor_speed;
     v->load_position_true = s->load_angle * s->travel_per_rad;
-    v->load_position = v->load_position_true + noise;
     v->load_speed = s->load_speed * s->travel_per_rad;
+    if (s->transmission_error) {
+        v->load_position_true += transmission_error(v, s, t);
+        v->load_speed += transmission_error_rate(v, s, t);
+    }
+    v->load_position = scale_reading(v, v->load_position_true + noise);
     v->shaft_torque = shaft_torque(s, x[MOTOR_ANGLE] - x[LOAD_ANGLE],
                                    x[MOTOR_SPEED] - x[LOAD_SPEED]);
-    v->motor_torque = v->torque_constant * v->current_cmd;
-    v->friction_torque = s->stuck ? driving_torque(v, s, x) : sliding_friction(v, s, s->load_speed);
+    v->motor_torque = motor_torque(v, current, s->motor_angle);
+    v->friction_torque = friction_torque(v, s, x);
+    v->load_angle = s->load_angle;
+    v->current_applied = current;
 }

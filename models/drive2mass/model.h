@@ -5,6 +5,8 @@
 #include "model_variables.h"
 
 #define NOISE_HARMONICS 4
+#define PITCH_HARMONICS 3
+#define DEAD_TIME_MAX_STEPS 64  /* the max of dead_time_steps in variables.yaml */
 
 typedef struct {
     /* states, referred to the motor shaft */
@@ -12,8 +14,13 @@ typedef struct {
     double motor_speed;         /* rad/s */
     double load_angle;          /* rad */
     double load_speed;          /* rad/s */
+    double current_applied;     /* A, current-loop output, a state while current_time_constant > 0 */
+    double bristle;             /* rad, LuGre bristle deflection z, a state while lugre_stiffness > 0 */
     int stuck;                  /* 1 while static friction holds the load at rest */
     int direction;              /* hysteretic sign of the load speed seen by Coulomb friction */
+    double command;             /* A, current command the drive acts on in this step (after the dead time) */
+    double command_history[DEAD_TIME_MAX_STEPS];  /* A, commands waiting out the dead time */
+    int command_index;          /* slot of the oldest command in command_history */
 
     /* constants derived from the parameters by model_initialize */
     double stiffness;           /* N.m/rad, K = J_L omega_01^2 */
@@ -21,9 +28,17 @@ typedef struct {
     double half_gap;            /* rad, half the backlash referred to the motor */
     double travel_per_rad;      /* m/rad, carriage travel per motor radian */
     double max_frequency;       /* rad/s, fastest natural frequency, for the step-size check */
+    double max_decay_rate;      /* 1/s, fastest real decay rate, for the step-size check */
+    double lugre_level_min;     /* N.m, lowest LuGre friction level g, for the bristle-rate check */
+    double start_load_angle;    /* rad, load angle at the start, where the transmission error is 0 */
+    double pitch_error_start;   /* m, lead-error harmonics at the start screw angle */
+    int state_count;            /* RK4 states in use: 4, or 6 with current lag or LuGre friction */
+    int transmission_error;     /* 1 when a lead error or thermal drift is set */
     double noise_amplitude[NOISE_HARMONICS];    /* m */
     double noise_omega[NOISE_HARMONICS];        /* rad/s */
     double noise_phase[NOISE_HARMONICS];        /* rad */
+    double pitch_amplitude[PITCH_HARMONICS];    /* m */
+    double pitch_phase[PITCH_HARMONICS];        /* rad */
 } ModelState;
 
 #endif

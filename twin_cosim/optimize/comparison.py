@@ -124,7 +124,7 @@ def run_comparison(
     ]
     params.index.name = "method"
     reference = table.loc["optimized"].copy()
-    reference["wall [s]"] = [float("nan")] + [results[m]["wall_s"] for m in methods]
+    reference["wall [s]"] = ["-"] + [f"{results[m]['wall_s']:.1f}" for m in methods]
     reference["evaluations"] = ["-"] + [str(results[m]["evaluations"]) for m in methods]
     reference.index.name = "method"
     text = (

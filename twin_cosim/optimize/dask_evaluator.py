@@ -26,7 +26,7 @@ class ObjectivePlugin(WorkerPlugin):
         self.objective: Objective | None = None
 
     def setup(self, worker) -> None:
-        self.objective = Objective(self.spec)
+        self.objective = self.spec.build()
 
     def teardown(self, worker) -> None:
         if self.objective is not None:

@@ -42,6 +42,10 @@ class ObjectiveSpec:
     fmu: str | None
     iau_limit: float | None
 
+    def build(self) -> Objective:
+        """The objective (a worker of :mod:`twin_cosim.workers`)."""
+        return Objective(self)
+
 
 class Objective:
     """Scores candidates on one plant instance (extracted and instantiated once, reset per run)."""

@@ -1,0 +1,279 @@
+"""The library of unmodelled effects the diagnosis can fit, each a block of the plant FMU.
+
+Every hypothesis has 1 to 4 parameters in physical units and maps them to FMU parameters on
+top of the twin's nominal values (documented per effect in ``docs/gap.md`` and in
+``models/drive2mass/README.md``). Periodic effects take their order from the data (the dominant
+peak of the residual's order spectrum, see :mod:`twin_cosim.gap.diagnosis`); their amplitude and
+phase are fitted as a cosine and a sine coefficient so that the fit has no phase wrapping.
+
+Fitting kinds: ``continuous`` (scipy least_squares), ``scan`` (a few discrete values, each
+replayed): dead time in controller samples, encoder resolution estimated from the data.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+Overrides = dict[str, float]
+Context = Mapping[str, float]
+
+
+@dataclass(frozen=True)
+class HypothesisParameter:
+    """One fitted parameter: name, unit, start value and bounds (physical units)."""
+
+    name: str
+    unit: str
+    initial: float
+    lower: float
+    upper: float
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """A candidate unmodelled effect.
+
+    Attributes
+    ----------
+    name : str
+        Name shared with the FMU block (see ``twin synth --effect``).
+    parameters : tuple of HypothesisParameter
+        The fitted parameters.
+    to_plant : callable
+        (values, nominal plant parameters, context) -> FMU parameter overrides.
+    kind : str
+        ``continuous`` or ``scan``.
+    signature : str
+        Where the effect shows (regime, signal, domain).
+    """
+
+    name: str
+    parameters: tuple[HypothesisParameter, ...]
+    to_plant: Callable[[np.ndarray, Mapping[str, float], Context], Overrides]
+    kind: str
+    signature: str
+
+    @property
+    def initial(self) -> np.ndarray:
+        """Start values of the fit."""
+        return np.array([p.initial for p in self.parameters])
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of the fit."""
+        return np.array([p.lower for p in self.parameters]), np.array(
+            [p.upper for p in self.parameters]
+        )
+
+    def named(self, values: np.ndarray) -> dict[str, float]:
+        """Fitted values by parameter name."""
+        return {p.name: float(v) for p, v in zip(self.parameters, values, strict=True)}
+
+
+def _amplitude_phase(cos_part: float, sin_part: float) -> tuple[float, float]:
+    """a cos(u) + b sin(u) = A cos(u + phi): returns (A, phi)."""
+    return math.hypot(cos_part, sin_part), math.atan2(-sin_part, cos_part)
+
+
+def _stribeck(v, nominal, context) -> Overrides:
+    return {"stribeck_friction": v[0], "stribeck_speed": v[1]}
+
+
+def _coulomb(v, nominal, context) -> Overrides:
+    return {"coulomb_friction": nominal["coulomb_friction"] + v[0]}
+
+
+def _asymmetric(v, nominal, context) -> Overrides:
+    return {"coulomb_asymmetry": v[0]}
+
+
+def _position_friction(v, nominal, context) -> Overrides:
+    amplitude, phase = _amplitude_phase(v[0], v[1])
+    return {
+        "position_friction_amplitude": amplitude,
+        "position_friction_phase": phase,
+        "position_friction_order": context["screw_order"],
+    }
+
+
+def _pitch_error(v, nominal, context) -> Overrides:
+    amplitude, phase = _amplitude_phase(v[1], v[2])
+    # e sin(u + p) with the fitted a cos(u) + b sin(u) = A cos(u + phi): p = phi + pi/2.
+    return {
+        "pitch_error_linear": v[0],
+        "pitch_error_amplitude_1": amplitude,
+        "pitch_error_phase_1": phase + math.pi / 2,
+    }
+
+
+def _torque_ripple(v, nominal, context) -> Overrides:
+    amplitude, phase = _amplitude_phase(v[0], v[1])
+    return {
+        "ripple_amplitude": amplitude,
+        "ripple_phase": phase + math.pi / 2,
+        "ripple_order": context["motor_order"],
+    }
+
+
+def _current_lag(v, nominal, context) -> Overrides:
+    return {"current_time_constant": v[0]}
+
+
+def _dead_time(v, nominal, context) -> Overrides:
+    return {"dead_time_steps": float(round(v[0]))}
+
+
+def _quantization(v, nominal, context) -> Overrides:
+    return {"position_resolution": v[0]}
+
+
+def _backlash(v, nominal, context) -> Overrides:
+    return {"backlash": nominal["backlash"] + v[0]}
+
+
+def _inertia(v, nominal, context) -> Overrides:
+    scale = 1.0 + v[0]  # same coupling stiffness: f_1 = sqrt(K / J_L) / (2 pi) moves with J_L
+    return {
+        "motor_inertia": nominal["motor_inertia"] * scale,
+        "load_inertia": nominal["load_inertia"] * scale,
+        "resonance_frequency": nominal["resonance_frequency"] / math.sqrt(scale),
+    }
+
+
+def _stiffness(v, nominal, context) -> Overrides:
+    return {"resonance_frequency": nominal["resonance_frequency"] * math.sqrt(1.0 + v[0])}
+
+
+P = HypothesisParameter
+LIBRARY: tuple[Hypothesis, ...] = (
+    Hypothesis(
+        "stribeck",
+        (
+            P("stribeck_friction", "N.m", 0.1, 0.0, 2.0),
+            P("stribeck_speed", "rad/s", 0.5, 0.01, 20.0),
+        ),
+        _stribeck,
+        "continuous",
+        "breakaway and reversal spikes; position and current; time domain, local at v = 0",
+    ),
+    Hypothesis(
+        "coulomb_change",
+        (P("delta_coulomb", "N.m", 0.0, -0.6, 2.0),),
+        _coulomb,
+        "continuous",
+        "every motion and reversal; current offset of constant sign per direction",
+    ),
+    Hypothesis(
+        "asymmetric_friction",
+        (P("coulomb_asymmetry", "N.m", 0.0, -0.6, 0.6),),
+        _asymmetric,
+        "continuous",
+        "constant velocity and reversals; current residual of one sign in both directions",
+    ),
+    Hypothesis(
+        "position_friction",
+        (P("cos_part", "1", 0.0, -0.9, 0.9), P("sin_part", "1", 0.0, -0.9, 0.9)),
+        _position_friction,
+        "continuous",
+        "constant velocity; current; a fixed order of the screw angle at every speed",
+    ),
+    Hypothesis(
+        "pitch_error",
+        (
+            P("pitch_error_linear", "1", 0.0, -1e-3, 1e-3),
+            P("cos_part", "m", 0.0, -1e-4, 1e-4),
+            P("sin_part", "m", 0.0, -1e-4, 1e-4),
+        ),
+        _pitch_error,
+        "continuous",
+        "constant velocity; position; low orders of the screw angle, growing with speed",
+    ),
+    Hypothesis(
+        "torque_ripple",
+        (P("cos_part", "N.m", 0.0, -2.0, 2.0), P("sin_part", "N.m", 0.0, -2.0, 2.0)),
+        _torque_ripple,
+        "continuous",
+        "constant velocity; current; a fixed order of the motor angle at every speed",
+    ),
+    Hypothesis(
+        "current_lag",
+        (P("current_time_constant", "s", 2e-4, 0.0, 5e-3),),
+        _current_lag,
+        "continuous",
+        "reversals and high jerk; phase of position and current",
+    ),
+    Hypothesis(
+        "dead_time",
+        (P("dead_time_steps", "1", 1.0, 1.0, 8.0),),
+        _dead_time,
+        "scan",
+        "reversals and high jerk; phase of position and current",
+    ),
+    Hypothesis(
+        "quantization",
+        (P("position_resolution", "m", 0.0, 0.0, 1e-3),),
+        _quantization,
+        "scan",
+        "standstill dither; high frequency; position",
+    ),
+    Hypothesis(
+        "backlash_change",
+        (P("delta_backlash", "m", 0.0, -12e-6, 60e-6),),
+        _backlash,
+        "continuous",
+        "reversals only; a position step of about the change, independent of speed",
+    ),
+    Hypothesis(
+        "inertia_change",
+        (P("relative_change", "1", 0.0, -0.5, 1.0),),
+        _inertia,
+        "continuous",
+        "accelerations; current proportional to acceleration",
+    ),
+    Hypothesis(
+        "stiffness_change",
+        (P("relative_change", "1", 0.0, -0.8, 3.0),),
+        _stiffness,
+        "continuous",
+        "accelerations and reversals; resonance ringing shifts in frequency",
+    ),
+)
+BY_NAME: dict[str, Hypothesis] = {h.name: h for h in LIBRARY}
+
+# Effects that act alike on a closed-loop run; the diagnosis reports them as one group when the
+# data cannot separate them (similar held-out reduction and correlated predicted changes).
+KNOWN_GROUPS: tuple[frozenset[str], ...] = (
+    frozenset({"dead_time", "current_lag"}),
+    frozenset({"stribeck", "coulomb_change"}),
+)
+
+
+def scan_values(hypothesis: Hypothesis, context: Context) -> list[np.ndarray]:
+    """Values a ``scan`` hypothesis tries: dead time 1 to 8 samples, or the context's resolution."""
+    if hypothesis.name == "dead_time":
+        return [np.array([float(n)]) for n in range(1, 9)]
+    if hypothesis.name == "quantization":
+        resolution = context.get("position_resolution", 0.0)
+        return [np.array([resolution])] if resolution > 0 else []
+    raise ValueError(f"hypothesis {hypothesis.name!r} is not a scan")
+
+
+def estimate_resolution(x: np.ndarray) -> float:
+    """The grid step of a quantised position signal (m), 0.0 when the signal is not on a grid.
+
+    The most common non-zero step between consecutive samples is taken as the resolution when
+    every step is (within 1 %) a whole multiple of it.
+    """
+    steps = np.abs(np.diff(x))
+    steps = steps[steps > 1e-15]
+    if len(steps) < 10:
+        return 0.0
+    smallest = np.quantile(steps, 0.01)
+    multiples = steps / smallest
+    if np.all(np.abs(multiples - np.round(multiples)) < 0.01):
+        return float(smallest)
+    return 0.0

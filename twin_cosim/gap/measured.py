@@ -1,0 +1,202 @@
+"""Measured runs: the CSV format of the diagnosis, its checks, and its comparison with a scenario.
+
+Columns: ``t`` [s], ``x_ref`` [m], ``x`` [m] (measured load position), ``current`` [A]; optional
+``motor_speed`` [rad/s]; extra columns are ignored. Time must be strictly increasing and regular.
+Every problem gets an error naming the file, the column and what was expected, or, where the data
+can still be used, an explicit warning that the report repeats.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from twin_cosim.reference import ReferenceGrid
+
+REQUIRED = ("t", "x_ref", "x", "current")
+OPTIONAL = ("motor_speed",)
+REGULARITY_TOLERANCE = 1e-3  # relative jitter of the sample period
+MIN_SAMPLES = 100
+UNIT_FACTORS = {1e3: "mm instead of m", 1e6: "um instead of m"}
+
+
+class MeasuredDataError(ValueError):
+    """A measured run cannot be used; the message names the file, the column and the problem."""
+
+
+@dataclass(frozen=True)
+class MeasuredRun:
+    """One measured run on a regular time grid.
+
+    Attributes
+    ----------
+    source : str
+        File it came from.
+    t : numpy.ndarray
+        Sample times, s.
+    x_ref, x : numpy.ndarray
+        Reference and measured carriage position, m.
+    current : numpy.ndarray
+        Current command, A.
+    motor_speed : numpy.ndarray or None
+        Measured motor speed, rad/s.
+    warnings : list of str
+        Problems that did not stop the diagnosis.
+    """
+
+    source: str
+    t: np.ndarray
+    x_ref: np.ndarray
+    x: np.ndarray
+    current: np.ndarray
+    motor_speed: np.ndarray | None = None
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def period(self) -> float:
+        """Sample period, s."""
+        return float((self.t[-1] - self.t[0]) / (len(self.t) - 1))
+
+    def select(self, mask: np.ndarray) -> MeasuredRun:
+        """The samples where ``mask`` is True (same source and warnings)."""
+        speed = None if self.motor_speed is None else self.motor_speed[mask]
+        return MeasuredRun(
+            self.source,
+            self.t[mask],
+            self.x_ref[mask],
+            self.x[mask],
+            self.current[mask],
+            speed,
+            self.warnings,
+        )
+
+
+def read_measured_csv(path: Path | str) -> MeasuredRun:
+    """Read and check a measured-run CSV.
+
+    Raises
+    ------
+    MeasuredDataError
+        On an unreadable file, missing columns, non-numeric or non-finite values (rows named),
+        non-monotonic or irregular time, or too few samples.
+    """
+    path = Path(path)
+    try:
+        table = pd.read_csv(path)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise MeasuredDataError(f"{path}: cannot read as CSV: {exc}") from exc
+    missing = [c for c in REQUIRED if c not in table.columns]
+    if missing:
+        raise MeasuredDataError(
+            f"{path}: missing column(s) {missing}; expected t [s], x_ref [m], x [m], current [A] "
+            f"(optional motor_speed [rad/s]), found {list(table.columns)}"
+        )
+    columns = {}
+    for name in REQUIRED + tuple(c for c in OPTIONAL if c in table.columns):
+        values = pd.to_numeric(table[name], errors="coerce").to_numpy(dtype=np.float64)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            rows = ", ".join(str(r + 2) for r in bad[:5])  # +2: header line and 1-based rows
+            raise MeasuredDataError(
+                f"{path}: column {name!r} has {len(bad)} missing, non-numeric or non-finite "
+                f"value(s) (file lines {rows}{', ...' if len(bad) > 5 else ''}); "
+                "gaps must be filled"
+            )
+        columns[name] = values
+    run = MeasuredRun(
+        str(path),
+        columns["t"],
+        columns["x_ref"],
+        columns["x"],
+        columns["current"],
+        columns.get("motor_speed"),
+    )
+    check_time(run)
+    return run
+
+
+def check_time(run: MeasuredRun) -> None:
+    """Strictly increasing, regular time with enough samples; MeasuredDataError otherwise."""
+    t = run.t
+    if len(t) < MIN_SAMPLES:
+        raise MeasuredDataError(
+            f"{run.source}: only {len(t)} samples; at least {MIN_SAMPLES} needed"
+        )
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        first = int(np.flatnonzero(steps <= 0)[0])
+        raise MeasuredDataError(
+            f"{run.source}: column 't' must increase strictly; t[{first + 1}] = {t[first + 1]} s "
+            f"follows t[{first}] = {t[first]} s"
+        )
+    period = run.period
+    jitter = np.abs(steps - period).max() / period
+    if jitter > REGULARITY_TOLERANCE:
+        where = int(np.argmax(np.abs(steps - period)))
+        raise MeasuredDataError(
+            f"{run.source}: column 't' is irregular: step {steps[where]:.6g} s at "
+            f"t = {t[where]:.6g} s "
+            f"against a mean period of {period:.6g} s (gaps or jitter; resample to a regular grid)"
+        )
+
+
+def _scale_mismatch(measured: np.ndarray, expected: np.ndarray) -> str | None:
+    span = np.ptp(expected)
+    if span == 0:
+        return None
+    ratio = np.ptp(measured) / span
+    for factor, meaning in UNIT_FACTORS.items():
+        if abs(ratio / factor - 1) < 0.05:
+            return meaning
+    return None
+
+
+def check_against_reference(run: MeasuredRun, reference: ReferenceGrid) -> None:
+    """The run must follow the scenario's reference (same motion, units of m, within its time).
+
+    Raises
+    ------
+    MeasuredDataError
+        When ``x_ref`` or ``x`` looks scaled by 1000 (mm instead of m), the run lasts longer
+        than the reference, or ``x_ref`` differs from the scenario's reference.
+    """
+    if run.t[-1] > reference.duration + 2 * run.period or run.t[0] < -run.period:
+        raise MeasuredDataError(
+            f"{run.source}: the run spans {run.t[0]:.4g} to {run.t[-1]:.4g} s, outside the "
+            f"scenario's reference (0 to {reference.duration:.4g} s)"
+        )
+    expected = np.interp(run.t, reference.time, reference.position)
+    for column, values in (("x_ref", run.x_ref), ("x", run.x)):
+        meaning = _scale_mismatch(values, expected)
+        if meaning:
+            raise MeasuredDataError(
+                f"{run.source}: column {column!r} looks like {meaning} (its range is "
+                f"{np.ptp(values):.4g} against the scenario's {np.ptp(expected):.4g} m)"
+            )
+    tolerance = 1e-6 + 1e-3 * np.ptp(expected)  # m
+    deviation = np.abs(run.x_ref - expected)
+    if deviation.max() > tolerance:
+        at = int(np.argmax(deviation))
+        raise MeasuredDataError(
+            f"{run.source}: column 'x_ref' does not match the scenario's reference: "
+            f"{deviation[at] * 1e6:.4g} um apart at t = {run.t[at]:.4g} s (tolerance "
+            f"{tolerance * 1e6:.3g} um); is it a run of another scenario?"
+        )
+
+
+def current_warnings(run: MeasuredRun, current_limit: float) -> list[str]:
+    """Warnings about the current column (A): mA instead of A, or saturation."""
+    found = []
+    peak = float(np.abs(run.current).max())
+    if peak > 50 * current_limit:
+        found.append(
+            f"{run.source}: 'current' peaks at {peak:.4g}, 50x the current limit "
+            f"{current_limit} A: is it in mA?"
+        )
+    saturated = float(np.mean(np.abs(run.current) >= 0.999 * current_limit))
+    if saturated > 0.01:
+        found.append(f"{run.source}: the current is at its limit in {saturated:.1%} of the samples")
+    return found

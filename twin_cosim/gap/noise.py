@@ -1,0 +1,257 @@
+"""The measured position noise at standstill as a Fourier series (the plant's noise model).
+
+The plant adds x_noise(t) = sum_k A_k sin(2 pi f_k t + phi_k) (k = 1..4) to the measured
+position, t the absolute simulation time in s. :func:`noise_harmonics` identifies these
+harmonics from a measured run:
+
+1. Standstill stretches: runs of ``mask`` contiguous in index and on the regular time grid (a
+   jump in time, as between concatenated runs, ends a stretch) lasting at least 0.2 s; each
+   stretch's mean is removed.
+2. Detection: the Hann amplitude spectra of the stretches are averaged (see
+   :mod:`twin_cosim.gap.spectra`); a harmonic must stand ``min_ratio`` times above the median of
+   that spectrum and make at least two cycles in the longest stretch. Harmonics are taken one at
+   a time, largest first, each from the spectrum of what the harmonics found so far leave
+   unexplained, so that the side lobes of a large harmonic are not taken for harmonics.
+3. Refinement: after each detection, the frequencies of all harmonics found are fitted by
+   nonlinear least squares (``scipy.optimize.least_squares``), first on the longest stretch (one
+   minimum near the spectral estimate), then on all stretches together in absolute time; for
+   given frequencies, amplitudes, phases and one offset per stretch are linear and solved
+   exactly (variable projection). The phases are thereby referenced to t = 0. Between stretches
+   the harmonics are assumed to run on with a constant phase, as in the plant model; stretches
+   far apart in time leave a comb of nearly equal fits 1 / (spacing) apart in frequency, and the
+   fit on the longest stretch picks the tooth.
+
+:func:`noise_floor` is the robust standard deviation 1.4826 MAD (median absolute deviation) of
+a residual at standstill, each stretch's mean removed; stretches shorter than 16 samples are left
+out since removing their mean shrinks the spread noticeably.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from twin_cosim.gap.regimes import segments
+from twin_cosim.gap.spectra import dominant_peak, mean_amplitude_spectrum
+
+MIN_STRETCH = 0.2  # s, shortest standstill stretch used for the harmonics
+MIN_CYCLES = 2.0  # least cycles of a harmonic in the longest stretch
+MIN_FLOOR_SAMPLES = 16  # shortest stretch used for the noise floor
+MAD_TO_SIGMA = 1.4826  # standard deviation / MAD of a normal distribution
+PLANT_HARMONICS = 4  # noise harmonics of the plant model
+PLANT_UNUSED_FREQUENCY = 50.0  # Hz; unused slot k keeps the plant default k * 50 Hz
+
+
+@dataclass(frozen=True)
+class Harmonic:
+    """One sinusoid A sin(2 pi f t + phi) of the noise, t the absolute time.
+
+    Attributes
+    ----------
+    amplitude_m : float
+        Amplitude A, m.
+    frequency_hz : float
+        Frequency f, Hz.
+    phase_rad : float
+        Phase phi at t = 0, rad, in [-pi, pi).
+    """
+
+    amplitude_m: float
+    frequency_hz: float
+    phase_rad: float
+
+
+def _wrap(phase: float) -> float:
+    """Phase wrapped to [-pi, pi), rad."""
+    return float((phase + np.pi) % (2.0 * np.pi) - np.pi)
+
+
+def _design(frequencies: np.ndarray, times: Sequence[np.ndarray]) -> np.ndarray:
+    """Columns sin and cos of each frequency (Hz) at all times (s), then one offset per stretch."""
+    t = np.concatenate(times)
+    phase = 2.0 * np.pi * np.outer(t, frequencies)
+    offsets = np.zeros((t.size, len(times)))
+    first = np.cumsum([0] + [len(s) for s in times])
+    for k, (a, b) in enumerate(zip(first[:-1], first[1:], strict=True)):
+        offsets[a:b, k] = 1.0
+    return np.hstack((np.sin(phase), np.cos(phase), offsets))
+
+
+def _fit_frequencies(
+    frequencies: np.ndarray, times: Sequence[np.ndarray], values: Sequence[np.ndarray]
+) -> np.ndarray:
+    """Frequencies (Hz) that fit the stretches best, the linear coefficients projected out."""
+    x = np.concatenate(values)
+    scale = float(np.std(x)) or 1.0
+
+    def misfit(f: np.ndarray) -> np.ndarray:
+        design = _design(f, times)
+        coefficients = np.linalg.lstsq(design, x / scale, rcond=None)[0]
+        return x / scale - design @ coefficients
+
+    return least_squares(misfit, frequencies, x_scale="jac").x
+
+
+def _linear_fit(
+    frequencies: np.ndarray, times: Sequence[np.ndarray], values: Sequence[np.ndarray]
+) -> np.ndarray:
+    """Coefficients (sin, cos per frequency, then the offsets per stretch), m."""
+    return np.linalg.lstsq(_design(frequencies, times), np.concatenate(values), rcond=None)[0]
+
+
+def _leftovers(
+    frequencies: np.ndarray, times: Sequence[np.ndarray], values: Sequence[np.ndarray]
+) -> list[np.ndarray]:
+    """What the harmonics at ``frequencies`` (Hz) leave of each stretch, mean removed, m."""
+    if frequencies.size == 0:
+        return list(values)
+    fitted = _design(frequencies, times) @ _linear_fit(frequencies, times, values)
+    left = np.concatenate(values) - fitted
+    pieces = np.split(left, np.cumsum([len(v) for v in values])[:-1])
+    return [p - p.mean() for p in pieces]
+
+
+def _stretches(t: np.ndarray, mask: np.ndarray, dt: float) -> list[tuple[int, int]]:
+    """Standstill stretches lasting at least :data:`MIN_STRETCH`, longest first.
+
+    A stretch is contiguous in index and in time: it ends where the time step departs from
+    ``dt`` (s) by more than half, as between runs concatenated into one record.
+    """
+    regular = np.abs(np.diff(t) - dt) <= 0.5 * dt
+    breaks = np.flatnonzero(~regular) + 1
+    runs = []
+    for start, stop in segments(mask, 1):
+        inner = breaks[(breaks > start) & (breaks < stop)]
+        edges = [start, *inner.tolist(), stop]
+        runs += [(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    long = [s for s in runs if (s[1] - s[0]) * dt >= MIN_STRETCH - 1e-9]
+    return sorted(long, key=lambda s: s[0] - s[1])
+
+
+def noise_harmonics(
+    t: np.ndarray, x: np.ndarray, mask: np.ndarray, count: int = 4, min_ratio: float = 5.0
+) -> list[Harmonic]:
+    """Main harmonics of the measured position noise at standstill (see the module docstring).
+
+    Parameters
+    ----------
+    t : np.ndarray
+        Absolute sample times, s, on a regular grid (runs concatenated: may jump between runs).
+    x : np.ndarray
+        Measured position, m.
+    mask : np.ndarray
+        True at the standstill samples.
+    count : int
+        Most harmonics returned.
+    min_ratio : float
+        Least ratio of a harmonic's spectral peak to the median spectrum amplitude.
+
+    Returns
+    -------
+    list[Harmonic]
+        Up to ``count`` harmonics such that x_noise(t) ~ sum A sin(2 pi f t + phi), largest
+        amplitude first; empty without a standstill stretch of 0.2 s or a significant peak.
+
+    Raises
+    ------
+    ValueError
+        When the arrays are not 1-D of one length, or x is not finite at standstill.
+    """
+    t, x, mask = np.asarray(t, dtype=float), np.asarray(x, dtype=float), np.asarray(mask, bool)
+    if t.ndim != 1 or x.shape != t.shape or mask.shape != t.shape or t.size < 2:
+        raise ValueError("t, x and mask must be 1-D arrays of one length, at least 2 samples")
+    if not np.all(np.isfinite(x[mask])):
+        raise ValueError("the position holds non-finite values at standstill")
+    dt = float(np.median(np.diff(t)))
+    stretches = _stretches(t, mask, dt)
+    if not stretches:
+        return []
+    times = [t[a:b] for a, b in stretches]
+    values = [x[a:b] - x[a:b].mean() for a, b in stretches]
+    frequency, spectrum = mean_amplitude_spectrum(values, dt, [len(v) for v in values])
+    threshold = min_ratio * float(np.median(spectrum[1:]))
+    searched = frequency >= MIN_CYCLES / (len(values[0]) * dt)
+    found = np.empty(0)
+    while found.size < count:
+        _, left = mean_amplitude_spectrum(
+            _leftovers(found, times, values), dt, [len(v) for v in values]
+        )
+        peak = dominant_peak(frequency[searched], left[searched], min_ratio=0.0)
+        if peak is None or peak.amplitude < threshold:
+            break
+        found = _fit_frequencies(np.append(found, peak.location), times[:1], values[:1])
+        found = _fit_frequencies(found, times, values)
+    return _harmonics(found, times, values)
+
+
+def _harmonics(
+    frequencies: np.ndarray, times: Sequence[np.ndarray], values: Sequence[np.ndarray]
+) -> list[Harmonic]:
+    """Amplitudes and phases at given frequencies (Hz), largest amplitude first."""
+    if frequencies.size == 0:
+        return []
+    coefficients = _linear_fit(frequencies, times, values)
+    sine, cosine = np.split(coefficients[: 2 * frequencies.size], 2)
+    harmonics = [
+        Harmonic(float(np.hypot(a, b)), float(f), _wrap(np.arctan2(b, a)))
+        for a, b, f in zip(sine, cosine, frequencies, strict=True)
+    ]
+    return sorted(harmonics, key=lambda h: -h.amplitude_m)
+
+
+def as_plant_parameters(harmonics: Sequence[Harmonic]) -> dict[str, float]:
+    """Noise parameters of the plant FMU for up to four harmonics.
+
+    Keys noise_amplitude_k (m), noise_frequency_k (Hz) and noise_phase_k (rad, wrapped to
+    [-pi, pi)) for k = 1..4, in the order given. Unused slots get amplitude 0, frequency
+    50 k Hz (the plant default) and phase 0.
+
+    Raises
+    ------
+    ValueError
+        When there are more than four harmonics.
+    """
+    if len(harmonics) > PLANT_HARMONICS:
+        raise ValueError(f"the plant holds {PLANT_HARMONICS} noise harmonics, got {len(harmonics)}")
+    unused = range(len(harmonics) + 1, PLANT_HARMONICS + 1)
+    slots = [*harmonics, *(Harmonic(0.0, PLANT_UNUSED_FREQUENCY * k, 0.0) for k in unused)]
+    parameters = {}
+    for k, h in enumerate(slots, start=1):
+        parameters[f"noise_amplitude_{k}"] = h.amplitude_m
+        parameters[f"noise_frequency_{k}"] = h.frequency_hz
+        parameters[f"noise_phase_{k}"] = _wrap(h.phase_rad)
+    return parameters
+
+
+def noise_floor(residual: np.ndarray, mask: np.ndarray) -> float:
+    """Robust standard deviation of a residual at standstill, each stretch's mean removed.
+
+    Parameters
+    ----------
+    residual : np.ndarray
+        Residual per sample, m or A.
+    mask : np.ndarray
+        True at the standstill samples.
+
+    Returns
+    -------
+    float
+        1.4826 x the median absolute deviation, unit of the residual; 0.0 when no standstill
+        stretch holds at least 16 samples.
+
+    Raises
+    ------
+    ValueError
+        When residual and mask differ in shape.
+    """
+    residual, mask = np.asarray(residual, dtype=float), np.asarray(mask, dtype=bool)
+    if residual.shape != mask.shape:
+        raise ValueError("residual and mask must have one shape")
+    runs = [s for s in segments(mask, 1) if s[1] - s[0] >= MIN_FLOOR_SAMPLES]
+    if not runs:
+        return 0.0
+    centred = np.concatenate([residual[a:b] - residual[a:b].mean() for a, b in runs])
+    return MAD_TO_SIGMA * float(np.median(np.abs(centred - np.median(centred))))

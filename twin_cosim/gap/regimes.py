@@ -1,0 +1,171 @@
+"""Motion regimes of a reference trajectory and the share of the residual energy in each.
+
+Each sample of the reference (speed ``v_ref`` in m/s, acceleration ``a_ref`` in m/s^2, carriage
+side) gets one regime; the thresholds are the fields of :class:`RegimeSettings`.
+
+- *moving*: |v_ref| > ``v_still``; the direction of motion is the sign of v_ref while moving.
+- A *motion start* is a moving sample whose direction differs from the sample before (which is
+  either at standstill or moving the other way). The previous direction of motion is the direction
+  of the last moving sample before it, however long the dwell in between.
+- *reversal*: |t - t_s| <= ``window`` around a motion start at t_s whose direction is opposite to
+  the previous direction of motion: the reference speed passes through zero, or leaves a dwell in
+  the direction it did not arrive from.
+- *breakaway*: t_s <= t <= t_s + ``window`` after a motion start in the same direction as the
+  previous motion, or after the first motion of the record: the drive leaves standstill.
+- *standstill*: not moving.
+- *acceleration*: moving and |a_ref| > ``a_min``.
+- *constant_velocity*: the remaining samples.
+
+Precedence where these overlap: reversal > breakaway > standstill > acceleration >
+constant_velocity. A record that starts in motion has no motion start at its first sample: the
+motion began earlier, its direction is the previous direction for the next start.
+
+Energy shares of a residual r (m or A) per regime: ``time_share`` = fraction of the samples,
+``energy_share`` = fraction of sum r^2, ``enrichment`` = energy_share / time_share (0 for a regime
+that does not occur).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+REGIMES = ("standstill", "breakaway", "acceleration", "constant_velocity", "reversal")
+STANDSTILL, BREAKAWAY, ACCELERATION, CONSTANT_VELOCITY, REVERSAL = range(len(REGIMES))
+
+_TIME_TOLERANCE = 1e-9  # s, absorbs rounding of grid times at the window edges
+
+
+@dataclass(frozen=True)
+class RegimeSettings:
+    """Thresholds of the regime classification.
+
+    Attributes
+    ----------
+    v_still : float
+        Speed at or below which the reference stands still, m/s (carriage).
+    a_min : float
+        Acceleration above which a moving sample accelerates, m/s^2.
+    window : float
+        Half width of a reversal window and length of a breakaway window, s.
+    """
+
+    v_still: float = 1e-5
+    a_min: float = 1e-3
+    window: float = 0.05
+
+
+def _motion_starts(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the motion starts and whether each is a reversal.
+
+    ``direction`` holds -1, 0 (standstill) or +1 per sample.
+    """
+    before = np.concatenate(([0], direction[:-1]))
+    starts = np.flatnonzero((direction != 0) & (direction != before))
+    previous = np.concatenate(([0], direction[starts[:-1]]))
+    if direction[0] != 0:  # the motion began before the record: not a start
+        previous, starts = previous[1:], starts[1:]
+    return starts, (previous != 0) & (previous != direction[starts])
+
+
+def classify_regimes(
+    t: np.ndarray,
+    v_ref: np.ndarray,
+    a_ref: np.ndarray,
+    settings: RegimeSettings = RegimeSettings(),
+) -> np.ndarray:
+    """Label each sample with the index of its regime in :data:`REGIMES`.
+
+    Parameters
+    ----------
+    t : np.ndarray
+        Sample times, s, increasing.
+    v_ref : np.ndarray
+        Reference speed of the carriage, m/s.
+    a_ref : np.ndarray
+        Reference acceleration of the carriage, m/s^2.
+    settings : RegimeSettings
+        Thresholds; see the module docstring for the definitions.
+
+    Returns
+    -------
+    np.ndarray
+        Integer regime codes, one per sample.
+
+    Raises
+    ------
+    ValueError
+        When the arrays are not 1-D of one length or ``t`` does not increase.
+    """
+    t, v_ref, a_ref = (np.asarray(a, dtype=float) for a in (t, v_ref, a_ref))
+    if t.ndim != 1 or v_ref.shape != t.shape or a_ref.shape != t.shape:
+        raise ValueError("t, v_ref and a_ref must be 1-D arrays of one length")
+    if np.any(np.diff(t) <= 0.0):
+        raise ValueError("t must increase strictly")
+    moving = np.abs(v_ref) > settings.v_still
+    labels = np.full(t.shape, CONSTANT_VELOCITY, dtype=int)
+    labels[moving & (np.abs(a_ref) > settings.a_min)] = ACCELERATION
+    labels[~moving] = STANDSTILL
+    starts, reversal = _motion_starts(np.where(moving, np.sign(v_ref), 0.0))
+    for start in starts[~reversal]:
+        labels[_window(t, t[start], t[start] + settings.window)] = BREAKAWAY
+    for start in starts[reversal]:
+        labels[_window(t, t[start] - settings.window, t[start] + settings.window)] = REVERSAL
+    return labels
+
+
+def _window(t: np.ndarray, t_from: float, t_to: float) -> slice:
+    """Index slice of the samples with t_from <= t <= t_to (times in s)."""
+    first = np.searchsorted(t, t_from - _TIME_TOLERANCE, side="left")
+    stop = np.searchsorted(t, t_to + _TIME_TOLERANCE, side="right")
+    return slice(int(first), int(stop))
+
+
+def energy_shares(residual: np.ndarray, labels: np.ndarray) -> dict[str, dict[str, float]]:
+    """Share of time and of residual energy per regime, and their ratio.
+
+    Parameters
+    ----------
+    residual : np.ndarray
+        Residual measured - simulated per sample (m or A).
+    labels : np.ndarray
+        Regime codes from :func:`classify_regimes`.
+
+    Returns
+    -------
+    dict[str, dict[str, float]]
+        For each name in :data:`REGIMES`: ``time_share``, ``energy_share`` and ``enrichment``
+        (dimensionless; all 0 for an absent regime, energy shares 0 for a zero residual).
+
+    Raises
+    ------
+    ValueError
+        When the arrays are empty, differ in shape or the residual is not finite.
+    """
+    residual, labels = np.asarray(residual, dtype=float), np.asarray(labels)
+    if residual.size == 0 or residual.shape != labels.shape:
+        raise ValueError("residual and labels must be non-empty arrays of one shape")
+    if not np.all(np.isfinite(residual)):
+        raise ValueError("the residual holds non-finite values")
+    energy = residual**2
+    total = float(energy.sum())
+    shares = {}
+    for code, name in enumerate(REGIMES):
+        inside = labels == code
+        time_share = float(inside.mean())
+        energy_share = float(energy[inside].sum()) / total if total > 0.0 else 0.0
+        enrichment = energy_share / time_share if time_share > 0.0 else 0.0
+        shares[name] = {
+            "time_share": time_share,
+            "energy_share": energy_share,
+            "enrichment": enrichment,
+        }
+    return shares
+
+
+def segments(labels: np.ndarray, code: int) -> list[tuple[int, int]]:
+    """Contiguous [start, stop) index ranges where ``labels`` equals ``code``."""
+    inside = np.concatenate(([False], np.asarray(labels) == code, [False]))
+    edges = np.flatnonzero(np.diff(inside.astype(np.int8)))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]

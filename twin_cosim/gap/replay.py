@@ -1,0 +1,219 @@
+"""Replays of a scenario on the twin, and hypothesis fits on them, done by pool workers.
+
+A :class:`ReplaySpec` (paths, numbers and the training data: it pickles) builds a
+:class:`Replayer` once per worker process: one plant instance, reset for every replay. Tasks:
+
+- :class:`SimulateTask`: replay the whole scenario with some FMU parameters; returns the record;
+- :class:`FitTask`: fit one hypothesis on the training data (scipy least_squares on replays, or a
+  scan of discrete values) on top of already accepted effects.
+
+The fit minimises the normalised training residual: position residual / sigma_x and current
+residual / sigma_i (sigma: noise floors measured at standstill), over the training samples only;
+a replay for the fit stops at the end of the training window.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import least_squares
+
+from twin_cosim.cosim import RunAborted, run_scenario
+from twin_cosim.gap.effects import BY_NAME, scan_values
+from twin_cosim.plant import Plant, PlantError
+from twin_cosim.reference import ReferenceGrid
+from twin_cosim.scenario import Scenario, load_scenario
+
+FIT_EVALUATIONS = 20  # residual evaluations per least_squares fit (plus its Jacobians)
+FIT_STEP = 0.02  # finite-difference step, as a fraction of each parameter's range
+
+
+@dataclass(frozen=True)
+class TrainingData:
+    """Training samples of the measured runs (all runs of the same scenario).
+
+    Attributes
+    ----------
+    t, x, current : list of numpy.ndarray
+        Per run: sample times (s), measured position (m), measured current (A).
+    sigma_x, sigma_i : float
+        Noise floors used to normalise the position (m) and current (A) residuals.
+    end : float
+        End of the training window, s.
+    """
+
+    t: list[np.ndarray]
+    x: list[np.ndarray]
+    current: list[np.ndarray]
+    sigma_x: float
+    sigma_i: float
+    end: float
+
+
+def normalised_residual(record: pd.DataFrame, data: TrainingData) -> np.ndarray:
+    """Position and current residuals of every run over its samples, normalised by the floors."""
+    parts = []
+    t_sim = record["t"].to_numpy()
+    x_sim, i_sim = record["x"].to_numpy(), record["current"].to_numpy()
+    for t, x, current in zip(data.t, data.x, data.current, strict=True):
+        parts.append((x - np.interp(t, t_sim, x_sim)) / data.sigma_x)
+        parts.append((current - np.interp(t, t_sim, i_sim)) / data.sigma_i)
+    return np.concatenate(parts)
+
+
+@dataclass(frozen=True)
+class SimulateTask:
+    """Replay the whole scenario with these FMU parameters (on top of the spec's base)."""
+
+    overrides: dict[str, float]
+
+
+@dataclass(frozen=True)
+class FitTask:
+    """Fit one hypothesis on top of ``base`` (the accepted effects' FMU parameters).
+
+    ``context`` holds data-derived settings of the hypotheses (orders of periodic effects,
+    encoder resolution).
+    """
+
+    hypothesis: str
+    base: dict[str, float]
+    context: dict[str, float]
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """Outcome of a fit: fitted values by name, the FMU parameters, the training cost."""
+
+    hypothesis: str
+    values: dict[str, float]
+    overrides: dict[str, float]
+    train_cost: float
+    replays: int
+    message: str
+
+
+@dataclass(frozen=True)
+class ReplaySpec:
+    """Recipe of a replay worker.
+
+    Attributes
+    ----------
+    scenario : str
+        Scenario file.
+    fmu : str or None
+        Plant FMU (the scenario's when None).
+    nominal : dict
+        Nominal FMU parameters of the twin (start values, the scenario's, the identified noise).
+    training : TrainingData
+        What the fits see.
+    """
+
+    scenario: str
+    fmu: str | None
+    nominal: dict[str, float]
+    training: TrainingData
+
+    def build(self) -> Replayer:
+        """The worker."""
+        return Replayer(self)
+
+
+class Replayer:
+    """Replays and fits on one plant instance."""
+
+    def __init__(self, spec: ReplaySpec) -> None:
+        self.spec = spec
+        self.scenario: Scenario = load_scenario(spec.scenario)
+        self.plant = Plant(Path(spec.fmu) if spec.fmu else self.scenario.fmu)
+        grid = self.scenario.reference
+        keep = grid.time <= spec.training.end + 1e-12
+        self.training_scenario = dataclasses.replace(
+            self.scenario,
+            reference=ReferenceGrid(
+                grid.period, grid.position[keep], grid.velocity[keep], grid.acceleration[keep]
+            ),
+        )
+
+    def simulate(self, overrides: dict[str, float], training_only: bool = False) -> pd.DataFrame:
+        """Replay with the nominal parameters plus ``overrides``."""
+        scenario = self.training_scenario if training_only else self.scenario
+        return run_scenario(
+            self.plant, scenario, plant_overrides={**self.spec.nominal, **overrides}
+        )
+
+    def training_residual(self, overrides: dict[str, float]) -> np.ndarray:
+        """Normalised training residual; a failed replay scores a large constant residual."""
+        try:
+            record = self.simulate(overrides, training_only=True)
+        except (RunAborted, PlantError):
+            n = sum(2 * len(t) for t in self.spec.training.t)
+            return np.full(n, 1e3)
+        return normalised_residual(record, self.spec.training)
+
+    def __call__(self, task: SimulateTask | FitTask) -> Any:
+        if isinstance(task, SimulateTask):
+            return self.simulate(task.overrides)
+        return self.fit(task)
+
+    def fit(self, task: FitTask) -> FitResult:
+        """Fit a hypothesis by least squares on replays, or by scanning its discrete values."""
+        hypothesis = BY_NAME[task.hypothesis]
+        nominal = {**self.spec.nominal, **task.base}
+
+        def overrides_of(values: np.ndarray) -> dict[str, float]:
+            return {**task.base, **hypothesis.to_plant(values, nominal, task.context)}
+
+        def cost(values: np.ndarray) -> float:
+            residual = self.training_residual(overrides_of(values))
+            return float(np.mean(residual**2))
+
+        if hypothesis.kind == "scan":
+            candidates = scan_values(hypothesis, task.context)
+            if not candidates:
+                return FitResult(task.hypothesis, {}, {}, float("inf"), 0, "no candidate value")
+            costs = [cost(values) for values in candidates]
+            best = candidates[int(np.argmin(costs))]
+            return FitResult(
+                task.hypothesis,
+                hypothesis.named(best),
+                overrides_of(best),
+                min(costs),
+                len(candidates),
+                f"scanned {len(candidates)} values",
+            )
+        lower, upper = hypothesis.bounds
+        span = upper - lower
+
+        def residual_of_unit(u: np.ndarray) -> np.ndarray:
+            return self.training_residual(overrides_of(lower + u * span))
+
+        u0 = np.clip((hypothesis.initial - lower) / span, 0.0, 1.0)
+        solution = least_squares(
+            residual_of_unit,
+            u0,
+            bounds=(0.0, 1.0),
+            diff_step=FIT_STEP,
+            max_nfev=FIT_EVALUATIONS,
+            x_scale=1.0,
+        )
+        values = lower + solution.x * span
+        train_cost = float(np.mean(solution.fun**2))
+        replays = int(solution.nfev + (solution.njev or 0) * len(u0))
+        return FitResult(
+            task.hypothesis,
+            hypothesis.named(values),
+            overrides_of(values),
+            train_cost,
+            replays,
+            solution.message,
+        )
+
+    def close(self) -> None:
+        """Free the plant."""
+        self.plant.close()

@@ -1,0 +1,293 @@
+"""The diagnosis report: JSON summary, Markdown and HTML pages, figures."""
+
+from __future__ import annotations
+
+import html
+import json
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from twin_cosim.gap import regimes as regime_model  # noqa: E402
+from twin_cosim.gap import spectra  # noqa: E402
+from twin_cosim.gap.diagnosis import Diagnosis  # noqa: E402
+from twin_cosim.metrics import UM_PER_M  # noqa: E402
+
+REGIME_COLOURS = {
+    "standstill": "#dddddd",
+    "breakaway": "#f4a582",
+    "acceleration": "#92c5de",
+    "constant_velocity": "#ffffff",
+    "reversal": "#d6604d",
+}
+
+
+def _shade_regimes(ax, t: np.ndarray, labels: np.ndarray) -> None:
+    for code, name in enumerate(regime_model.REGIMES):
+        if name == "constant_velocity":
+            continue
+        for start, stop in regime_model.segments(labels, code):
+            ax.axvspan(
+                t[start], t[min(stop, len(t) - 1)], color=REGIME_COLOURS[name], alpha=0.5, lw=0
+            )
+
+
+def plot_residuals(d: Diagnosis, path: Path) -> Path:
+    """Position and current residuals over time, regimes shaded, before and after the effects."""
+    fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    for res, label, style in (
+        (d.train_before, "before (training)", "-"),
+        (d.holdout_before, "before (held out)", "-"),
+        (d.holdout_after, "after the accepted effects (held out)", "-"),
+    ):
+        axes[0].plot(res.t, res.position * UM_PER_M, style, lw=0.7, label=label)
+        axes[1].plot(res.t, res.current, style, lw=0.7, label=label)
+    for ax in axes:
+        _shade_regimes(ax, d.train_before.t, d.train_before.regimes)
+        _shade_regimes(ax, d.holdout_before.t, d.holdout_before.regimes)
+        ax.axvline(d.train_end, color="k", ls="--", lw=1)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+    axes[0].set_ylabel("position residual [um]")
+    axes[1].set_ylabel("current residual [A]")
+    axes[1].set_xlabel(
+        "t [s]  (shading: standstill grey, breakaway orange, acceleration blue, reversal red)"
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def plot_regimes(summary: dict[str, Any], path: Path) -> Path:
+    """Share of residual energy against share of time per regime."""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    names = list(regime_model.REGIMES)
+    x = np.arange(len(names))
+    for ax, signal in zip(axes, ("position", "current"), strict=True):
+        shares = summary["where"][signal]
+        ax.bar(x - 0.2, [shares[n]["time_share"] for n in names], 0.4, label="time share")
+        ax.bar(
+            x + 0.2, [shares[n]["energy_share"] for n in names], 0.4, label="residual energy share"
+        )
+        ax.set_xticks(x, [n.replace("_", "\n") for n in names], fontsize=8)
+        ax.set_title(f"{signal} residual")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3, axis="y")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def plot_spectra(d: Diagnosis, gear_ratio: float, path: Path) -> Path:
+    """Residual spectra: in Hz, and in orders of the motor and screw angle (constant velocity)."""
+    res = d.train_before
+    dt = float(np.median(np.diff(res.t)))
+    stretches = regime_model.segments(res.regimes, regime_model.REGIMES.index("constant_velocity"))
+    fig, axes = plt.subplots(3, 2, figsize=(11, 9))
+    for column, (signal, values, unit) in enumerate(
+        (("position", res.position * UM_PER_M, "um"), ("current", res.current, "A"))
+    ):
+        f, a = spectra.frequency_spectrum(values, dt)
+        axes[0, column].semilogy(f[1:], a[1:] + 1e-12, lw=0.7)
+        axes[0, column].set_xlabel("frequency [Hz]")
+        for row, (angle_name, angle) in enumerate(
+            (("motor", res.motor_angle), ("screw", res.motor_angle / gear_ratio)), start=1
+        ):
+            orders, amplitude = spectra.order_spectrum(values, angle, stretches)
+            if len(orders):
+                axes[row, column].semilogy(orders[1:], amplitude[1:] + 1e-12, lw=0.8)
+            axes[row, column].set_xlabel(f"order of the {angle_name} angle [cycles/rev]")
+        for row in range(3):
+            axes[row, column].set_ylabel(f"{signal} residual [{unit}]")
+            axes[row, column].grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def plot_ranking(summary: dict[str, Any], path: Path) -> Path:
+    """Held-out reduction of the gap per hypothesis (first round), with the acceptance line."""
+    rows = summary["effects"]
+    fig, ax = plt.subplots(figsize=(9, 4))
+    if rows:
+        ax.barh([r["name"] for r in rows], [100 * r["holdout_reduction"] for r in rows])
+        ax.axvline(
+            100 * summary["thresholds"]["accept_reduction"], color="r", ls="--", label="acceptance"
+        )
+        ax.invert_yaxis()
+        ax.legend()
+    ax.set_xlabel("held-out normalised RMS reduction [%] (listed by training BIC, best first)")
+    ax.grid(alpha=0.3, axis="x")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _table(rows: list[dict[str, Any]], columns: list[tuple[str, str]]) -> list[list[str]]:
+    def cell(value: Any) -> str:
+        if isinstance(value, float):
+            return f"{value:.4g}"
+        if isinstance(value, dict):
+            return ", ".join(
+                f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in value.items()
+            )
+        return str(value)
+
+    return [[label for _, label in columns]] + [
+        [cell(r.get(key, "")) for key, _ in columns] for r in rows
+    ]
+
+
+RANKING_COLUMNS = [
+    ("name", "hypothesis"),
+    ("params", "fitted parameters"),
+    ("bic", "training BIC"),
+    ("holdout_gap_before_um", "held-out RMS before [um]"),
+    ("holdout_gap_after_um", "after [um]"),
+    ("holdout_current_before_A", "current before [A]"),
+    ("holdout_current_after_A", "after [A]"),
+    ("holdout_reduction", "reduction"),
+    ("passes", "passes"),
+]
+STEP_COLUMNS = [
+    ("effect", "accepted"),
+    ("params", "fitted parameters"),
+    ("holdout_gap_before_um", "held-out RMS before [um]"),
+    ("holdout_gap_after_um", "after [um]"),
+    ("holdout_current_before_A", "current before [A]"),
+    ("holdout_current_after_A", "after [A]"),
+    ("reduction", "normalised reduction"),
+]
+
+
+def _shares_rows(shares: dict[str, dict[str, float]]) -> list[dict[str, Any]]:
+    return [{"regime": name, **values} for name, values in shares.items()]
+
+
+SHARE_COLUMNS = [
+    ("regime", "regime"),
+    ("time_share", "time share"),
+    ("energy_share", "energy share"),
+    ("enrichment", "enrichment"),
+]
+
+
+def sections(summary: dict[str, Any]) -> list[tuple[str, str | list[list[str]]]]:
+    """The report as (heading, text or table) pairs, shared by Markdown and HTML."""
+    gap = summary["gap"]
+    fig = gap["validation_figures"]
+    before, after = gap["holdout_metrics_before"], gap["holdout_metrics_after"]
+    parts: list[tuple[str, str | list[list[str]]]] = [
+        ("Verdict", gap["verdict"] + f". Accepted, in order: {summary['accepted'] or 'none'}."),
+        (
+            "Data",
+            f"Scenario {summary['scenario']}; measured {summary['measured']}; held out: "
+            f"{summary['holdout']}.",
+        ),
+        (
+            "Validation figures (whole run, as in the paper)",
+            f"max |gap| {fig['max_um']:.3f} um, mean |gap| {fig['mean_abs_um']:.3f} um, "
+            f"RMS {fig['rms_um']:.3f} um. Held-out relative errors of E_pk / ITAE / IAU before: "
+            + " / ".join(f"{100 * v:.2f} %" for v in before["relative_error"].values())
+            + "; after: "
+            + " / ".join(f"{100 * v:.2f} %" for v in after["relative_error"].values())
+            + f" (significant from {100 * summary['thresholds']['significance_metric']:.0f} %). "
+            f"Normalised held-out RMS {gap['holdout_normalised_rms']:.3g} (1: noise floor).",
+        ),
+        (
+            "Where: position residual by regime",
+            _table(_shares_rows(summary["where"]["position"]), SHARE_COLUMNS),
+        ),
+        (
+            "Where: current residual by regime",
+            _table(_shares_rows(summary["where"]["current"]), SHARE_COLUMNS),
+        ),
+        (
+            "Where: position-periodic or temporal",
+            "; ".join(
+                f"{k}: {v['verdict']} ({v['reason']})" for k, v in summary["periodicity"].items()
+            ),
+        ),
+        (
+            "Which: hypotheses fitted on the training data (first round)",
+            _table(summary["effects"], RANKING_COLUMNS),
+        ),
+        (
+            "How far: accepted effects on held-out data",
+            _table(summary["steps"], STEP_COLUMNS)
+            if summary["steps"]
+            else "No effect passed the held-out test.",
+        ),
+        (
+            "Unexplained share of the held-out position residual energy, by regime",
+            ", ".join(
+                f"{k} {100 * v:.1f} %" for k, v in gap["unexplained_share_by_regime"].items()
+            ),
+        ),
+        (
+            "Noise model (Fourier series at standstill; add to the scenario's plant.parameters)",
+            json.dumps(summary["noise"]["plant_parameters"]) + f"; noise floors: "
+            f"{summary['noise']['sigma_position_um']:.4g} um, "
+            f"{summary['noise']['sigma_current_A']:.4g} A",
+        ),
+        ("Thresholds", json.dumps(summary["thresholds"])),
+        ("Warnings", "; ".join(summary["warnings"]) or "none"),
+    ]
+    return parts
+
+
+FIGURES = ("residuals.png", "regimes.png", "spectra.png", "ranking.png")
+
+
+def write_report(d: Diagnosis, out: Path, gear_ratio: float) -> dict[str, str]:
+    """Write diagnosis.json, report.md, report.html and the figures into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    summary = d.summary
+    (out / "diagnosis.json").write_text(json.dumps(summary, indent=2) + "\n")
+    plot_residuals(d, out / "residuals.png")
+    plot_regimes(summary, out / "regimes.png")
+    plot_spectra(d, gear_ratio, out / "spectra.png")
+    plot_ranking(summary, out / "ranking.png")
+    parts = sections(summary)
+    markdown = ["# Sim-to-real gap diagnosis", ""]
+    page = [
+        "<!DOCTYPE html><html><head><meta charset='utf-8'>",
+        "<title>Gap diagnosis</title></head><body>",
+        "<h1>Sim-to-real gap diagnosis</h1>",
+    ]
+    for heading, body in parts:
+        markdown += [f"## {heading}", ""]
+        page.append(f"<h2>{html.escape(heading)}</h2>")
+        if isinstance(body, str):
+            markdown += [body, ""]
+            page.append(f"<p>{html.escape(body)}</p>")
+        else:
+            markdown += ["| " + " | ".join(body[0]) + " |", "|" + "---|" * len(body[0])]
+            markdown += ["| " + " | ".join(row) + " |" for row in body[1:]] + [""]
+            page.append(
+                "<table border='1'>"
+                + "".join(
+                    "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>"
+                    for row in body
+                )
+                + "</table>"
+            )
+    markdown += ["## Figures", ""] + [f"![{name}]({name})" for name in FIGURES] + [""]
+    page += ["<h2>Figures</h2>"] + [f"<p><img src='{name}' alt='{name}'></p>" for name in FIGURES]
+    page.append("</body></html>")
+    (out / "report.md").write_text("\n".join(markdown))
+    (out / "report.html").write_text("\n".join(page) + "\n")
+    return {
+        "json": str(out / "diagnosis.json"),
+        "markdown": str(out / "report.md"),
+        "html": str(out / "report.html"),
+    }

@@ -1,0 +1,163 @@
+"""The virtual machine: the twin with unmodelled effects switched on, calibration error and
+measurement noise, writing a measured-run CSV whose answer is known.
+
+Effects are given as ``NAME:param=value,...`` with NAME from the hypothesis library
+(:mod:`twin_cosim.gap.effects`) and either all of that hypothesis' parameters (as the diagnosis
+reports them, e.g. ``inertia_change:relative_change=0.2``) or FMU parameters of its block (e.g.
+``torque_ripple:ripple_amplitude=0.05,ripple_order=8``); ``plant:NAME=value,...`` sets any FMU
+parameter (effects outside the library: ``plant:pitch_error_amplitude_3=2e-6``,
+``plant:lugre_stiffness=2000``, ``plant:thermal_expansion_rate=1e-4``).
+
+Calibration error: each of :data:`PERTURBED` is multiplied by (1 + u), u uniform in
+[-perturb, perturb]. Measurement noise: white, Gaussian, on the position (m) and the current (A),
+on top of the scenario's noise harmonics.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from twin_cosim.cosim import run_scenario
+from twin_cosim.gap.effects import BY_NAME
+from twin_cosim.plant import Plant
+from twin_cosim.scenario import Scenario
+
+PERTURBED = (
+    "motor_inertia",
+    "load_inertia",
+    "resonance_frequency",
+    "damping_ratio",
+    "torque_constant",
+    "coulomb_friction",
+    "backlash",
+)
+DEFAULT_ORDERS = {"motor_order": 6.0, "screw_order": 1.0}
+
+
+@dataclass(frozen=True)
+class EffectSpec:
+    """One effect to switch on: a library name (or ``plant``) and its parameters."""
+
+    name: str
+    params: dict[str, float]
+
+
+def parse_effect(text: str) -> EffectSpec:
+    """Parse ``NAME:param=value,param=value``; ValueError says what was expected."""
+    name, _, body = text.partition(":")
+    if name != "plant" and name not in BY_NAME:
+        raise ValueError(
+            f"--effect {text!r}: unknown effect {name!r}; "
+            f"expected 'plant' or one of {sorted(BY_NAME)}"
+        )
+    params = {}
+    for item in filter(None, body.split(",")):
+        key, equals, value = item.partition("=")
+        try:
+            params[key.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"--effect {text!r}: {item!r} must be param=number") from None
+        if not equals or not np.isfinite(params[key.strip()]):
+            raise ValueError(f"--effect {text!r}: {item!r} must be param=finite number")
+    if not params:
+        raise ValueError(f"--effect {text!r}: give at least one param=value after '{name}:'")
+    return EffectSpec(name, params)
+
+
+def effect_overrides(
+    effect: EffectSpec, nominal: dict[str, float], fmu_parameters: set[str]
+) -> dict[str, float]:
+    """FMU parameters that switch one effect on."""
+    if effect.name == "plant" or set(effect.params) <= fmu_parameters:
+        unknown = sorted(set(effect.params) - fmu_parameters)
+        if unknown:
+            raise ValueError(f"effect {effect.name}: the FMU has no parameter(s) {unknown}")
+        return dict(effect.params)
+    hypothesis = BY_NAME[effect.name]
+    names = [p.name for p in hypothesis.parameters]
+    extra = sorted(set(effect.params) - set(names) - {"order"})
+    missing = [n for n in names if n not in effect.params]
+    if extra or missing:
+        raise ValueError(
+            f"effect {effect.name}: give its parameters {names} (optional 'order'), or FMU "
+            f"parameters of its block; missing {missing}, unknown {extra}"
+        )
+    order = effect.params.get("order")
+    context = {k: order if order else v for k, v in DEFAULT_ORDERS.items()}
+    values = np.array([effect.params[n] for n in names])
+    return hypothesis.to_plant(values, nominal, context)
+
+
+@dataclass
+class Synthesis:
+    """A synthetic measured run and its known answer."""
+
+    run: pd.DataFrame
+    truth: dict[str, Any] = field(default_factory=dict)
+
+
+def synthesize(
+    scenario: Scenario,
+    effects: list[EffectSpec],
+    perturb: float = 0.0,
+    seed: int = 0,
+    fmu: Path | None = None,
+    noise_position: float = 20e-9,
+    noise_current: float = 5e-3,
+) -> Synthesis:
+    """Run the virtual machine.
+
+    Parameters
+    ----------
+    scenario
+        Reference, controller and nominal plant.
+    effects
+        Effects to switch on.
+    perturb
+        Largest relative calibration error of the parameters in :data:`PERTURBED`.
+    seed
+        Seed of the calibration error and the noise.
+    fmu
+        Plant FMU (the scenario's when None).
+    noise_position, noise_current
+        Standard deviations of the white measurement noise, m and A.
+    """
+    if not 0.0 <= perturb < 1.0:
+        raise ValueError(f"--perturb must lie in [0, 1), got {perturb}")
+    if noise_position < 0 or noise_current < 0:
+        raise ValueError("noise standard deviations must be >= 0")
+    rng = np.random.default_rng(seed)
+    with Plant(fmu or scenario.fmu) as plant:
+        nominal = {**plant.start_values(), **scenario.plant_parameters}
+        factors = {name: 1.0 + rng.uniform(-perturb, perturb) for name in PERTURBED}
+        parameters = {**nominal, **{k: nominal[k] * f for k, f in factors.items()}}
+        fmu_parameters = set(plant.parameter_names())
+        for effect in effects:
+            parameters |= effect_overrides(effect, parameters, fmu_parameters)
+        record = run_scenario(plant, scenario, plant_overrides=parameters)
+    n = len(record)
+    run = pd.DataFrame(
+        {
+            "t": record["t"],
+            "x_ref": record["x_ref"],
+            "x": record["x"] + rng.normal(0.0, noise_position, n),
+            "current": record["current"] + rng.normal(0.0, noise_current, n),
+            "motor_speed": record["motor_speed"],
+        }
+    )
+    truth = {
+        "scenario": str(scenario.source),
+        "effects": [{"name": e.name, "params": e.params} for e in effects],
+        "perturb": perturb,
+        "calibration_factors": factors,
+        "seed": seed,
+        "noise_position_m": noise_position,
+        "noise_current_A": noise_current,
+        "plant_parameters": {k: v for k, v in parameters.items() if nominal.get(k) != v},
+    }
+    return Synthesis(run, truth)
