@@ -9,7 +9,8 @@
    rule; the paper's validation figures (max, mean absolute and RMS position gap).
 4. Which: every hypothesis of :mod:`twin_cosim.gap.effects` fitted on the training data,
    ranked by BIC on the training residual; accepted only on held-out data (see Thresholds).
-   Greedy forward selection adds effects one at a time, each fitted on top of those accepted.
+   Greedy forward selection adds effects one at a time, each fitted on top of those accepted;
+   later rounds refit the ``later_round_candidates`` (6) best-ranked remaining hypotheses.
 5. How far: for each accepted effect the held-out gap before and after, per regime.
 
 Split: with ``--holdout`` files the measured runs train and the holdout runs judge; otherwise
@@ -20,8 +21,15 @@ Thresholds (``DiagnosisSettings``):
 - the held-out gap is *significant* when the largest relative error of the twin's E_pk, ITAE and
   IAU against the measured ones is at least ``significance_metric`` (2 %): a gap a servo engineer
   would see in the figures of merit, above what a few percent of calibration error gives;
-- an effect is *accepted* when the gap is significant and the effect cuts the normalised
-  held-out RMS by at least ``accept_reduction`` (25 %);
+- an effect is *accepted* when the gap is significant, the effect cuts the normalised
+  held-out RMS by at least ``accept_reduction`` (25 %), and, for a change of a calibrated
+  parameter (Coulomb level, backlash, inertia, stiffness), the change exceeds the calibration
+  tolerance ``calibration_tolerance`` (3 % of the nominal value; for stiffness, of f_1): smaller
+  changes are within what the twin's calibration is trusted to and are declared not diagnosable;
+  and the effect is *consistent*: it makes neither the position nor the current held-out RMS
+  worse than ``worsen_limit`` (1.1) times what it was, plus the noise floor (a wrong effect can
+  trade one signal for the other: a motor-order ripple fitted to a lead error cuts the position
+  gap and multiplies the current gap);
 - two effects form a *group* when both pass, their reductions differ by less than 0.1 and the
   changes they predict on the held-out data correlate at 0.9 or more.
 """
@@ -63,9 +71,12 @@ class DiagnosisSettings:
     split: float = 0.5
     significance_metric: float = 0.02
     accept_reduction: float = 0.25
+    calibration_tolerance: float = 0.03
+    worsen_limit: float = 1.1
     group_reduction_margin: float = 0.1
     group_correlation: float = 0.9
     max_effects: int = 3
+    later_round_candidates: int = 6
     hypotheses: tuple[str, ...] = tuple(h.name for h in LIBRARY)
 
 
@@ -219,7 +230,7 @@ def _jsonable(value: Any) -> Any:
         return {str(k): _jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [_jsonable(v) for v in value]
-    if isinstance(value, (np.floating, np.integer)):
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
         return value.item()
     if isinstance(value, np.ndarray):
         return value.tolist()
@@ -242,6 +253,8 @@ class Candidate:
 
     fit: FitResult
     n_parameters: int
+    above_calibration_floor: bool = True
+    consistent: bool = True
     bic: float = 0.0
     holdout_rms: float = 0.0
     reduction: float = 0.0
@@ -324,7 +337,16 @@ def diagnose(
     pool = make_pool(spec, workers)
     try:
         steps, effects, base, current_record = _select(
-            pool, settings, context, windows, scenario, record, sigma_x, sigma_i, train_seconds
+            pool,
+            settings,
+            context,
+            windows,
+            scenario,
+            record,
+            sigma_x,
+            sigma_i,
+            train_seconds,
+            nominal,
         )
     finally:
         pool.close()
@@ -344,7 +366,7 @@ def diagnose(
         "gap": {
             "significant": bool(significant),
             "holdout_normalised_rms": before_rms,
-            "verdict": _verdict(significant, steps),
+            "verdict": _verdict(significant, steps, effects, settings),
             "validation_figures": validation_figures(all0),
             "holdout_metrics_before": metric_before,
             "holdout_metrics_after": metric_errors(windows.holdout, current_record),
@@ -361,13 +383,34 @@ def diagnose(
         "warnings": warnings,
         "final_plant_parameters": base,
     }
-    return Diagnosis(summary, record, current_record, train0, hold0, hold_final, windows.train_end)
+    return Diagnosis(
+        _jsonable(summary), record, current_record, train0, hold0, hold_final, windows.train_end
+    )
 
 
-def _verdict(significant: bool, steps: list[dict[str, Any]]) -> str:
+def _verdict(
+    significant: bool,
+    steps: list[dict[str, Any]],
+    effects: list[dict[str, Any]],
+    settings: DiagnosisSettings,
+) -> str:
     if not significant:
-        return "no significant gap: the twin matches the measurement within the noise floor"
+        return (
+            "no significant gap: the twin's E_pk, ITAE and IAU match the measured ones within "
+            "the significance threshold"
+        )
     if not steps:
+        floor = [
+            r["name"]
+            for r in effects
+            if not r["above_calibration_floor"]
+            and r["holdout_reduction"] >= settings.accept_reduction
+        ]
+        if floor:
+            return (
+                f"significant gap, but the effects that explain it ({', '.join(floor)}) are "
+                "smaller than the calibration tolerance: not diagnosable beyond calibration error"
+            )
         return (
             "significant gap that no effect of the library explains on held-out data: "
             "see 'where' for its location"
@@ -389,6 +432,10 @@ def _unexplained(before: Residuals, after: Residuals) -> dict[str, float]:
     return shares
 
 
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(values**2)))
+
+
 def _judge(
     candidate: Candidate,
     hold: Residuals,
@@ -398,6 +445,7 @@ def _judge(
     scenario: Scenario,
     sigma_x: float,
     sigma_i: float,
+    settings: DiagnosisSettings,
 ) -> None:
     """Held-out figures of a fitted candidate whose replay is ``record``."""
     after = residuals(runs, record, scenario)
@@ -405,6 +453,9 @@ def _judge(
     candidate.reduction = 1.0 - candidate.holdout_rms / base_rms if base_rms > 0 else 0.0
     candidate.position_rms_um = float(np.sqrt(np.mean(after.position**2))) * UM_PER_M
     candidate.current_rms_A = float(np.sqrt(np.mean(after.current**2)))
+    worse_x = candidate.position_rms_um / UM_PER_M - settings.worsen_limit * _rms(hold.position)
+    worse_i = candidate.current_rms_A - settings.worsen_limit * _rms(hold.current)
+    candidate.consistent = worse_x <= sigma_x and worse_i <= sigma_i
     x_change = (hold.position - after.position) / sigma_x  # = x_sim_after - x_sim_before
     i_change = (hold.current - after.current) / sigma_i
     candidate.change = np.concatenate([x_change, i_change])
@@ -420,6 +471,7 @@ def _select(
     sigma_x: float,
     sigma_i: float,
     train_seconds: float,
+    nominal: dict[str, float],
 ):
     """Greedy forward selection; returns (accepted steps, first-round table, parameters, record)."""
     base: dict[str, float] = {}
@@ -438,10 +490,23 @@ def _select(
         records = dict(pool.imap([SimulateTask(f.overrides) for f in fitted]))
         candidates = []
         for i, fit in enumerate(fitted):
-            candidate = Candidate(fit, len(BY_NAME[fit.hypothesis].parameters))
+            hypothesis = BY_NAME[fit.hypothesis]
+            candidate = Candidate(fit, len(hypothesis.parameters))
+            if hypothesis.relative_size is not None and fit.values:
+                values = np.array(list(fit.values.values()))
+                size = hypothesis.relative_size(values, {**nominal, **base})
+                candidate.above_calibration_floor = size >= settings.calibration_tolerance
             candidate.bic = _bic(fit.train_cost, candidate.n_parameters, train_seconds)
             _judge(
-                candidate, hold, base_rms, records[i], windows.holdout, scenario, sigma_x, sigma_i
+                candidate,
+                hold,
+                base_rms,
+                records[i],
+                windows.holdout,
+                scenario,
+                sigma_x,
+                sigma_i,
+                settings,
             )
             candidates.append((candidate, records[i]))
         candidates.sort(key=lambda pair: pair[0].bic)
@@ -450,7 +515,7 @@ def _select(
         table = [_row(c, before_um, before_A, settings) for c, _ in candidates]
         if not steps:
             first_round = table
-        passing = [(c, r) for c, r in candidates if c.reduction >= settings.accept_reduction]
+        passing = [(c, r) for c, r in candidates if _passes(c, settings)]
         if not passing:
             break
         best, best_record = passing[0]
@@ -478,7 +543,9 @@ def _select(
                 "ranking": table,
             }
         )
-        remaining = [name for name in remaining if name not in group]
+        ranked = [row["name"] for row in first_round]
+        remaining = [name for name in ranked if name not in group and name in remaining]
+        remaining = remaining[: settings.later_round_candidates]
     return steps, first_round, base, current
 
 
@@ -497,8 +564,18 @@ def _row(
         "holdout_current_before_A": before_A,
         "holdout_current_after_A": candidate.current_rms_A,
         "holdout_reduction": candidate.reduction,
-        "passes": candidate.reduction >= settings.accept_reduction,
+        "above_calibration_floor": candidate.above_calibration_floor,
+        "consistent": candidate.consistent,
+        "passes": _passes(candidate, settings),
     }
+
+
+def _passes(candidate: Candidate, settings: DiagnosisSettings) -> bool:
+    return (
+        candidate.reduction >= settings.accept_reduction
+        and candidate.above_calibration_floor
+        and candidate.consistent
+    )
 
 
 def _correlation(a: np.ndarray, b: np.ndarray) -> float:

@@ -24,13 +24,30 @@ Context = Mapping[str, float]
 
 @dataclass(frozen=True)
 class HypothesisParameter:
-    """One fitted parameter: name, unit, start value and bounds (physical units)."""
+    """One fitted parameter: name, unit, start value and bounds (physical units).
+
+    ``log``: the fit moves this parameter on a logarithmic scale (bounds must be > 0).
+    """
 
     name: str
     unit: str
     initial: float
     lower: float
     upper: float
+    log: bool = False
+
+    def to_unit(self, value: float) -> float:
+        """Physical value -> fit coordinate in [0, 1]."""
+        if self.log:
+            return math.log(value / self.lower) / math.log(self.upper / self.lower)
+        return (value - self.lower) / (self.upper - self.lower)
+
+    def from_unit(self, u: float) -> float:
+        """Fit coordinate in [0, 1] -> physical value."""
+        u = min(max(u, 0.0), 1.0)
+        if self.log:
+            return self.lower * (self.upper / self.lower) ** u
+        return self.lower + u * (self.upper - self.lower)
 
 
 @dataclass(frozen=True)
@@ -49,6 +66,9 @@ class Hypothesis:
         ``continuous`` or ``scan``.
     signature : str
         Where the effect shows (regime, signal, domain).
+    relative_size : callable or None
+        For a change of a calibrated parameter: (values, nominal) -> size of the change relative
+        to the nominal value, compared with the calibration tolerance; None for the others.
     """
 
     name: str
@@ -56,18 +76,15 @@ class Hypothesis:
     to_plant: Callable[[np.ndarray, Mapping[str, float], Context], Overrides]
     kind: str
     signature: str
+    relative_size: Callable[[np.ndarray, Mapping[str, float]], float] | None = None
 
-    @property
-    def initial(self) -> np.ndarray:
-        """Start values of the fit."""
-        return np.array([p.initial for p in self.parameters])
+    def from_unit(self, u: np.ndarray) -> np.ndarray:
+        """Fit coordinates in [0, 1] -> physical values."""
+        return np.array([p.from_unit(float(x)) for p, x in zip(self.parameters, u, strict=True)])
 
-    @property
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Lower and upper bounds of the fit."""
-        return np.array([p.lower for p in self.parameters]), np.array(
-            [p.upper for p in self.parameters]
-        )
+    def initial_unit(self) -> np.ndarray:
+        """Fit coordinates of the start values."""
+        return np.array([p.to_unit(p.initial) for p in self.parameters])
 
     def named(self, values: np.ndarray) -> dict[str, float]:
         """Fitted values by parameter name."""
@@ -154,7 +171,7 @@ LIBRARY: tuple[Hypothesis, ...] = (
         "stribeck",
         (
             P("stribeck_friction", "N.m", 0.1, 0.0, 2.0),
-            P("stribeck_speed", "rad/s", 0.5, 0.01, 20.0),
+            P("stribeck_speed", "rad/s", 0.5, 0.05, 2.0, log=True),
         ),
         _stribeck,
         "continuous",
@@ -166,6 +183,7 @@ LIBRARY: tuple[Hypothesis, ...] = (
         _coulomb,
         "continuous",
         "every motion and reversal; current offset of constant sign per direction",
+        lambda v, nominal: abs(v[0]) / nominal["coulomb_friction"],
     ),
     Hypothesis(
         "asymmetric_friction",
@@ -226,6 +244,7 @@ LIBRARY: tuple[Hypothesis, ...] = (
         _backlash,
         "continuous",
         "reversals only; a position step of about the change, independent of speed",
+        lambda v, nominal: abs(v[0]) / nominal["backlash"] if nominal["backlash"] else math.inf,
     ),
     Hypothesis(
         "inertia_change",
@@ -233,6 +252,7 @@ LIBRARY: tuple[Hypothesis, ...] = (
         _inertia,
         "continuous",
         "accelerations; current proportional to acceleration",
+        lambda v, nominal: abs(v[0]),
     ),
     Hypothesis(
         "stiffness_change",
@@ -240,16 +260,10 @@ LIBRARY: tuple[Hypothesis, ...] = (
         _stiffness,
         "continuous",
         "accelerations and reversals; resonance ringing shifts in frequency",
+        lambda v, nominal: abs(math.sqrt(1.0 + v[0]) - 1.0),  # relative change of f_1
     ),
 )
 BY_NAME: dict[str, Hypothesis] = {h.name: h for h in LIBRARY}
-
-# Effects that act alike on a closed-loop run; the diagnosis reports them as one group when the
-# data cannot separate them (similar held-out reduction and correlated predicted changes).
-KNOWN_GROUPS: tuple[frozenset[str], ...] = (
-    frozenset({"dead_time", "current_lag"}),
-    frozenset({"stribeck", "coulomb_change"}),
-)
 
 
 def scan_values(hypothesis: Hypothesis, context: Context) -> list[np.ndarray]:

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import least_squares
+from scipy.optimize import differential_evolution, least_squares
 
 from twin_cosim.cosim import RunAborted, run_scenario
 from twin_cosim.gap.effects import BY_NAME, scan_values
@@ -29,8 +29,10 @@ from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.scenario import Scenario, load_scenario
 
-FIT_EVALUATIONS = 20  # residual evaluations per least_squares fit (plus its Jacobians)
+FIT_EVALUATIONS = 10  # residual evaluations per least_squares polish (plus its Jacobians)
 FIT_STEP = 0.02  # finite-difference step, as a fraction of each parameter's range
+GLOBAL_EVALUATIONS = 50  # replays of the global search per fitted parameter (one or two)
+GLOBAL_POPULATION_PER_PARAMETER = 8
 
 
 @dataclass(frozen=True)
@@ -187,13 +189,11 @@ class Replayer:
                 len(candidates),
                 f"scanned {len(candidates)} values",
             )
-        lower, upper = hypothesis.bounds
-        span = upper - lower
 
         def residual_of_unit(u: np.ndarray) -> np.ndarray:
-            return self.training_residual(overrides_of(lower + u * span))
+            return self.training_residual(overrides_of(hypothesis.from_unit(u)))
 
-        u0 = np.clip((hypothesis.initial - lower) / span, 0.0, 1.0)
+        u0, grid_replays = self._coarse_start(hypothesis, residual_of_unit)
         solution = least_squares(
             residual_of_unit,
             u0,
@@ -202,9 +202,9 @@ class Replayer:
             max_nfev=FIT_EVALUATIONS,
             x_scale=1.0,
         )
-        values = lower + solution.x * span
+        values = hypothesis.from_unit(solution.x)
         train_cost = float(np.mean(solution.fun**2))
-        replays = int(solution.nfev + (solution.njev or 0) * len(u0))
+        replays = grid_replays + int(solution.nfev + (solution.njev or 0) * len(u0))
         return FitResult(
             task.hypothesis,
             hypothesis.named(values),
@@ -213,6 +213,39 @@ class Replayer:
             replays,
             solution.message,
         )
+
+    @staticmethod
+    def _coarse_start(hypothesis, residual_of_unit) -> tuple[np.ndarray, int]:
+        """Start of the local fit: a small global search for one or two parameters.
+
+        Stick-slip and backlash make the training cost rough, with narrow valleys (a Stribeck
+        level 2 % off can cost ten times the optimum), so a local fit from one start stalls. For
+        one or two parameters scipy's differential evolution (seeded, no polish, about
+        GLOBAL_EVALUATIONS replays per parameter) picks the start of least_squares; three-parameter
+        hypotheses (the nearly linear lead error) start from their start values.
+        """
+        start = np.clip(hypothesis.initial_unit(), 0.0, 1.0)
+        if len(start) > 2:
+            return start, 0
+        count = 0
+
+        def cost(u: np.ndarray) -> float:
+            nonlocal count
+            count += 1
+            return float(np.mean(residual_of_unit(u) ** 2))
+
+        popsize = GLOBAL_POPULATION_PER_PARAMETER
+        search = differential_evolution(
+            cost,
+            [(0.0, 1.0)] * len(start),
+            popsize=popsize,
+            x0=start,
+            polish=False,
+            seed=0,
+            maxiter=max(1, GLOBAL_EVALUATIONS // popsize - 1),
+            tol=1e-3,
+        )
+        return np.clip(search.x, 0.0, 1.0), count
 
     def close(self) -> None:
         """Free the plant."""
