@@ -132,7 +132,8 @@ def report(results: list[dict]) -> None:
     for label in labels:
         print(label.ljust(22) + "".join(str(counts[(label, c)] or ".").rjust(15) for c in columns))
     print(
-        "\nPer effect (large / small): right first, mean held-out reduction when right, right in top 3"
+        "\nPer effect (large / small): right first, mean held-out reduction when right, "
+        "right in top 3"
     )
     by = defaultdict(list)
     for r in results:
@@ -145,7 +146,8 @@ def report(results: list[dict]) -> None:
             shrink = sum(r["reduction"] for r in right) / len(right) if right else 0.0
             top3 = sum(effect in r["top3"] for r in group)
             cells.append(
-                f"{size}: {len(right)}/{len(group)} first, {shrink:.0%} shrink, {top3}/{len(group)} top-3"
+                f"{size}: {len(right)}/{len(group)} first, {shrink:.0%} shrink, "
+                f"{top3}/{len(group)} top-3"
             )
         print(f"  {effect:<20} " + "; ".join(cells))
     large = [r for r in results if r["size"] == "large"]
@@ -158,7 +160,8 @@ def report(results: list[dict]) -> None:
     print("\nTargets")
     print(f"  null runs with no acceptance: {len(null_ok)}/{len(null)} (target >= 95 %)")
     print(
-        f"  large effects right first with >= 50 % held-out reduction: {len(large_ok)}/{len(large)} "
+        "  large effects right first with >= 50 % held-out reduction: "
+        f"{len(large_ok)}/{len(large)} "
         "(target >= 90 %)"
     )
     print(f"  small effects right in the top 3: {len(small_ok)}/{len(small)} (target >= 70 %)")
@@ -169,7 +172,8 @@ def report(results: list[dict]) -> None:
     print(f"  small effects declared without an accepted effect: {len(undiagnosable)}/{len(small)}")
     walls = [r["wall_s"] for r in results]
     print(
-        f"  diagnosis wall time: median {sorted(walls)[len(walls) // 2]:.1f} s, max {max(walls):.1f} s"
+        f"  diagnosis wall time: median {sorted(walls)[len(walls) // 2]:.1f} s, "
+        f"max {max(walls):.1f} s"
     )
 
 

@@ -66,6 +66,16 @@ def _simulate(args: argparse.Namespace) -> int:
         wall = time.perf_counter() - start
         fmu_path = str(plant.fmu_path)
     metrics = compute_metrics(record, scenario.metrics_window)
+    validation = None
+    if scenario.measured is not None:
+        from twin_cosim.measured import read_measured
+        from twin_cosim.metrics import compare_with_measured
+
+        run = read_measured(scenario.measured)
+        validation = {
+            "measured": str(scenario.measured),
+            **compare_with_measured(record, run.t, run.x, run.current),
+        }
     record.to_csv(out / "record.csv", index=False)
     plot_run(
         record, metrics, f"{scenario.name}: {args.params or 'scenario parameters'}", out / "run.png"
@@ -75,6 +85,7 @@ def _simulate(args: argparse.Namespace) -> int:
         "fmu": fmu_path,
         "params": tuned.as_dict(),
         "metrics": metrics.as_dict(),
+        "validation": validation,
         "metrics_window_s": list(scenario.metrics_window),
         "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
         "wall_s": wall,
@@ -91,6 +102,14 @@ def _simulate(args: argparse.Namespace) -> int:
             f"IAU {m.IAU:.3f} A.s, "
             f"RMS {m.rms_um:.2f} um ({wall:.2f} s wall)"
         )
+        if validation:
+            v = validation
+            print(
+                f"against {v['measured']}: position gap RMS {v['position_rms_gap_um']:.3f} um "
+                f"(max {v['position_max_gap_um']:.2f} um, relative "
+                f"{v['position_relative_error_pct']:.4f} %), command/force relative error "
+                f"{v['current_relative_error_pct']:.3f} %"
+            )
         print(f"wrote {out}/record.csv, run.png, summary.json")
     return 0
 
@@ -238,14 +257,14 @@ def _synth(args: argparse.Namespace) -> int:
 
 
 def _diagnose(args: argparse.Namespace) -> int:
-    from twin_cosim.gap.diagnosis import DiagnosisSettings, diagnose
-    from twin_cosim.gap.loaders import read_measured
+    from twin_cosim.gap.diagnosis import diagnose, settings_from
     from twin_cosim.gap.report import write_report
+    from twin_cosim.measured import read_measured
 
     scenario = load_scenario(args.scenario)
-    measured = [read_measured(path, scenario) for path in args.measured]
-    holdout = [read_measured(path, scenario) for path in args.holdout or []]
-    settings = DiagnosisSettings(split=args.split)
+    measured = [read_measured(path) for path in args.measured]
+    holdout = [read_measured(path) for path in args.holdout or []]
+    settings = settings_from(scenario, args.split)
     start = time.perf_counter()
     result = diagnose(scenario, measured, holdout, args.plant, settings, workers=args.workers)
     result.summary["wall_s"] = time.perf_counter() - start
@@ -361,7 +380,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     diag.add_argument("--holdout", action="append", help="held-out run(s); default: a time split")
     diag.add_argument(
-        "--split", type=float, default=0.5, help="training fraction of the time split (0.5)"
+        "--split", type=float, help="training fraction of the time split (default 0.5)"
     )
     diag.add_argument("--plant", help="another FMU offering the plant contract")
     diag.add_argument(

@@ -324,4 +324,12 @@ def run_scenario(
     parameters = {**scenario.plant_parameters, **(plant_overrides or {})}
     run = run_fast_path if fast else run_reference_path
     tuned = tuned or scenario.tuned
-    return run(plant, scenario.reference, tuned, scenario.settings, parameters, None, abort_error)
+    return run(
+        plant,
+        scenario.reference,
+        tuned,
+        scenario.settings,
+        parameters,
+        scenario.disturbance,
+        abort_error,
+    )

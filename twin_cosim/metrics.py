@@ -68,3 +68,25 @@ def compute_metrics(
         t_E_pk=float(t[peak]),
         max_current_A=float(current.max()),
     )
+
+
+def compare_with_measured(
+    record: pd.DataFrame, t: np.ndarray, x: np.ndarray, current: np.ndarray
+) -> dict[str, float]:
+    """Replay against a measured run sampled at ``t`` (s): position x (m), current or command.
+
+    Returns the RMS and maximum position gap (um), the relative position error
+    ||x_sim - x|| / ||x|| (%) and the relative error of the current or drive command (%), the
+    benchmark's figures of merit (eq. (11) of the EMPS description).
+    """
+    x_sim = np.interp(t, record["t"].to_numpy(), record["x"].to_numpy())
+    i_sim = np.interp(t, record["t"].to_numpy(), record["current"].to_numpy())
+    gap = x_sim - x
+    return {
+        "position_rms_gap_um": float(np.sqrt(np.mean(gap**2)) * UM_PER_M),
+        "position_max_gap_um": float(np.max(np.abs(gap)) * UM_PER_M),
+        "position_relative_error_pct": float(100 * np.linalg.norm(gap) / np.linalg.norm(x)),
+        "current_relative_error_pct": float(
+            100 * np.linalg.norm(i_sim - current) / np.linalg.norm(current)
+        ),
+    }

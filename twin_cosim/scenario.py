@@ -21,6 +21,7 @@ Layout (every section but ``reference`` is optional)::
     run:
       metrics_window: [0.0, null]            # s; null: to the end
     optimize: {...}                          # see twin_cosim.optimize.config
+    diagnose: {...}                          # see twin_cosim.gap.diagnosis.settings_from
 
 Every error names the file and the key path, and says what was expected.
 """
@@ -33,10 +34,13 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
+from fmu_build.build import BuildError, build_fmu
 from twin_cosim import paper
 from twin_cosim.controller import TUNED_NAMES, ControllerSettings, TunedParameters
+from twin_cosim.measured import MeasuredDataError, read_measured
 from twin_cosim.reference import (
     Dwell,
     Move,
@@ -49,7 +53,16 @@ from twin_cosim.reference import (
     sample_segments,
 )
 
-TOP_KEYS = {"name", "description", "plant", "controller", "reference", "run", "optimize"}
+TOP_KEYS = {
+    "name",
+    "description",
+    "plant",
+    "controller",
+    "reference",
+    "run",
+    "optimize",
+    "diagnose",
+}
 
 
 class ScenarioError(ValueError):
@@ -93,6 +106,11 @@ class Scenario:
         (t0, tF) in s for the metrics; tF None means the end of the run.
     optimize : dict
         The raw ``optimize`` section, checked by :mod:`twin_cosim.optimize.config`.
+    measured : Path or None
+        The measured run the reference was taken from (``reference.measured``); ``twin
+        simulate`` compares the replay with it.
+    disturbance : numpy.ndarray or None
+        Disturbance input (N.m, or N on a linear axis) per position-loop sample.
     """
 
     name: str
@@ -105,6 +123,9 @@ class Scenario:
     reference: ReferenceGrid
     metrics_window: tuple[float, float | None]
     optimize: dict[str, Any] = field(default_factory=dict)
+    measured: Path | None = None
+    disturbance: np.ndarray | None = None
+    diagnose: dict[str, Any] = field(default_factory=dict)
 
 
 class _Checker:
@@ -184,10 +205,53 @@ def _segment(check: _Checker, item: Any, key: str):
     raise check.fail(key, "one of dwell, move, oscillation, ramp", kind)
 
 
-def _reference(check: _Checker, data: Any, position_period: float) -> tuple[ReferenceGrid, float]:
-    data = check.mapping(data, "reference", {"sample_period", "start_position", "segments", "csv"})
-    if ("segments" in data) == ("csv" in data):
-        raise check.fail("reference", "exactly one of 'segments' or 'csv'")
+@dataclass(frozen=True)
+class _Reference:
+    grid: ReferenceGrid
+    start: float
+    measured: Path | None = None
+    plant_start: float | None = None
+    disturbance: np.ndarray | None = None
+
+
+def _from_measured(check: _Checker, data: dict[str, Any], position_period: float) -> _Reference:
+    """The reference (and disturbance) of a measured run file (.csv or EMPS .mat)."""
+    path = check.source.parent / str(data["measured"])
+    try:
+        run = read_measured(path)
+    except MeasuredDataError as exc:
+        raise ScenarioError(f"{check.source}: reference.measured: {exc}") from exc
+    if abs(run.t[0]) > 0.5 * run.period:
+        raise check.fail("reference.measured", "a run whose time starts at 0 s", float(run.t[0]))
+    try:
+        grid = interpolate(run.x_ref, run.period, position_period)
+    except ReferenceError as exc:
+        raise ScenarioError(f"{check.source}: reference: {exc}") from exc
+    disturbance = None
+    spec = check.mapping(data.get("disturbance"), "reference.disturbance", {"variable", "gain"})
+    if spec:
+        variable = str(spec.get("variable"))
+        values = run.extra.get(variable)
+        if not isinstance(values, np.ndarray):
+            raise check.fail("reference.disturbance.variable", f"a signal of {path.name}", variable)
+        gain = check.number(spec.get("gain", 1.0), "reference.disturbance.gain")
+        disturbance = gain * np.interp(grid.time, run.t, values)
+    return _Reference(grid, float(run.x_ref[0]), path, float(run.x[0]), disturbance)
+
+
+def _reference(check: _Checker, data: Any, position_period: float) -> _Reference:
+    data = check.mapping(
+        data,
+        "reference",
+        {"sample_period", "start_position", "segments", "csv", "measured", "disturbance"},
+    )
+    sources = [key for key in ("segments", "csv", "measured") if key in data]
+    if len(sources) != 1:
+        raise check.fail("reference", "exactly one of 'segments', 'csv' or 'measured'")
+    if "measured" in data:
+        return _from_measured(check, data, position_period)
+    if "disturbance" in data:
+        raise check.fail("reference.disturbance", "a 'measured' reference to take it from")
     sample_period = check.number(
         data.get("sample_period", 0.004), "reference.sample_period", positive=True
     )
@@ -204,7 +268,7 @@ def _reference(check: _Checker, data: Any, position_period: float) -> tuple[Refe
                 _segment(check, s, f"reference.segments[{i}]") for i, s in enumerate(segments)
             ]
             samples = sample_segments(parsed, sample_period, start)
-        return interpolate(samples, sample_period, position_period), start
+        return _Reference(interpolate(samples, sample_period, position_period), start)
     except ReferenceError as exc:
         raise ScenarioError(f"{check.source}: reference: {exc}") from exc
 
@@ -250,13 +314,22 @@ def load_scenario(path: Path | str) -> Scenario:
     data = check.mapping(load_yaml(source), "(top level)", TOP_KEYS)
     if "reference" not in data:
         raise check.fail("reference", "a reference section")
-    plant = check.mapping(data.get("plant"), "plant", {"fmu", "parameters"})
+    plant = check.mapping(data.get("plant"), "plant", {"fmu", "model", "parameters"})
     plant_parameters = {
         str(k): check.number(v, f"plant.parameters.{k}")
         for k, v in check.mapping(plant.get("parameters"), "plant.parameters").items()
     }
+    if "fmu" in plant and "model" in plant:
+        raise check.fail(
+            "plant", "either 'fmu' (a file) or 'model' (a folder of models/), not both"
+        )
     fmu = plant.get("fmu")
     fmu_path = None if fmu is None else (source.parent / str(fmu))
+    if "model" in plant:
+        try:
+            fmu_path = build_fmu(str(plant["model"]))
+        except BuildError as exc:
+            raise ScenarioError(f"{source}: plant.model: {exc}") from exc
     control = check.mapping(data.get("controller"), "controller", {"parameters", "settings"})
     tuned = (
         tuned_from_mapping(control["parameters"], f"{source}: controller.parameters")
@@ -271,8 +344,11 @@ def load_scenario(path: Path | str) -> Scenario:
         )
     except ValueError as exc:
         raise ScenarioError(f"{source}: controller.settings: {exc}") from exc
-    reference, start = _reference(check, data["reference"], settings.position_period)
-    plant_parameters.setdefault("load_position_start", start)
+    chosen = _reference(check, data["reference"], settings.position_period)
+    reference = chosen.grid
+    plant_parameters.setdefault(
+        "load_position_start", chosen.start if chosen.plant_start is None else chosen.plant_start
+    )
     run = check.mapping(data.get("run"), "run", {"metrics_window"})
     window = run.get("metrics_window", [0.0, None])
     if not isinstance(window, list) or len(window) != 2:
@@ -292,6 +368,9 @@ def load_scenario(path: Path | str) -> Scenario:
         reference=reference,
         metrics_window=(t0, t_end),
         optimize=check.mapping(data.get("optimize"), "optimize"),
+        diagnose=check.mapping(data.get("diagnose"), "diagnose"),
+        measured=chosen.measured,
+        disturbance=chosen.disturbance,
     )
 
 

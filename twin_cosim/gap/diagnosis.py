@@ -48,13 +48,13 @@ from twin_cosim.cosim import run_scenario
 from twin_cosim.gap import noise as noise_model
 from twin_cosim.gap import regimes as regime_model
 from twin_cosim.gap import spectra
-from twin_cosim.gap.effects import BY_NAME, LIBRARY, estimate_resolution
-from twin_cosim.gap.measured import (
+from twin_cosim.gap.effects import estimate_resolution, library_for
+from twin_cosim.gap.replay import FitResult, FitTask, ReplaySpec, SimulateTask, TrainingData
+from twin_cosim.measured import (
     MeasuredRun,
     check_against_reference,
     current_warnings,
 )
-from twin_cosim.gap.replay import FitResult, FitTask, ReplaySpec, SimulateTask, TrainingData
 from twin_cosim.metrics import UM_PER_M
 from twin_cosim.plant import Plant
 from twin_cosim.scenario import Scenario
@@ -77,7 +77,38 @@ class DiagnosisSettings:
     group_correlation: float = 0.9
     max_effects: int = 3
     later_round_candidates: int = 6
-    hypotheses: tuple[str, ...] = tuple(h.name for h in LIBRARY)
+    hypotheses: tuple[str, ...] | None = None  # None: the whole library of the plant model
+    significance_rms: float | None = None  # also significant when the normalised RMS reaches it
+
+
+def settings_from(scenario: Scenario, split: float | None = None) -> DiagnosisSettings:
+    """Settings from the scenario's ``diagnose`` section (any field of DiagnosisSettings but
+    ``hypotheses`` may be given); ``split`` overrides the section's.
+
+    Raises
+    ------
+    ValueError
+        Naming the file and the key on an unknown key or a value that is not a number.
+    """
+    allowed = {f for f in DiagnosisSettings.__dataclass_fields__ if f != "hypotheses"}
+    section = dict(scenario.diagnose)
+    unknown = sorted(set(section) - allowed)
+    if unknown:
+        raise ValueError(
+            f"{scenario.source}: diagnose: unknown key(s) {unknown}; allowed: {sorted(allowed)}"
+        )
+    for key, value in section.items():
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not math.isfinite(value)
+        ):
+            raise ValueError(
+                f"{scenario.source}: diagnose.{key}: expected a finite number, got {value!r}"
+            )
+    if split is not None:
+        section["split"] = split
+    return DiagnosisSettings(**section)
 
 
 @dataclass
@@ -298,6 +329,7 @@ def diagnose(
     windows = split_runs(measured, holdout, settings.split)
     fmu_path = Path(fmu) if fmu else scenario.fmu
     with Plant(fmu_path) as plant:
+        model = plant.description.coSimulation.modelIdentifier
         nominal = {**plant.start_values(), **scenario.plant_parameters}
         gear_ratio = nominal.get("gear_ratio", GEAR_RATIO_DEFAULT)
         first = run_scenario(plant, scenario, plant_overrides=nominal)
@@ -323,6 +355,7 @@ def diagnose(
             train0, train0.current, train0.motor_angle / gear_ratio, 1.0
         ),
         "position_resolution": estimate_resolution(np.concatenate([r.x for r in windows.train])),
+        "dead_time_steps": nominal.get("dead_time_steps", 0.0),
     }
     training = TrainingData(
         [r.t for r in windows.train],
@@ -332,11 +365,11 @@ def diagnose(
         sigma_i,
         windows.train_end,
     )
-    spec = ReplaySpec(str(scenario.source), str(fmu) if fmu else None, nominal, training)
+    spec = ReplaySpec(str(scenario.source), str(fmu) if fmu else None, nominal, training, model)
     train_seconds = sum(float(r.t[-1] - r.t[0]) for r in windows.train)
     pool = make_pool(spec, workers)
     try:
-        steps, effects, base, current_record = _select(
+        steps, effects, last_round, base, current_record = _select(
             pool,
             settings,
             context,
@@ -347,13 +380,14 @@ def diagnose(
             sigma_i,
             train_seconds,
             nominal,
+            model,
         )
     finally:
         pool.close()
     hold_final = residuals(windows.holdout, current_record, scenario)
     before_rms = hold0.normalised_rms(sigma_x, sigma_i)
     metric_before = metric_errors(windows.holdout, record)
-    significant = metric_before["largest_relative_error"] >= settings.significance_metric
+    significant = _significant(metric_before, before_rms, settings)
     summary = {
         "scenario": str(scenario.source),
         "measured": [r.source for r in measured],
@@ -361,6 +395,7 @@ def diagnose(
         "accepted": [step["effect"] for step in steps],
         "steps": steps,
         "effects": effects,
+        "last_round": last_round,
         "where": {"position": located["position"], "current": located["current"]},
         "periodicity": located["periodicity"],
         "gap": {
@@ -432,6 +467,15 @@ def _unexplained(before: Residuals, after: Residuals) -> dict[str, float]:
     return shares
 
 
+def _significant(
+    metrics: dict[str, Any], normalised_rms: float, settings: DiagnosisSettings
+) -> bool:
+    """The held-out gap test of the module docstring."""
+    if metrics["largest_relative_error"] >= settings.significance_metric:
+        return True
+    return settings.significance_rms is not None and normalised_rms >= settings.significance_rms
+
+
 def _rms(values: np.ndarray) -> float:
     return float(np.sqrt(np.mean(values**2)))
 
@@ -472,25 +516,32 @@ def _select(
     sigma_i: float,
     train_seconds: float,
     nominal: dict[str, float],
+    model: str,
 ):
-    """Greedy forward selection; returns (accepted steps, first-round table, parameters, record)."""
+    """Greedy forward selection.
+
+    Returns the accepted steps, the first and the last round's tables, the FMU parameters of the
+    accepted effects and the replay with them.
+    """
     base: dict[str, float] = {}
-    remaining = list(settings.hypotheses)
+    library = {h.name: h for h in library_for(model)}
+    remaining = list(settings.hypotheses or library)
     steps: list[dict[str, Any]] = []
     first_round: list[dict[str, Any]] = []
+    last_round: list[dict[str, Any]] = []
     current = record
     while remaining and len(steps) < settings.max_effects:
         hold = residuals(windows.holdout, current, scenario)
         base_rms = hold.normalised_rms(sigma_x, sigma_i)
         metrics = metric_errors(windows.holdout, current)
-        if metrics["largest_relative_error"] < settings.significance_metric:
+        if not _significant(metrics, base_rms, settings):
             break
         fits = dict(pool.imap([FitTask(name, base, context) for name in remaining]))
         fitted = [fits[i] for i in range(len(remaining))]
         records = dict(pool.imap([SimulateTask(f.overrides) for f in fitted]))
         candidates = []
         for i, fit in enumerate(fitted):
-            hypothesis = BY_NAME[fit.hypothesis]
+            hypothesis = library[fit.hypothesis]
             candidate = Candidate(fit, len(hypothesis.parameters))
             if hypothesis.relative_size is not None and fit.values:
                 values = np.array(list(fit.values.values()))
@@ -515,6 +566,8 @@ def _select(
         table = [_row(c, before_um, before_A, settings) for c, _ in candidates]
         if not steps:
             first_round = table
+        last_round.clear()
+        last_round.extend(table)
         passing = [(c, r) for c, r in candidates if _passes(c, settings)]
         if not passing:
             break
@@ -546,7 +599,7 @@ def _select(
         ranked = [row["name"] for row in first_round]
         remaining = [name for name in ranked if name not in group and name in remaining]
         remaining = remaining[: settings.later_round_candidates]
-    return steps, first_round, base, current
+    return steps, first_round, last_round, base, current
 
 
 def _row(

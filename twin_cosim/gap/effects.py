@@ -263,13 +263,119 @@ LIBRARY: tuple[Hypothesis, ...] = (
         lambda v, nominal: abs(math.sqrt(1.0 + v[0]) - 1.0),  # relative change of f_1
     ),
 )
+
+
+def _emps_mass(v, nominal, context) -> Overrides:
+    return {"mass": nominal["mass"] * (1.0 + v[0])}
+
+
+def _emps_viscous(v, nominal, context) -> Overrides:
+    return {"viscous_friction": nominal["viscous_friction"] + v[0]}
+
+
+def _emps_asymmetric(v, nominal, context) -> Overrides:
+    return {"coulomb_asymmetry": v[0], "viscous_asymmetry": v[1]}
+
+
+def _emps_offset(v, nominal, context) -> Overrides:
+    return {"force_offset": nominal["force_offset"] + v[0]}
+
+
+def _emps_compliance(v, nominal, context) -> Overrides:
+    return {"second_mass": nominal["mass"] * v[0], "coupling_frequency": v[1]}
+
+
+def _emps_dead_time(v, nominal, context) -> Overrides:
+    return {"dead_time_steps": float(round(v[0]))}
+
+
+# The EMPS benchmark's linear axis (models/emps): forces in N, speeds in m/s, a rigid one-mass
+# nominal model with a one-sample drive delay.
+EMPS_LIBRARY: tuple[Hypothesis, ...] = (
+    Hypothesis(
+        "stribeck",
+        (
+            P("stribeck_friction", "N", 2.0, 0.0, 20.0),
+            P("stribeck_speed", "m/s", 2e-3, 1e-4, 0.05, log=True),
+        ),
+        _stribeck,
+        "continuous",
+        "breakaway and reversal spikes of the force; local at v = 0",
+    ),
+    Hypothesis(
+        "coulomb_change",
+        (P("delta_coulomb", "N", 0.0, -15.0, 20.0),),
+        _coulomb,
+        "continuous",
+        "force offset of constant sign per direction of motion",
+        lambda v, nominal: abs(v[0]) / nominal["coulomb_friction"],
+    ),
+    Hypothesis(
+        "asymmetric_friction",
+        (
+            P("coulomb_asymmetry", "N", 0.0, -10.0, 10.0),
+            P("viscous_asymmetry", "N.s/m", 0.0, -100.0, 100.0),
+        ),
+        _emps_asymmetric,
+        "continuous",
+        "constant velocity; force residual that differs between the two directions",
+    ),
+    Hypothesis(
+        "viscous_change",
+        (P("delta_viscous", "N.s/m", 0.0, -150.0, 300.0),),
+        _emps_viscous,
+        "continuous",
+        "constant velocity; force residual proportional to speed",
+        lambda v, nominal: abs(v[0]) / nominal["viscous_friction"],
+    ),
+    Hypothesis(
+        "offset_change",
+        (P("delta_offset", "N", 0.0, -10.0, 10.0),),
+        _emps_offset,
+        "continuous",
+        "everywhere, standstill included; a constant force residual",
+    ),
+    Hypothesis(
+        "inertia_change",
+        (P("relative_change", "1", 0.0, -0.5, 1.0),),
+        _emps_mass,
+        "continuous",
+        "accelerations; force proportional to acceleration",
+        lambda v, nominal: abs(v[0]),
+    ),
+    Hypothesis(
+        "compliance",
+        (
+            P("mass_fraction", "1", 0.2, 0.02, 0.9),
+            P("coupling_frequency", "Hz", 30.0, 5.0, 200.0, log=True),
+        ),
+        _emps_compliance,
+        "continuous",
+        "accelerations and jerks; ringing at the coupling frequency in force and position",
+    ),
+    Hypothesis(
+        "dead_time",
+        (P("dead_time_steps", "1", 2.0, 0.0, 4.0),),
+        _emps_dead_time,
+        "scan",
+        "phase of force and position at every change of acceleration",
+    ),
+)
+LIBRARIES: dict[str, tuple[Hypothesis, ...]] = {"drive2mass": LIBRARY, "emps": EMPS_LIBRARY}
 BY_NAME: dict[str, Hypothesis] = {h.name: h for h in LIBRARY}
+
+
+def library_for(model_identifier: str) -> tuple[Hypothesis, ...]:
+    """The hypotheses of a plant model (its FMU's modelIdentifier); drive2mass's for others."""
+    return LIBRARIES.get(model_identifier, LIBRARY)
 
 
 def scan_values(hypothesis: Hypothesis, context: Context) -> list[np.ndarray]:
     """Values a ``scan`` hypothesis tries: dead time 1 to 8 samples, or the context's resolution."""
     if hypothesis.name == "dead_time":
-        return [np.array([float(n)]) for n in range(1, 9)]
+        low, high = int(hypothesis.parameters[0].lower), int(hypothesis.parameters[0].upper)
+        nominal = int(context.get("dead_time_steps", 0))
+        return [np.array([float(n)]) for n in range(low, high + 1) if n != nominal]
     if hypothesis.name == "quantization":
         resolution = context.get("position_resolution", 0.0)
         return [np.array([resolution])] if resolution > 0 else []

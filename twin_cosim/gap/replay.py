@@ -24,7 +24,7 @@ import pandas as pd
 from scipy.optimize import differential_evolution, least_squares
 
 from twin_cosim.cosim import RunAborted, run_scenario
-from twin_cosim.gap.effects import BY_NAME, scan_values
+from twin_cosim.gap.effects import library_for, scan_values
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.scenario import Scenario, load_scenario
@@ -114,12 +114,15 @@ class ReplaySpec:
         Nominal FMU parameters of the twin (start values, the scenario's, the identified noise).
     training : TrainingData
         What the fits see.
+    model : str
+        The FMU's model identifier, which selects the hypothesis library.
     """
 
     scenario: str
     fmu: str | None
     nominal: dict[str, float]
     training: TrainingData
+    model: str
 
     def build(self) -> Replayer:
         """The worker."""
@@ -131,6 +134,7 @@ class Replayer:
 
     def __init__(self, spec: ReplaySpec) -> None:
         self.spec = spec
+        self.hypotheses = {h.name: h for h in library_for(spec.model)}
         self.scenario: Scenario = load_scenario(spec.scenario)
         self.plant = Plant(Path(spec.fmu) if spec.fmu else self.scenario.fmu)
         grid = self.scenario.reference
@@ -165,7 +169,7 @@ class Replayer:
 
     def fit(self, task: FitTask) -> FitResult:
         """Fit a hypothesis by least squares on replays, or by scanning its discrete values."""
-        hypothesis = BY_NAME[task.hypothesis]
+        hypothesis = self.hypotheses[task.hypothesis]
         nominal = {**self.spec.nominal, **task.base}
 
         def overrides_of(values: np.ndarray) -> dict[str, float]:

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from twin_cosim.gap.diagnosis import DiagnosisSettings, diagnose
-from twin_cosim.gap.measured import read_measured_csv
 from twin_cosim.gap.synth import parse_effect, synthesize
+from twin_cosim.measured import read_measured_csv
 from twin_cosim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -27,7 +27,9 @@ def blind(tmp_path, effects: list[str], seed: int = 1):
     synthesis = synthesize(scenario, [parse_effect(e) for e in effects], perturb=0.02, seed=seed)
     path = tmp_path / "run.csv"
     synthesis.run.to_csv(path, index=False)
-    return diagnose(scenario, [read_measured_csv(path)], settings=DiagnosisSettings(max_effects=1)).summary
+    return diagnose(
+        scenario, [read_measured_csv(path)], settings=DiagnosisSettings(max_effects=1)
+    ).summary
 
 
 @pytest.mark.slow
@@ -68,22 +70,57 @@ def test_effect_outside_the_library_is_not_a_confident_wrong_answer(tmp_path):
 def test_cli_synth_then_diagnose(tmp_path):
     run = tmp_path / "run.csv"
     synth = subprocess.run(
-        [sys.executable, "-m", "twin_cosim", "synth", str(SCENARIO), "--effect",
-         "inertia_change:relative_change=0.3", "--perturb", "0.02", "--seed", "3", "--out", str(run)],
-        capture_output=True, text=True, cwd=ROOT,
+        [
+            sys.executable,
+            "-m",
+            "twin_cosim",
+            "synth",
+            str(SCENARIO),
+            "--effect",
+            "inertia_change:relative_change=0.3",
+            "--perturb",
+            "0.02",
+            "--seed",
+            "3",
+            "--out",
+            str(run),
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
     )
     assert synth.returncode == 0, synth.stderr
-    assert json.loads(Path(str(run) + ".truth.json").read_text())["effects"][0]["name"] == "inertia_change"
+    assert (
+        json.loads(Path(str(run) + ".truth.json").read_text())["effects"][0]["name"]
+        == "inertia_change"
+    )
     result = subprocess.run(
-        [sys.executable, "-m", "twin_cosim", "diagnose", str(SCENARIO), "--measured", str(run),
-         "--out", str(tmp_path / "report"), "--json"],
-        capture_output=True, text=True, cwd=ROOT,
+        [
+            sys.executable,
+            "-m",
+            "twin_cosim",
+            "diagnose",
+            str(SCENARIO),
+            "--measured",
+            str(run),
+            "--out",
+            str(tmp_path / "report"),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
     )
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)
     assert summary["accepted"][0] == "inertia_change"
-    assert set(summary["where"]["position"]) == {"standstill", "breakaway", "acceleration",
-                                                 "constant_velocity", "reversal"}
+    assert set(summary["where"]["position"]) == {
+        "standstill",
+        "breakaway",
+        "acceleration",
+        "constant_velocity",
+        "reversal",
+    }
     effect = summary["effects"][0]
     assert {"name", "params", "holdout_gap_before_um", "holdout_gap_after_um"} <= set(effect)
     for name in ("report.md", "report.html", "diagnosis.json", "residuals.png", "spectra.png"):
@@ -95,7 +132,9 @@ def test_bad_measured_file_is_a_clear_error(tmp_path):
     bad.write_text("t,x_ref,x\n0,0,0\n")
     result = subprocess.run(
         [sys.executable, "-m", "twin_cosim", "diagnose", str(SCENARIO), "--measured", str(bad)],
-        capture_output=True, text=True, cwd=ROOT,
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
     )
     assert result.returncode == 2
     assert "bad.csv: missing column(s) ['current']" in result.stderr

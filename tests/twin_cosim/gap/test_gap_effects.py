@@ -9,8 +9,13 @@ import pytest
 
 from twin_cosim.gap.effects import BY_NAME, LIBRARY, estimate_resolution
 
-NOMINAL = {"coulomb_friction": 0.625, "backlash": 12.2e-6, "motor_inertia": 2.9e-4,
-           "load_inertia": 4.2e-4, "resonance_frequency": 70.0}
+NOMINAL = {
+    "coulomb_friction": 0.625,
+    "backlash": 12.2e-6,
+    "motor_inertia": 2.9e-4,
+    "load_inertia": 4.2e-4,
+    "resonance_frequency": 70.0,
+}
 CONTEXT = {"motor_order": 6.0, "screw_order": 1.0, "position_resolution": 0.0}
 
 
@@ -43,8 +48,12 @@ def test_inertia_change_keeps_the_coupling_stiffness():
 
 
 def test_calibration_sizes():
-    assert BY_NAME["stiffness_change"].relative_size(np.array([0.21]), NOMINAL) == pytest.approx(0.1)
-    assert BY_NAME["backlash_change"].relative_size(np.array([1.22e-6]), NOMINAL) == pytest.approx(0.1)
+    assert BY_NAME["stiffness_change"].relative_size(np.array([0.21]), NOMINAL) == pytest.approx(
+        0.1
+    )
+    assert BY_NAME["backlash_change"].relative_size(np.array([1.22e-6]), NOMINAL) == pytest.approx(
+        0.1
+    )
     assert BY_NAME["stribeck"].relative_size is None
 
 

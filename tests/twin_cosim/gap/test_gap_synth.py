@@ -36,13 +36,21 @@ def test_effect_with_wrong_parameters():
 
 def test_synthetic_run_format_and_truth(plant):
     scenario = load_scenario(REFERENCE1)
-    result = synthesize(scenario, [parse_effect("backlash_change:delta_backlash=5e-6")],
-                        perturb=0.03, seed=4, noise_position=0.0, noise_current=0.0)
+    result = synthesize(
+        scenario,
+        [parse_effect("backlash_change:delta_backlash=5e-6")],
+        perturb=0.03,
+        seed=4,
+        noise_position=0.0,
+        noise_current=0.0,
+    )
     assert list(result.run.columns) == ["t", "x_ref", "x", "current", "motor_speed"]
     factors = result.truth["calibration_factors"]
     assert set(factors) == set(PERTURBED)
     assert all(abs(f - 1) <= 0.03 for f in factors.values())
-    assert result.truth["plant_parameters"]["backlash"] == pytest.approx(12.2e-6 * factors["backlash"] + 5e-6)
+    assert result.truth["plant_parameters"]["backlash"] == pytest.approx(
+        12.2e-6 * factors["backlash"] + 5e-6
+    )
     replay = run_scenario(plant, scenario, plant_overrides=result.truth["plant_parameters"])
     np.testing.assert_array_equal(replay["x"].to_numpy(), result.run["x"].to_numpy())
 

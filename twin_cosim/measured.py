@@ -1,9 +1,16 @@
-"""Measured runs: the CSV format of the diagnosis, its checks, and its comparison with a scenario.
+"""Measured runs: files of a real (or virtual) axis, their checks, and their match to a scenario.
 
-Columns: ``t`` [s], ``x_ref`` [m], ``x`` [m] (measured load position), ``current`` [A]; optional
-``motor_speed`` [rad/s]; extra columns are ignored. Time must be strictly increasing and regular.
-Every problem gets an error naming the file, the column and what was expected, or, where the data
-can still be used, an explicit warning that the report repeats.
+CSV (the project's format): ``t`` [s], ``x_ref`` [m], ``x`` [m] (measured load position),
+``current`` [A]; optional ``motor_speed`` [rad/s]; extra columns are ignored.
+
+EMPS benchmark .mat files (as published, Janot, Gautier, Brunot 2019): ``t`` [s], ``qg``
+(reference, m), ``qm`` (motor position in load units, m), ``vir`` (drive command, V) and the
+scalars ``gtau`` [N/V], ``kp`` [1/s], ``kv`` [V/(m/s)]; the validation run also holds ``pulses_N``
+(kept in ``extra``). ``current`` then holds the drive command vir in V.
+
+Time must be strictly increasing and regular. Every problem gets an error naming the file, the
+column and what was expected, or, where the data can still be used, an explicit warning that the
+report repeats.
 """
 
 from __future__ import annotations
@@ -45,6 +52,8 @@ class MeasuredRun:
         Measured motor speed, rad/s.
     warnings : list of str
         Problems that did not stop the diagnosis.
+    extra : dict
+        Further per-sample signals of the file (e.g. EMPS ``pulses_N``) and its scalars.
     """
 
     source: str
@@ -54,6 +63,8 @@ class MeasuredRun:
     current: np.ndarray
     motor_speed: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
+    extra: dict[str, np.ndarray | float] = field(default_factory=dict)
+    extra: dict[str, np.ndarray | float] = field(default_factory=dict)
 
     @property
     def period(self) -> float:
@@ -61,8 +72,12 @@ class MeasuredRun:
         return float((self.t[-1] - self.t[0]) / (len(self.t) - 1))
 
     def select(self, mask: np.ndarray) -> MeasuredRun:
-        """The samples where ``mask`` is True (same source and warnings)."""
+        """The samples where ``mask`` is True (same source, warnings and scalars)."""
         speed = None if self.motor_speed is None else self.motor_speed[mask]
+        extra = {
+            k: v[mask] if isinstance(v, np.ndarray) and v.shape == self.t.shape else v
+            for k, v in self.extra.items()
+        }
         return MeasuredRun(
             self.source,
             self.t[mask],
@@ -71,6 +86,7 @@ class MeasuredRun:
             self.current[mask],
             speed,
             self.warnings,
+            extra,
         )
 
 
@@ -116,6 +132,68 @@ def read_measured_csv(path: Path | str) -> MeasuredRun:
     )
     check_time(run)
     return run
+
+
+EMPS_SIGNALS = {"t": "t", "qg": "x_ref", "qm": "x", "vir": "current"}
+EMPS_SCALARS = ("gtau", "kp", "kv")
+
+
+def read_emps_mat(path: Path | str) -> MeasuredRun:
+    """Read an EMPS benchmark .mat file as it is published (with or without ``pulses_N``).
+
+    Raises
+    ------
+    MeasuredDataError
+        On an unreadable file, a missing variable, signals of different lengths or non-finite
+        values.
+    """
+    from scipy.io import loadmat
+
+    path = Path(path)
+    try:
+        data = loadmat(str(path))
+    except (OSError, ValueError, NotImplementedError) as exc:
+        raise MeasuredDataError(f"{path}: cannot read as a MATLAB file: {exc}") from exc
+    missing = [name for name in EMPS_SIGNALS if name not in data]
+    if missing:
+        raise MeasuredDataError(
+            f"{path}: missing variable(s) {missing}; an EMPS file holds t, qg, qm, vir"
+        )
+    signals = {}
+    for name, role in EMPS_SIGNALS.items():
+        values = np.asarray(data[name], dtype=np.float64).ravel()
+        if not np.all(np.isfinite(values)):
+            raise MeasuredDataError(f"{path}: variable {name!r} has non-finite values")
+        signals[role] = values
+    if len({len(v) for v in signals.values()}) != 1:
+        raise MeasuredDataError(f"{path}: t, qg, qm and vir must have the same length")
+    extra: dict[str, np.ndarray | float] = {
+        name: float(np.asarray(data[name]).ravel()[0]) for name in EMPS_SCALARS if name in data
+    }
+    if "pulses_N" in data:
+        pulses = np.asarray(data["pulses_N"], dtype=np.float64).ravel()
+        if pulses.shape != signals["t"].shape or not np.all(np.isfinite(pulses)):
+            raise MeasuredDataError(f"{path}: pulses_N must be finite and as long as t")
+        extra["pulses_N"] = pulses
+    run = MeasuredRun(
+        str(path), signals["t"], signals["x_ref"], signals["x"], signals["current"], extra=extra
+    )
+    check_time(run)
+    return run
+
+
+def read_measured(path: Path | str) -> MeasuredRun:
+    """Read a measured run: .csv (the project's format) or .mat (EMPS benchmark)."""
+    path = Path(path)
+    if not path.is_file():
+        raise MeasuredDataError(f"{path}: file not found")
+    readers = {".csv": read_measured_csv, ".mat": read_emps_mat}
+    reader = readers.get(path.suffix.lower())
+    if reader is None:
+        raise MeasuredDataError(
+            f"{path}: unknown measured-run type {path.suffix!r}; expected .csv or .mat"
+        )
+    return reader(path)
 
 
 def check_time(run: MeasuredRun) -> None:

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from twin_cosim.gap.measured import (
+from twin_cosim.measured import (
     MeasuredDataError,
     check_against_reference,
     current_warnings,
@@ -16,7 +16,7 @@ from twin_cosim.gap.measured import (
 )
 from twin_cosim.scenario import load_scenario
 
-REFERENCE1 = Path(__file__).resolve().parents[3] / "scenarios" / "reference1.yaml"
+REFERENCE1 = Path(__file__).resolve().parents[2] / "scenarios" / "reference1.yaml"
 
 
 @pytest.fixture(scope="module")
@@ -26,8 +26,15 @@ def scenario():
 
 def good_frame(scenario) -> pd.DataFrame:
     grid = scenario.reference
-    return pd.DataFrame({"t": grid.time, "x_ref": grid.position, "x": grid.position + 1e-7,
-                         "current": np.zeros(len(grid.time)), "extra": 1.0})
+    return pd.DataFrame(
+        {
+            "t": grid.time,
+            "x_ref": grid.position,
+            "x": grid.position + 1e-7,
+            "current": np.zeros(len(grid.time)),
+            "extra": 1.0,
+        }
+    )
 
 
 def write(tmp_path, frame: pd.DataFrame) -> Path:
@@ -48,7 +55,10 @@ def test_good_run_loads_and_matches(tmp_path, scenario):
     [
         (lambda f: f.drop(columns="current"), r"missing column\(s\) \['current'\]"),
         (lambda f: f.assign(x=f["x"].where(f.index != 10)), "column 'x' has 1 missing"),
-        (lambda f: f.assign(t=f["t"].where(f.index != 50, f["t"][48])), "'t' must increase strictly"),
+        (
+            lambda f: f.assign(t=f["t"].where(f.index != 50, f["t"][48])),
+            "'t' must increase strictly",
+        ),
         (lambda f: f.drop(index=range(100, 110)), "'t' is irregular"),
     ],
 )
@@ -58,7 +68,9 @@ def test_defects_are_named(tmp_path, scenario, change, message):
     assert "run.csv" in str(info.value)
 
 
-@pytest.mark.parametrize(("column", "meaning"), [("x_ref", "mm instead of m"), ("x", "mm instead of m")])
+@pytest.mark.parametrize(
+    ("column", "meaning"), [("x_ref", "mm instead of m"), ("x", "mm instead of m")]
+)
 def test_units_off_by_1000(tmp_path, scenario, column, meaning):
     frame = good_frame(scenario)
     frame[column] *= 1000.0

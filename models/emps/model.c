@@ -1,0 +1,181 @@
+/* emps: one-mass linear axis of the EMPS benchmark with optional effect blocks.
+ *
+ *   M1 dv/dt = g_tau u(k - n) - F_f(v) - offset - F_k - (F_d when rigid)
+ *   M2 dv2/dt = F_k - F_d,   F_k = k (q - q2) + c (v - v2)          (only when second_mass > 0)
+ *   F_f = (F_c + a s + F_x exp(-(v/v_s)^2)) s + (F_v + b s) v,   s = direction of sliding
+ *
+ * The driven mass sticks when its speed crosses zero and the force driving it stays within the
+ * breakaway level F_c + a s + F_x. The drive command acts n = dead_time_steps steps late. The
+ * encoder quantises the driven mass' position; the controller's velocity estimate (difference
+ * of two-sample averages over one step) is an output. Fixed-step RK4 with `substeps` substeps.
+ */
+#include <math.h>
+
+#include "slave.h"
+
+#define PI 3.14159265358979323846
+#define RK4_STABILITY_MARGIN 2.0
+
+enum { POSITION, SPEED, CARRIAGE, CARRIAGE_SPEED, STATE_COUNT };
+
+static double sign_of(double x) { return (x > 0.0) - (x < 0.0); }
+
+static int compliant(const ModelVariables *v) { return v->second_mass > 0.0; }
+
+/* Coupling force on the second mass (N). */
+static double coupling_force(const ModelState *s, const double x[]) {
+    return s->stiffness * (x[POSITION] - x[CARRIAGE]) + s->damping * (x[SPEED] - x[CARRIAGE_SPEED]);
+}
+
+/* Force driving the driven mass apart from friction (N). */
+static double driving_force(const ModelVariables *v, const ModelState *s, const double x[]) {
+    double force = v->drive_gain * s->applied - v->force_offset;
+    return compliant(v) ? force - coupling_force(s, x) : force - v->disturbance_torque;
+}
+
+static double breakaway(const ModelVariables *v, double direction) {
+    return v->coulomb_friction + v->coulomb_asymmetry * direction + v->stribeck_friction;
+}
+
+static double sliding_friction(const ModelVariables *v, const ModelState *s, double speed) {
+    double d = (double)s->direction;
+    double level = v->coulomb_friction + v->coulomb_asymmetry * d;
+    if (v->stribeck_friction > 0.0) {
+        double ratio = speed / v->stribeck_speed;
+        level += v->stribeck_friction * exp(-ratio * ratio);
+    }
+    return level * d + (v->viscous_friction + v->viscous_asymmetry * d) * speed;
+}
+
+static void derivatives(const ModelVariables *v, const ModelState *s, const double x[], double dx[]) {
+    double drive = driving_force(v, s, x);
+    dx[POSITION] = s->stuck ? 0.0 : x[SPEED];
+    dx[SPEED] = s->stuck ? 0.0 : (drive - sliding_friction(v, s, x[SPEED])) / s->driven_mass;
+    if (compliant(v)) {
+        dx[CARRIAGE] = x[CARRIAGE_SPEED];
+        dx[CARRIAGE_SPEED] = (coupling_force(s, x) - v->disturbance_torque) / v->second_mass;
+    } else {
+        dx[CARRIAGE] = dx[POSITION];
+        dx[CARRIAGE_SPEED] = dx[SPEED];
+    }
+}
+
+static void rk4_step(const ModelVariables *v, const ModelState *s, double x[], double h) {
+    double k1[STATE_COUNT], k2[STATE_COUNT], k3[STATE_COUNT], k4[STATE_COUNT], y[STATE_COUNT];
+    int i;
+    derivatives(v, s, x, k1);
+    for (i = 0; i < STATE_COUNT; i++) y[i] = x[i] + 0.5 * h * k1[i];
+    derivatives(v, s, y, k2);
+    for (i = 0; i < STATE_COUNT; i++) y[i] = x[i] + 0.5 * h * k2[i];
+    derivatives(v, s, y, k3);
+    for (i = 0; i < STATE_COUNT; i++) y[i] = x[i] + h * k3[i];
+    derivatives(v, s, y, k4);
+    for (i = 0; i < STATE_COUNT; i++) x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+}
+
+/* Stick/slip transitions after a substep. */
+static void update_friction_mode(const ModelVariables *v, ModelState *s, double x[], double previous) {
+    double drive = driving_force(v, s, x);
+    if (s->stuck) {
+        if (fabs(drive) > breakaway(v, sign_of(drive))) {
+            s->stuck = 0;
+            s->direction = (int)sign_of(drive);
+        }
+        return;
+    }
+    if (previous * x[SPEED] <= 0.0 && breakaway(v, sign_of(drive)) > 0.0 &&
+        fabs(drive) <= breakaway(v, sign_of(drive))) {
+        s->stuck = 1;
+        x[SPEED] = 0.0;
+        if (!compliant(v)) x[CARRIAGE_SPEED] = 0.0;
+        return;
+    }
+    if (x[SPEED] != 0.0) s->direction = (int)sign_of(x[SPEED]);
+}
+
+static double quantise(const ModelVariables *v, double position) {
+    return v->position_resolution > 0.0
+               ? v->position_resolution * floor(position / v->position_resolution + 0.5)
+               : position;
+}
+
+fmi2Status model_initialize(ModelInstance *inst) {
+    const ModelVariables *v = &inst->v;
+    ModelState *s = &inst->s;
+    double omega = 2.0 * PI * v->coupling_frequency;
+    int i;
+    if (v->second_mass >= v->mass) {
+        slave_log_error(inst, "emps: second_mass %g kg must be below mass %g kg", v->second_mass, v->mass);
+        return fmi2Error;
+    }
+    if (v->coulomb_friction - fabs(v->coulomb_asymmetry) < 0.0 ||
+        v->viscous_friction - fabs(v->viscous_asymmetry) < 0.0) {
+        slave_log_error(inst, "emps: the asymmetry makes a friction level negative (Fc %g N, a %g N; "
+                        "Fv %g N.s/m, b %g N.s/m)", v->coulomb_friction, v->coulomb_asymmetry,
+                        v->viscous_friction, v->viscous_asymmetry);
+        return fmi2Error;
+    }
+    s->driven_mass = v->mass - v->second_mass;
+    s->stiffness = v->second_mass * omega * omega;
+    s->damping = 2.0 * v->coupling_damping * sqrt(s->stiffness * v->second_mass);
+    s->position = s->carriage = v->load_position_start;
+    s->speed = s->carriage_speed = 0.0;
+    s->stuck = breakaway(v, 1.0) > 0.0 && breakaway(v, -1.0) > 0.0;
+    s->direction = 0;
+    for (i = 0; i < COMMAND_BUFFER; i++) s->commands[i] = 0.0;
+    s->newest = 0;
+    s->applied = 0.0;
+    for (i = 0; i < 3; i++) s->encoder[i] = quantise(v, s->position);
+    s->estimate = 0.0;
+    return fmi2OK;
+}
+
+fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
+    const ModelVariables *v = &inst->v;
+    ModelState *s = &inst->s;
+    double x[STATE_COUNT] = {s->position, s->speed, s->carriage, s->carriage_speed};
+    double substep = h / v->substeps;
+    double omega = compliant(v) ? sqrt(s->stiffness / s->driven_mass + s->stiffness / v->second_mass) : 0.0;
+    int k;
+    if (omega * substep > RK4_STABILITY_MARGIN) {
+        slave_log_error(inst, "emps: substep %g s is too long for the %g rad/s coupling mode "
+                        "(increase substeps)", substep, omega);
+        return fmi2Error;
+    }
+    s->newest = (s->newest + 1) % COMMAND_BUFFER;
+    s->commands[s->newest] = v->current_cmd;
+    s->applied = s->commands[(s->newest - v->dead_time_steps + COMMAND_BUFFER) % COMMAND_BUFFER];
+    for (k = 0; k < v->substeps; k++) {
+        double previous = x[SPEED];
+        rk4_step(v, s, x, substep);
+        update_friction_mode(v, s, x, previous);
+    }
+    if (!isfinite(x[POSITION] + x[SPEED] + x[CARRIAGE] + x[CARRIAGE_SPEED])) {
+        slave_log_error(inst, "emps: state became non-finite at t = %g s", t + h);
+        return fmi2Error;
+    }
+    s->position = x[POSITION];
+    s->speed = x[SPEED];
+    s->carriage = x[CARRIAGE];
+    s->carriage_speed = x[CARRIAGE_SPEED];
+    s->encoder[2] = s->encoder[1];
+    s->encoder[1] = s->encoder[0];
+    s->encoder[0] = quantise(v, s->position);
+    s->estimate = (s->encoder[0] - s->encoder[2]) / (2.0 * h);
+    return fmi2OK;
+}
+
+void model_update_outputs(ModelInstance *inst, double t) {
+    ModelVariables *v = &inst->v;
+    const ModelState *s = &inst->s;
+    const double x[STATE_COUNT] = {s->position, s->speed, s->carriage, s->carriage_speed};
+    (void)t;
+    v->motor_angle = s->position / v->lead_per_rad;
+    v->motor_speed = s->estimate / v->lead_per_rad;
+    v->load_position = s->encoder[0];
+    v->load_speed = s->speed;
+    v->position_true = s->position;
+    v->carriage_position = s->carriage;
+    v->force = v->drive_gain * s->applied;
+    v->friction_force = s->stuck ? driving_force(v, s, x) : sliding_friction(v, s, s->speed);
+}

@@ -1,0 +1,116 @@
+"""The EMPS benchmark with the project's machinery: loader, replay of the estimation run, diagnosis.
+
+Tests that need the benchmark's data skip where ../shared/data/emps is absent.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.io import savemat
+
+from twin_cosim.cosim import run_scenario
+from twin_cosim.measured import MeasuredDataError, read_measured
+from twin_cosim.metrics import compare_with_measured
+from twin_cosim.plant import Plant
+from twin_cosim.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+DATA = ROOT.parent / "shared" / "data" / "emps" / "DATA_EMPS.mat"
+needs_data = pytest.mark.skipif(not DATA.exists(), reason=f"EMPS data not found at {DATA}")
+
+
+def fake_mat(path: Path, pulses: bool) -> Path:
+    t = np.arange(200) * 1e-3
+    data = {
+        "t": t[:, None],
+        "qg": (1e-3 * t)[:, None],
+        "qm": (1e-3 * t)[:, None],
+        "vir": np.ones((200, 1)),
+        "gtau": np.array([[35.15]]),
+        "kp": np.array([[160.18]]),
+        "kv": np.array([[243.45]]),
+    }
+    if pulses:
+        data["pulses_N"] = np.where(t > 0.1, 1.0, 0.0)[:, None]
+    savemat(path, data)
+    return path
+
+
+@pytest.mark.parametrize("pulses", [False, True])
+def test_mat_loader_reads_the_published_layout(tmp_path, pulses):
+    run = read_measured(fake_mat(tmp_path / "run.mat", pulses))
+    assert run.period == pytest.approx(1e-3)
+    assert run.extra["gtau"] == pytest.approx(35.15)
+    assert ("pulses_N" in run.extra) == pulses
+
+
+def test_mat_loader_errors(tmp_path):
+    path = tmp_path / "bad.mat"
+    savemat(path, {"t": np.arange(200.0), "qg": np.zeros(200)})
+    with pytest.raises(MeasuredDataError, match=r"bad.mat: missing variable\(s\) \['qm', 'vir'\]"):
+        read_measured(path)
+    other = tmp_path / "run.txt"
+    other.write_text("")
+    with pytest.raises(MeasuredDataError, match="unknown measured-run type"):
+        read_measured(other)
+
+
+def test_pulses_become_the_disturbance_input(tmp_path):
+    fake_mat(tmp_path / "run.mat", True)
+    scenario_file = tmp_path / "s.yaml"
+    scenario_file.write_text(
+        (ROOT / "scenarios" / "emps.yaml")
+        .read_text()
+        .replace(
+            "measured: ../../shared/data/emps/DATA_EMPS.mat",
+            "measured: run.mat\n  disturbance: {variable: pulses_N, gain: -35.15065188}",
+        )
+    )
+    scenario = load_scenario(scenario_file)
+    assert scenario.disturbance[-1] == pytest.approx(-35.15065188)
+    assert scenario.disturbance[50] == 0.0
+
+
+@needs_data
+def test_replay_reproduces_the_published_position_gap():
+    scenario = load_scenario(ROOT / "scenarios" / "emps.yaml")
+    run = read_measured(scenario.measured)
+    with Plant(scenario.fmu) as plant:
+        record = run_scenario(plant, scenario)
+    figures = compare_with_measured(record, run.t, run.x, run.current)
+    assert figures["position_rms_gap_um"] == pytest.approx(2.58, rel=0.05)  # published: 2.58 um
+    assert figures["current_relative_error_pct"] < 10.0  # published model: 5.85 % (see docs)
+
+
+@needs_data
+@pytest.mark.slow
+def test_diagnosis_runs_on_the_real_data(tmp_path):
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "twin_cosim",
+            "diagnose",
+            "scenarios/emps.yaml",
+            "--measured",
+            str(DATA),
+            "--out",
+            str(tmp_path),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["gap"]["significant"]
+    assert summary["accepted"]
+    for step in summary["steps"]:
+        assert step["holdout_gap_after_um"] < step["holdout_gap_before_um"]
