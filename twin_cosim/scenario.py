@@ -28,6 +28,7 @@ Every error names the file and the key path, and says what was expected.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from dataclasses import dataclass, field, fields
@@ -40,7 +41,7 @@ import yaml
 from fmu_build.build import BuildError, build_fmu
 from twin_cosim import paper
 from twin_cosim.controller import TUNED_NAMES, ControllerSettings, TunedParameters
-from twin_cosim.measured import MeasuredDataError, read_measured
+from twin_cosim.measured import MeasuredDataError, MeasuredRun, read_measured
 from twin_cosim.reference import (
     Dwell,
     Move,
@@ -126,6 +127,7 @@ class Scenario:
     measured: Path | None = None
     disturbance: np.ndarray | None = None
     diagnose: dict[str, Any] = field(default_factory=dict)
+    disturbance_spec: dict[str, Any] = field(default_factory=dict)
 
 
 class _Checker:
@@ -212,6 +214,20 @@ class _Reference:
     measured: Path | None = None
     plant_start: float | None = None
     disturbance: np.ndarray | None = None
+    disturbance_spec: dict[str, Any] = field(default_factory=dict)
+
+
+def _run_disturbance(
+    run: MeasuredRun, spec: dict[str, Any], grid: ReferenceGrid
+) -> np.ndarray | None:
+    """The disturbance input (N.m, or N) of a run: ``gain`` x its ``variable``, on the grid.
+
+    A run without that variable (e.g. the EMPS estimation run, which has no pulses) has none.
+    """
+    values = run.extra.get(spec["variable"]) if spec else None
+    if not isinstance(values, np.ndarray):
+        return None
+    return spec["gain"] * np.interp(grid.time, run.t, values)
 
 
 def _from_measured(check: _Checker, data: dict[str, Any], position_period: float) -> _Reference:
@@ -227,16 +243,18 @@ def _from_measured(check: _Checker, data: dict[str, Any], position_period: float
         grid = interpolate(run.x_ref, run.period, position_period)
     except ReferenceError as exc:
         raise ScenarioError(f"{check.source}: reference: {exc}") from exc
-    disturbance = None
     spec = check.mapping(data.get("disturbance"), "reference.disturbance", {"variable", "gain"})
     if spec:
-        variable = str(spec.get("variable"))
-        values = run.extra.get(variable)
-        if not isinstance(values, np.ndarray):
-            raise check.fail("reference.disturbance.variable", f"a signal of {path.name}", variable)
-        gain = check.number(spec.get("gain", 1.0), "reference.disturbance.gain")
-        disturbance = gain * np.interp(grid.time, run.t, values)
-    return _Reference(grid, float(run.x_ref[0]), path, float(run.x[0]), disturbance)
+        variable = spec.get("variable")
+        if not isinstance(variable, str):
+            raise check.fail("reference.disturbance.variable", "the name of a signal", variable)
+        spec = {
+            "variable": variable,
+            "gain": check.number(spec.get("gain", 1.0), "reference.disturbance.gain"),
+        }
+    return _Reference(
+        grid, float(run.x_ref[0]), path, float(run.x[0]), _run_disturbance(run, spec, grid), spec
+    )
 
 
 def _reference(check: _Checker, data: Any, position_period: float) -> _Reference:
@@ -371,6 +389,31 @@ def load_scenario(path: Path | str) -> Scenario:
         diagnose=check.mapping(data.get("diagnose"), "diagnose"),
         measured=chosen.measured,
         disturbance=chosen.disturbance,
+        disturbance_spec=chosen.disturbance_spec,
+    )
+
+
+def for_measured_run(scenario: Scenario, run: MeasuredRun) -> Scenario:
+    """The scenario as it applies to another measured run.
+
+    A scenario whose reference comes from a measured file (``reference.measured``) applies to
+    another run of the same machine with that run's reference, start position and disturbance
+    (e.g. the EMPS validation run with its force pulses); any other scenario is returned as it is.
+    """
+    if scenario.measured is None or Path(run.source).resolve() == scenario.measured.resolve():
+        return scenario
+    if abs(run.t[0]) > 0.5 * run.period:
+        raise ScenarioError(f"{run.source}: time must start at 0 s to follow its own reference")
+    try:
+        grid = interpolate(run.x_ref, run.period, scenario.settings.position_period)
+    except ReferenceError as exc:
+        raise ScenarioError(f"{run.source}: reference: {exc}") from exc
+    return dataclasses.replace(
+        scenario,
+        reference=grid,
+        plant_parameters={**scenario.plant_parameters, "load_position_start": float(run.x[0])},
+        measured=Path(run.source),
+        disturbance=_run_disturbance(run, scenario.disturbance_spec, grid),
     )
 
 

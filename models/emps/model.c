@@ -4,7 +4,8 @@
  *   M2 dv2/dt = F_k - F_d,   F_k = k (q - q2) + c (v - v2)          (only when second_mass > 0)
  *   F_f = (F_c + a s + F_x exp(-(v/v_s)^2)) s + (F_v + b s) v,   s = direction of sliding
  *
- * The driven mass sticks when its speed crosses zero and the force driving it stays within the
+ * A force ripple A sin(order * motor_angle + phase) (cogging, eccentricity) adds to the drive
+ * force when ripple_amplitude > 0. The driven mass sticks when its speed crosses zero and the force driving it stays within the
  * breakaway level F_c + a s + F_x. The drive command acts n = dead_time_steps steps late. The
  * encoder quantises the driven mass' position; the controller's velocity estimate (difference
  * of two-sample averages over one step) is an output. Fixed-step RK4 with `substeps` substeps.
@@ -27,9 +28,18 @@ static double coupling_force(const ModelState *s, const double x[]) {
     return s->stiffness * (x[POSITION] - x[CARRIAGE]) + s->damping * (x[SPEED] - x[CARRIAGE_SPEED]);
 }
 
+/* Drive force including the ripple of the motor angle (N). */
+static double drive_force(const ModelVariables *v, const ModelState *s, double position) {
+    double force = v->drive_gain * s->applied;
+    if (v->ripple_amplitude > 0.0) {
+        force += v->ripple_amplitude * sin(v->ripple_order * position / v->lead_per_rad + v->ripple_phase);
+    }
+    return force;
+}
+
 /* Force driving the driven mass apart from friction (N). */
 static double driving_force(const ModelVariables *v, const ModelState *s, const double x[]) {
-    double force = v->drive_gain * s->applied - v->force_offset;
+    double force = drive_force(v, s, x[POSITION]) - v->force_offset;
     return compliant(v) ? force - coupling_force(s, x) : force - v->disturbance_torque;
 }
 
@@ -176,6 +186,6 @@ void model_update_outputs(ModelInstance *inst, double t) {
     v->load_speed = s->speed;
     v->position_true = s->position;
     v->carriage_position = s->carriage;
-    v->force = v->drive_gain * s->applied;
+    v->force = drive_force(v, s, s->position);
     v->friction_force = s->stuck ? driving_force(v, s, x) : sliding_friction(v, s, s->speed);
 }

@@ -114,3 +114,68 @@ def test_diagnosis_runs_on_the_real_data(tmp_path):
     assert summary["accepted"]
     for step in summary["steps"]:
         assert step["holdout_gap_after_um"] < step["holdout_gap_before_um"]
+
+
+def twin_mat(tmp_path: Path, name: str, frequency: float, pulses: bool) -> Path:
+    """A .mat run of the EMPS twin itself on a sine reference (with force pulses or not)."""
+    t = np.arange(3000) * 1e-3
+    reference = 0.02 * (1 - np.cos(2 * np.pi * frequency * t))
+    pulse = np.where((t > 1.0) & (t < 1.2), 0.5, 0.0) if pulses else np.zeros_like(t)
+    draft = {
+        "t": t[:, None],
+        "qg": reference[:, None],
+        "qm": reference[:, None],
+        "vir": np.zeros((3000, 1)),
+        "pulses_N": pulse[:, None],
+    }
+    path = tmp_path / name
+    savemat(path, draft)
+    scenario_file = tmp_path / f"{name}.yaml"
+    scenario_file.write_text(
+        (ROOT / "scenarios" / "emps.yaml")
+        .read_text()
+        .replace("../../shared/data/emps/DATA_EMPS.mat", name)
+    )
+    scenario = load_scenario(scenario_file)
+    with Plant(scenario.fmu) as plant:
+        record = run_scenario(plant, scenario, plant_overrides={"load_position_start": 0.0})
+    savemat(
+        path,
+        {
+            **draft,
+            "qm": record["x"].to_numpy()[:, None],
+            "vir": record["current"].to_numpy()[:, None],
+        },
+    )
+    return path
+
+
+@pytest.mark.slow
+def test_holdout_run_follows_its_own_reference_and_pulses(tmp_path):
+    """A held-out run of another trajectory, with pulses, is replayed with both: no gap."""
+    train = twin_mat(tmp_path, "train.mat", 0.5, pulses=False)
+    held = twin_mat(tmp_path, "held.mat", 0.8, pulses=True)
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "twin_cosim",
+            "diagnose",
+            str(tmp_path / "train.mat.yaml"),
+            "--measured",
+            str(train),
+            "--holdout",
+            str(held),
+            "--out",
+            str(tmp_path / "r"),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["holdout"] == [str(held)]
+    assert summary["gap"]["validation_figures"]["rms_um"] < 0.05
+    assert summary["accepted"] == []

@@ -13,7 +13,9 @@
    later rounds refit the ``later_round_candidates`` (6) best-ranked remaining hypotheses.
 5. How far: for each accepted effect the held-out gap before and after, per regime.
 
-Split: with ``--holdout`` files the measured runs train and the holdout runs judge; otherwise
+Split: with ``--holdout`` files the measured runs train and the holdout runs judge (for a
+scenario whose reference comes from a measured file, the held-out runs follow their own
+reference and disturbance, e.g. the EMPS validation run with its pulses); otherwise
 every measured run is split in time at ``split`` (default the midpoint): samples before train,
 samples after judge. The fit never sees a held-out sample.
 
@@ -57,7 +59,7 @@ from twin_cosim.measured import (
 )
 from twin_cosim.metrics import UM_PER_M
 from twin_cosim.plant import Plant
-from twin_cosim.scenario import Scenario
+from twin_cosim.scenario import Scenario, for_measured_run
 from twin_cosim.workers import make_pool
 
 EFFECTIVE_SAMPLE_SPACING_S = 0.01  # residuals are correlated: one independent sample per 10 ms
@@ -153,6 +155,18 @@ class Residuals:
         return math.sqrt(
             0.5 * (np.mean((self.position / sigma_x) ** 2) + np.mean((self.current / sigma_i) ** 2))
         )
+
+
+def _joined(first: Residuals, second: Residuals | None) -> Residuals:
+    """Two residual sets as one (their samples one after the other)."""
+    if second is None:
+        return first
+    return Residuals(
+        *(
+            np.concatenate([getattr(first, f), getattr(second, f)])
+            for f in ("t", "position", "current", "regimes", "motor_angle")
+        )
+    )
 
 
 def residuals(runs: list[MeasuredRun], record: pd.DataFrame, scenario: Scenario) -> Residuals:
@@ -323,9 +337,11 @@ def diagnose(
     """Diagnose the gap between the measured runs and the twin's replay of the scenario."""
     holdout = holdout or []
     warnings: list[str] = []
-    for run in measured + holdout:
-        check_against_reference(run, scenario.reference)
-        warnings += run.warnings + current_warnings(run, scenario.settings.current_limit)
+    held_scenario = for_measured_run(scenario, holdout[0]) if holdout else scenario
+    for runs, applies in ((measured, scenario), (holdout, held_scenario)):
+        for run in runs:
+            check_against_reference(run, applies.reference)
+            warnings += run.warnings + current_warnings(run, scenario.settings.current_limit)
     windows = split_runs(measured, holdout, settings.split)
     fmu_path = Path(fmu) if fmu else scenario.fmu
     with Plant(fmu_path) as plant:
@@ -339,15 +355,23 @@ def diagnose(
         noise_parameters = noise_model.as_plant_parameters(harmonics) if harmonics else {}
         nominal |= noise_parameters
         record = run_scenario(plant, scenario, plant_overrides=nominal) if harmonics else first
+        held_record = (
+            record
+            if held_scenario is scenario
+            else run_scenario(plant, held_scenario, plant_overrides=nominal)
+        )
     train0 = residuals(windows.train, record, scenario)
-    hold0 = residuals(windows.holdout, record, scenario)
+    hold0 = residuals(windows.holdout, held_record, held_scenario)
     still = train0.regimes == regime_model.REGIMES.index("standstill")
     sigma_x = max(noise_model.noise_floor(train0.position, still), 1e-9)
     sigma_i = max(noise_model.noise_floor(train0.current, still), 1e-4)
     if not still.any():
         warnings.append("no standstill in the training data: noise floors set to 1 nm and 0.1 mA")
     dt = measured[0].period
-    all0 = residuals(measured + holdout, record, scenario)
+    all0 = _joined(
+        residuals(measured, record, scenario),
+        residuals(holdout, held_record, held_scenario) if holdout else None,
+    )
     located = where(all0, gear_ratio, dt)
     context = {
         "motor_order": _dominant_order(train0, train0.current, train0.motor_angle, 6.0),
@@ -365,7 +389,14 @@ def diagnose(
         sigma_i,
         windows.train_end,
     )
-    spec = ReplaySpec(str(scenario.source), str(fmu) if fmu else None, nominal, training, model)
+    spec = ReplaySpec(
+        str(scenario.source),
+        str(fmu) if fmu else None,
+        nominal,
+        training,
+        model,
+        holdout[0].source if held_scenario is not scenario else None,
+    )
     train_seconds = sum(float(r.t[-1] - r.t[0]) for r in windows.train)
     pool = make_pool(spec, workers)
     try:
@@ -374,8 +405,8 @@ def diagnose(
             settings,
             context,
             windows,
-            scenario,
-            record,
+            held_scenario,
+            held_record,
             sigma_x,
             sigma_i,
             train_seconds,
@@ -384,9 +415,9 @@ def diagnose(
         )
     finally:
         pool.close()
-    hold_final = residuals(windows.holdout, current_record, scenario)
+    hold_final = residuals(windows.holdout, current_record, held_scenario)
     before_rms = hold0.normalised_rms(sigma_x, sigma_i)
-    metric_before = metric_errors(windows.holdout, record)
+    metric_before = metric_errors(windows.holdout, held_record)
     significant = _significant(metric_before, before_rms, settings)
     summary = {
         "scenario": str(scenario.source),

@@ -354,6 +354,13 @@ EMPS_LIBRARY: tuple[Hypothesis, ...] = (
         "accelerations and jerks; ringing at the coupling frequency in force and position",
     ),
     Hypothesis(
+        "torque_ripple",
+        (P("cos_part", "N", 0.0, -10.0, 10.0), P("sin_part", "N", 0.0, -10.0, 10.0)),
+        _torque_ripple,
+        "continuous",
+        "constant velocity; force; a fixed order of the motor angle at every speed",
+    ),
+    Hypothesis(
         "dead_time",
         (P("dead_time_steps", "1", 2.0, 0.0, 4.0),),
         _emps_dead_time,

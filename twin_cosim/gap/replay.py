@@ -25,9 +25,10 @@ from scipy.optimize import differential_evolution, least_squares
 
 from twin_cosim.cosim import RunAborted, run_scenario
 from twin_cosim.gap.effects import library_for, scan_values
+from twin_cosim.measured import read_measured
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
-from twin_cosim.scenario import Scenario, load_scenario
+from twin_cosim.scenario import Scenario, for_measured_run, load_scenario
 
 FIT_EVALUATIONS = 10  # residual evaluations per least_squares polish (plus its Jacobians)
 FIT_STEP = 0.02  # finite-difference step, as a fraction of each parameter's range
@@ -70,7 +71,7 @@ def normalised_residual(record: pd.DataFrame, data: TrainingData) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SimulateTask:
-    """Replay the whole scenario with these FMU parameters (on top of the spec's base)."""
+    """Replay the held-out runs' scenario with these FMU parameters (on top of the nominal)."""
 
     overrides: dict[str, float]
 
@@ -116,6 +117,9 @@ class ReplaySpec:
         What the fits see.
     model : str
         The FMU's model identifier, which selects the hypothesis library.
+    holdout_run : str or None
+        A held-out run file whose own reference the judging replays follow (see
+        :func:`twin_cosim.scenario.for_measured_run`); None: the scenario's.
     """
 
     scenario: str
@@ -123,6 +127,7 @@ class ReplaySpec:
     nominal: dict[str, float]
     training: TrainingData
     model: str
+    holdout_run: str | None = None
 
     def build(self) -> Replayer:
         """The worker."""
@@ -136,6 +141,11 @@ class Replayer:
         self.spec = spec
         self.hypotheses = {h.name: h for h in library_for(spec.model)}
         self.scenario: Scenario = load_scenario(spec.scenario)
+        self.holdout_scenario = (
+            for_measured_run(self.scenario, read_measured(spec.holdout_run))
+            if spec.holdout_run
+            else self.scenario
+        )
         self.plant = Plant(Path(spec.fmu) if spec.fmu else self.scenario.fmu)
         grid = self.scenario.reference
         keep = grid.time <= spec.training.end + 1e-12
@@ -147,8 +157,8 @@ class Replayer:
         )
 
     def simulate(self, overrides: dict[str, float], training_only: bool = False) -> pd.DataFrame:
-        """Replay with the nominal parameters plus ``overrides``."""
-        scenario = self.training_scenario if training_only else self.scenario
+        """Replay the held-out scenario (or the training part) with nominal plus ``overrides``."""
+        scenario = self.training_scenario if training_only else self.holdout_scenario
         return run_scenario(
             self.plant, scenario, plant_overrides={**self.spec.nominal, **overrides}
         )
