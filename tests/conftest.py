@@ -11,8 +11,6 @@ import pytest
 from fmu_build.build import build_fmu
 from twin_cosim.plant import Plant
 
-EMPS_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "emps"
-
 
 @pytest.fixture(scope="session")
 def fmu_path() -> Path:

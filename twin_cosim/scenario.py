@@ -168,43 +168,39 @@ class _Checker:
         return value
 
 
+# Segment kinds with mapping bodies: class and fields (name, unit, must be > 0), in order.
+SEGMENT_FIELDS = {
+    "move": (
+        Move,
+        (("to", "m", False), ("velocity", "m/s", True), ("acceleration", "m/s^2", True)),
+    ),
+    "oscillation": (
+        Oscillation,
+        (("amplitude", "m", False), ("frequency", "Hz", True), ("cycles", "1", True)),
+    ),
+    "ramp": (
+        Ramp,
+        (("velocity", "m/s", False), ("acceleration", "m/s^2", True), ("duration", "s", True)),
+    ),
+}
+
+
 def _segment(check: _Checker, item: Any, key: str):
     if not isinstance(item, dict) or len(item) != 1:
         raise check.fail(key, "a one-key mapping: dwell, move, oscillation or ramp", item)
     ((kind, body),) = item.items()
     if kind == "dwell":
         return Dwell(check.number(body, f"{key}.dwell", positive=True))
-    if kind == "move":
-        body = check.mapping(body, f"{key}.move", {"to", "velocity", "acceleration"})
-        for required in ("to", "velocity", "acceleration"):
-            if required not in body:
-                raise check.fail(f"{key}.move.{required}", "a value (m, m/s, m/s^2)")
-        return Move(
-            check.number(body["to"], f"{key}.move.to"),
-            check.number(body["velocity"], f"{key}.move.velocity", positive=True),
-            check.number(body["acceleration"], f"{key}.move.acceleration", positive=True),
-        )
-    if kind == "oscillation":
-        body = check.mapping(body, f"{key}.oscillation", {"amplitude", "frequency", "cycles"})
-        for required in ("amplitude", "frequency", "cycles"):
-            if required not in body:
-                raise check.fail(f"{key}.oscillation.{required}", "a value (m, Hz, 1)")
-        return Oscillation(
-            check.number(body["amplitude"], f"{key}.oscillation.amplitude"),
-            check.number(body["frequency"], f"{key}.oscillation.frequency", positive=True),
-            check.number(body["cycles"], f"{key}.oscillation.cycles", positive=True),
-        )
-    if kind == "ramp":
-        body = check.mapping(body, f"{key}.ramp", {"velocity", "acceleration", "duration"})
-        for required in ("velocity", "acceleration", "duration"):
-            if required not in body:
-                raise check.fail(f"{key}.ramp.{required}", "a value (m/s, m/s^2, s)")
-        return Ramp(
-            check.number(body["velocity"], f"{key}.ramp.velocity"),
-            check.number(body["acceleration"], f"{key}.ramp.acceleration", positive=True),
-            check.number(body["duration"], f"{key}.ramp.duration", positive=True),
-        )
-    raise check.fail(key, "one of dwell, move, oscillation, ramp", kind)
+    if kind not in SEGMENT_FIELDS:
+        raise check.fail(key, "one of dwell, move, oscillation, ramp", kind)
+    cls, spec = SEGMENT_FIELDS[kind]
+    body = check.mapping(body, f"{key}.{kind}", {name for name, _, _ in spec})
+    values = []
+    for name, unit, positive in spec:
+        if name not in body:
+            raise check.fail(f"{key}.{kind}.{name}", f"a value in {unit}")
+        values.append(check.number(body[name], f"{key}.{kind}.{name}", positive=positive))
+    return cls(*values)
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "rk4.h"
 #include "slave.h"
 
 #define PI 3.14159265358979323846
@@ -121,8 +122,9 @@ static void load_derivatives(const ModelVariables *v, const ModelState *s, const
     }
 }
 
-static void derivatives(const ModelVariables *v, const ModelState *s, const double x[],
-                        double dx[]) {
+static void derivatives(const ModelInstance *inst, const double x[], double dx[]) {
+    const ModelVariables *v = &inst->v;
+    const ModelState *s = &inst->s;
     double coupling = shaft_torque(s, x[MOTOR_ANGLE] - x[LOAD_ANGLE],
                                    x[MOTOR_SPEED] - x[LOAD_SPEED]);
     double lag = v->current_time_constant;   /* s */
@@ -133,19 +135,6 @@ static void derivatives(const ModelVariables *v, const ModelState *s, const doub
     load_derivatives(v, s, x, coupling, dx);
 }
 
-/* One RK4 step of length h (s) over the first n states. */
-static void rk4_step(const ModelVariables *v, const ModelState *s, double x[], double h, int n) {
-    double k1[STATE_COUNT], k2[STATE_COUNT], k3[STATE_COUNT], k4[STATE_COUNT], y[STATE_COUNT];
-    int i;
-    derivatives(v, s, x, k1);
-    for (i = 0; i < n; i++) y[i] = x[i] + 0.5 * h * k1[i];
-    derivatives(v, s, y, k2);
-    for (i = 0; i < n; i++) y[i] = x[i] + 0.5 * h * k2[i];
-    derivatives(v, s, y, k3);
-    for (i = 0; i < n; i++) y[i] = x[i] + h * k3[i];
-    derivatives(v, s, y, k4);
-    for (i = 0; i < n; i++) x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-}
 
 /* Torque (N.m) that drives the load apart from friction. */
 static double driving_torque(const ModelVariables *v, const ModelState *s, const double x[]) {
@@ -382,7 +371,7 @@ fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
     s->command = release_command(v, s);
     for (k = 0; k < v->substeps; k++) {
         double previous_load_speed = x[LOAD_SPEED];
-        rk4_step(v, s, x, substep, s->state_count);
+        rk4_step(derivatives, inst, x, s->state_count, substep);
         if (v->lugre_stiffness == 0.0) update_friction_mode(v, s, x, previous_load_speed);
     }
     if (!isfinite(x[MOTOR_ANGLE] + x[MOTOR_SPEED] + x[LOAD_ANGLE] + x[LOAD_SPEED] +

@@ -12,6 +12,7 @@
  */
 #include <math.h>
 
+#include "rk4.h"
 #include "slave.h"
 
 #define PI 3.14159265358979323846
@@ -57,7 +58,9 @@ static double sliding_friction(const ModelVariables *v, const ModelState *s, dou
     return level * d + (v->viscous_friction + v->viscous_asymmetry * d) * speed;
 }
 
-static void derivatives(const ModelVariables *v, const ModelState *s, const double x[], double dx[]) {
+static void derivatives(const ModelInstance *inst, const double x[], double dx[]) {
+    const ModelVariables *v = &inst->v;
+    const ModelState *s = &inst->s;
     double drive = driving_force(v, s, x);
     dx[POSITION] = s->stuck ? 0.0 : x[SPEED];
     dx[SPEED] = s->stuck ? 0.0 : (drive - sliding_friction(v, s, x[SPEED])) / s->driven_mass;
@@ -70,18 +73,6 @@ static void derivatives(const ModelVariables *v, const ModelState *s, const doub
     }
 }
 
-static void rk4_step(const ModelVariables *v, const ModelState *s, double x[], double h) {
-    double k1[STATE_COUNT], k2[STATE_COUNT], k3[STATE_COUNT], k4[STATE_COUNT], y[STATE_COUNT];
-    int i;
-    derivatives(v, s, x, k1);
-    for (i = 0; i < STATE_COUNT; i++) y[i] = x[i] + 0.5 * h * k1[i];
-    derivatives(v, s, y, k2);
-    for (i = 0; i < STATE_COUNT; i++) y[i] = x[i] + 0.5 * h * k2[i];
-    derivatives(v, s, y, k3);
-    for (i = 0; i < STATE_COUNT; i++) y[i] = x[i] + h * k3[i];
-    derivatives(v, s, y, k4);
-    for (i = 0; i < STATE_COUNT; i++) x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-}
 
 /* Stick/slip transitions after a substep. */
 static void update_friction_mode(const ModelVariables *v, ModelState *s, double x[], double previous) {
@@ -157,7 +148,7 @@ fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
     s->applied = s->commands[(s->newest - v->dead_time_steps + COMMAND_BUFFER) % COMMAND_BUFFER];
     for (k = 0; k < v->substeps; k++) {
         double previous = x[SPEED];
-        rk4_step(v, s, x, substep);
+        rk4_step(derivatives, inst, x, STATE_COUNT, substep);
         update_friction_mode(v, s, x, previous);
     }
     if (!isfinite(x[POSITION] + x[SPEED] + x[CARRIAGE] + x[CARRIAGE_SPEED])) {
