@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import weakref
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -249,6 +250,9 @@ class FastCalls:
         self.vr_out = _value_references(plant, OUTPUT_NAMES)
 
 
+_FAST_CALLS: weakref.WeakKeyDictionary[Plant, FastCalls] = weakref.WeakKeyDictionary()
+
+
 def run_fast_path(
     plant: Plant,
     grid: ReferenceGrid,
@@ -260,9 +264,9 @@ def run_fast_path(
 ) -> pd.DataFrame:
     """Closed-loop run compiled by numba; arguments and record as :func:`run_reference_path`."""
     disturbance = _check_inputs(grid, disturbance)
-    calls = getattr(plant, "_fast_calls", None)
+    calls = _FAST_CALLS.get(plant)
     if calls is None:
-        calls = plant._fast_calls = FastCalls(plant)
+        calls = _FAST_CALLS[plant] = FastCalls(plant)
     p = controller.parameter_vector(tuned, settings)
     s = controller.initial_state()
     record = np.empty((len(grid.position), len(RECORD_COLUMNS)))
