@@ -10,7 +10,8 @@ parameter (effects outside the library: ``plant:pitch_error_amplitude_3=2e-6``,
 
 Calibration error: each of :data:`PERTURBED` is multiplied by (1 + u), u uniform in
 [-perturb, perturb]. Measurement noise: white, Gaussian, on the position (m) and the current (A),
-on top of the scenario's noise harmonics.
+on top of the scenario's noise harmonics; with an encoder resolution set, the noisy position is
+quantised again, as an encoder's readings stay on its grid.
 """
 
 from __future__ import annotations
@@ -141,11 +142,15 @@ def synthesize(
             parameters |= effect_overrides(effect, parameters, fmu_parameters)
         record = run_scenario(plant, scenario, plant_overrides=parameters)
     n = len(record)
+    x = record["x"].to_numpy() + rng.normal(0.0, noise_position, n)
+    resolution = parameters.get("position_resolution", 0.0)
+    if resolution > 0:  # the noise is jitter before the encoder: its readings stay on the grid
+        x = resolution * np.round(x / resolution)
     run = pd.DataFrame(
         {
             "t": record["t"],
             "x_ref": record["x_ref"],
-            "x": record["x"] + rng.normal(0.0, noise_position, n),
+            "x": x,
             "current": record["current"] + rng.normal(0.0, noise_current, n),
             "motor_speed": record["motor_speed"],
         }

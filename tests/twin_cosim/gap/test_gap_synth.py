@@ -64,3 +64,15 @@ def test_noise_is_seeded_and_white():
     clean = synthesize(scenario, [], seed=1, noise_position=0.0, noise_current=0.0)
     noise = a.run["x"] - clean.run["x"]
     assert noise.std() == pytest.approx(1e-7, rel=0.05)
+
+
+def test_encoder_readings_stay_on_their_grid():
+    scenario = load_scenario(REFERENCE1)
+    result = synthesize(
+        scenario,
+        [parse_effect("quantization:position_resolution=1e-6")],
+        seed=3,
+        noise_position=2e-7,
+    )
+    x = result.run["x"].to_numpy()
+    assert np.max(np.abs(x / 1e-6 - np.round(x / 1e-6))) < 1e-6
