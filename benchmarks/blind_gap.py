@@ -4,7 +4,8 @@ For every case (an effect of the library at a large and a small magnitude, null 
 effect, and effects outside the library) and seed, ``twin synth`` makes a measured run of
 ``scenarios/diagnosis.yaml`` with the effect, a calibration error of up to ``--perturb`` on the
 nominal parameters and white measurement noise; ``twin diagnose`` then runs without being told
-the answer. Prints a confusion matrix (true effect against the first accepted effect or group),
+the answer (it is judged on the first accepted effect, so the diagnosis stops after one). Prints
+a confusion matrix (true effect against the first accepted effect or group),
 the held-out shrink per effect, and the targets. Results are appended to ``--results`` as they
 come, so an interrupted benchmark resumes where it stopped.
 
@@ -43,7 +44,7 @@ EFFECTS = {  # effect: (large, small), as twin synth --effect arguments
         "ripple_amplitude=0.02,ripple_order=6",
     ),
     "current_lag": ("current_time_constant=5e-4", "current_time_constant=1.5e-4"),
-    "dead_time": ("dead_time_steps=4", "dead_time_steps=1"),
+    "dead_time": ("dead_time_steps=8", "dead_time_steps=2"),
     "quantization": ("position_resolution=1e-6", "position_resolution=1e-7"),
     "backlash_change": ("delta_backlash=10e-6", "delta_backlash=2e-6"),
     "inertia_change": ("relative_change=0.3", "relative_change=0.08"),
@@ -96,7 +97,15 @@ def run_case(case: dict, perturb: float, folder: Path) -> dict:
     if made.returncode != 0:
         raise RuntimeError(made.stderr)
     result = twin(
-        "diagnose", str(SCENARIO), "--measured", str(run), "--out", str(folder / "report"), "--json"
+        "diagnose",
+        str(SCENARIO),
+        "--measured",
+        str(run),
+        "--out",
+        str(folder / "report"),
+        "--max-effects",
+        "1",
+        "--json",
     )
     if result.returncode != 0:
         raise RuntimeError(result.stderr)

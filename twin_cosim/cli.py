@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import platform
 import sys
@@ -265,6 +266,8 @@ def _diagnose(args: argparse.Namespace) -> int:
     measured = [read_measured(path) for path in args.measured]
     holdout = [read_measured(path) for path in args.holdout or []]
     settings = settings_from(scenario, args.split)
+    if args.max_effects is not None:
+        settings = dataclasses.replace(settings, max_effects=args.max_effects)
     start = time.perf_counter()
     result = diagnose(scenario, measured, holdout, args.plant, settings, workers=args.workers)
     result.summary["wall_s"] = time.perf_counter() - start
@@ -382,6 +385,7 @@ def build_parser() -> argparse.ArgumentParser:
     diag.add_argument(
         "--split", type=float, help="training fraction of the time split (default 0.5)"
     )
+    diag.add_argument("--max-effects", type=int, help="effects to accept at most (default 3)")
     diag.add_argument("--plant", help="another FMU offering the plant contract")
     diag.add_argument(
         "--workers", type=int, help="local processes for the fits (default: all cores)"

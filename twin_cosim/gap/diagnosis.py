@@ -24,14 +24,15 @@ Thresholds (``DiagnosisSettings``):
   IAU against the measured ones is at least ``significance_metric`` (2 %): a gap a servo engineer
   would see in the figures of merit, above what a few percent of calibration error gives;
 - an effect is *accepted* when the gap is significant, the effect cuts the normalised
-  held-out RMS by at least ``accept_reduction`` (25 %), and, for a change of a calibrated
-  parameter (Coulomb level, backlash, inertia, stiffness), the change exceeds the calibration
-  tolerance ``calibration_tolerance`` (3 % of the nominal value; for stiffness, of f_1): smaller
-  changes are within what the twin's calibration is trusted to and are declared not diagnosable;
-  and the effect is *consistent*: it makes neither the position nor the current held-out RMS
-  worse than ``worsen_limit`` (1.1) times what it was, plus the noise floor (a wrong effect can
-  trade one signal for the other: a motor-order ripple fitted to a lead error cuts the position
-  gap and multiplies the current gap);
+  held-out RMS by at least ``accept_reduction`` (25 %), it explains more than the *calibration
+  floor* (the normalised held-out RMS that moving each calibrated parameter of
+  :data:`~twin_cosim.gap.effects.CALIBRATED` by +/- ``calibration_tolerance``, 3 %, can explain,
+  added in quadrature), a change of a calibrated parameter itself (Coulomb level, backlash,
+  inertia, stiffness) exceeds that tolerance, and it is *consistent*: it makes neither the
+  position nor the current held-out RMS worse than ``worsen_limit`` (1.1) times what it was,
+  plus the noise floor (a wrong effect can trade one signal for the other: a motor-order ripple
+  fitted to a lead error cuts the position gap and multiplies the current gap). Effects that
+  pass all but the calibration tests are declared not diagnosable beyond calibration error;
 - two effects form a *group* when both pass, their reductions differ by less than 0.1 and the
   changes they predict on the held-out data correlate at 0.9 or more.
 """
@@ -50,7 +51,7 @@ from twin_cosim.cosim import run_scenario
 from twin_cosim.gap import noise as noise_model
 from twin_cosim.gap import regimes as regime_model
 from twin_cosim.gap import spectra
-from twin_cosim.gap.effects import estimate_resolution, library_for
+from twin_cosim.gap.effects import CALIBRATED, estimate_resolution, library_for
 from twin_cosim.gap.replay import FitResult, FitTask, ReplaySpec, SimulateTask, TrainingData
 from twin_cosim.measured import (
     MeasuredRun,
@@ -300,6 +301,8 @@ class Candidate:
     n_parameters: int
     above_calibration_floor: bool = True
     consistent: bool = True
+    calibration_floor: float = 0.0  # normalised RMS that calibration errors alone can explain
+    explained: float = 0.0  # normalised RMS of what the effect removes
     bic: float = 0.0
     holdout_rms: float = 0.0
     reduction: float = 0.0
@@ -526,6 +529,7 @@ def _judge(
     after = residuals(runs, record, scenario)
     candidate.holdout_rms = after.normalised_rms(sigma_x, sigma_i)
     candidate.reduction = 1.0 - candidate.holdout_rms / base_rms if base_rms > 0 else 0.0
+    candidate.explained = math.sqrt(max(base_rms**2 - candidate.holdout_rms**2, 0.0))
     candidate.position_rms_um = float(np.sqrt(np.mean(after.position**2))) * UM_PER_M
     candidate.current_rms_A = float(np.sqrt(np.mean(after.current**2)))
     worse_x = candidate.position_rms_um / UM_PER_M - settings.worsen_limit * _rms(hold.position)
@@ -567,13 +571,16 @@ def _select(
         metrics = metric_errors(windows.holdout, current)
         if not _significant(metrics, base_rms, settings):
             break
+        floor = _calibration_floor(
+            pool, hold, current, windows, scenario, nominal, base, model, settings, sigma_x, sigma_i
+        )
         fits = dict(pool.imap([FitTask(name, base, context) for name in remaining]))
         fitted = [fits[i] for i in range(len(remaining))]
         records = dict(pool.imap([SimulateTask(f.overrides) for f in fitted]))
         candidates = []
         for i, fit in enumerate(fitted):
             hypothesis = library[fit.hypothesis]
-            candidate = Candidate(fit, len(hypothesis.parameters))
+            candidate = Candidate(fit, len(hypothesis.parameters), calibration_floor=floor)
             if hypothesis.relative_size is not None and fit.values:
                 values = np.array(list(fit.values.values()))
                 size = hypothesis.relative_size(values, {**nominal, **base})
@@ -648,7 +655,11 @@ def _row(
         "holdout_current_before_A": before_A,
         "holdout_current_after_A": candidate.current_rms_A,
         "holdout_reduction": candidate.reduction,
-        "above_calibration_floor": candidate.above_calibration_floor,
+        "above_calibration_floor": (
+            candidate.above_calibration_floor and candidate.explained > candidate.calibration_floor
+        ),
+        "explained_normalised_rms": candidate.explained,
+        "calibration_floor_normalised_rms": candidate.calibration_floor,
         "consistent": candidate.consistent,
         "passes": _passes(candidate, settings),
     }
@@ -658,8 +669,52 @@ def _passes(candidate: Candidate, settings: DiagnosisSettings) -> bool:
     return (
         candidate.reduction >= settings.accept_reduction
         and candidate.above_calibration_floor
+        and candidate.explained > candidate.calibration_floor
         and candidate.consistent
     )
+
+
+def _calibration_floor(
+    pool,
+    hold: Residuals,
+    record: pd.DataFrame,
+    windows: Windowed,
+    scenario: Scenario,
+    nominal: dict[str, float],
+    base: dict[str, float],
+    model: str,
+    settings: DiagnosisSettings,
+    sigma_x: float,
+    sigma_i: float,
+) -> float:
+    """Normalised held-out RMS that calibration errors alone can explain.
+
+    Each calibrated parameter (:data:`twin_cosim.gap.effects.CALIBRATED`) is moved by
+    +/- the calibration tolerance; the larger change it makes to the held-out replay counts, and
+    the changes add in quadrature. An effect must explain more than this to be accepted.
+    """
+    names = [n for n in CALIBRATED.get(model, ()) if n in nominal]
+    moves = [
+        {**base, name: {**nominal, **base}[name] * (1.0 + sign * settings.calibration_tolerance)}
+        for name in names
+        for sign in (1.0, -1.0)
+    ]
+    replays = dict(pool.imap([SimulateTask(m) for m in moves]))
+    total = 0.0
+    for i in range(0, len(moves), 2):
+        changes = []
+        for replay in (replays[i], replays[i + 1]):
+            moved = residuals(windows.holdout, replay, scenario)
+            change = Residuals(
+                hold.t,
+                hold.position - moved.position,
+                hold.current - moved.current,
+                hold.regimes,
+                hold.motor_angle,
+            )
+            changes.append(change.normalised_rms(sigma_x, sigma_i))
+        total += max(changes) ** 2
+    return math.sqrt(total)
 
 
 def _correlation(a: np.ndarray, b: np.ndarray) -> float:

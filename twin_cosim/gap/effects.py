@@ -369,6 +369,21 @@ EMPS_LIBRARY: tuple[Hypothesis, ...] = (
     ),
 )
 LIBRARIES: dict[str, tuple[Hypothesis, ...]] = {"drive2mass": LIBRARY, "emps": EMPS_LIBRARY}
+
+# Parameters whose nominal values are only known to the calibration tolerance; their changes by
+# that tolerance set the calibration floor of a diagnosis.
+CALIBRATED: dict[str, tuple[str, ...]] = {
+    "drive2mass": (
+        "motor_inertia",
+        "load_inertia",
+        "resonance_frequency",
+        "damping_ratio",
+        "torque_constant",
+        "coulomb_friction",
+        "backlash",
+    ),
+    "emps": ("mass", "viscous_friction", "coulomb_friction", "force_offset", "drive_gain"),
+}
 BY_NAME: dict[str, Hypothesis] = {h.name: h for h in LIBRARY}
 
 
