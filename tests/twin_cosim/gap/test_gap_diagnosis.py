@@ -52,7 +52,7 @@ def test_torque_ripple_is_found_and_closes_the_gap(tmp_path):
 
 @pytest.mark.slow
 def test_dead_time_is_reported_with_its_look_alike(tmp_path):
-    summary = blind(tmp_path, ["dead_time:dead_time_steps=4"])
+    summary = blind(tmp_path, ["dead_time:dead_time_steps=8"])
     assert summary["accepted"] == [["current_lag", "dead_time"]] or summary["accepted"] == [
         ["dead_time", "current_lag"]
     ]
