@@ -8,7 +8,8 @@ reports them, e.g. ``inertia_change:relative_change=0.2``) or FMU parameters of 
 parameter (effects outside the library: ``plant:pitch_error_amplitude_3=2e-6``,
 ``plant:lugre_stiffness=2000``, ``plant:thermal_expansion_rate=1e-4``).
 
-Calibration error: each of :data:`PERTURBED` is multiplied by (1 + u), u uniform in
+Calibration error: each calibrated parameter of the plant model
+(:data:`twin_cosim.gap.effects.CALIBRATED`) is multiplied by (1 + u), u uniform in
 [-perturb, perturb]. Measurement noise: white, Gaussian, on the position (m) and the current (A),
 on top of the scenario's noise harmonics; with an encoder resolution set, the noisy position is
 quantised again, as an encoder's readings stay on its grid.
@@ -24,19 +25,10 @@ import numpy as np
 import pandas as pd
 
 from twin_cosim.cosim import run_scenario
-from twin_cosim.gap.effects import BY_NAME
+from twin_cosim.gap.effects import BY_NAME, CALIBRATED
 from twin_cosim.plant import Plant
 from twin_cosim.scenario import Scenario
 
-PERTURBED = (
-    "motor_inertia",
-    "load_inertia",
-    "resonance_frequency",
-    "damping_ratio",
-    "torque_constant",
-    "coulomb_friction",
-    "backlash",
-)
 DEFAULT_ORDERS = {"motor_order": 6.0, "screw_order": 1.0}
 
 
@@ -120,7 +112,7 @@ def synthesize(
     effects
         Effects to switch on.
     perturb
-        Largest relative calibration error of the parameters in :data:`PERTURBED`.
+        Largest relative calibration error of the calibrated parameters.
     seed
         Seed of the calibration error and the noise.
     fmu
@@ -135,7 +127,8 @@ def synthesize(
     rng = np.random.default_rng(seed)
     with Plant(fmu or scenario.fmu) as plant:
         nominal = {**plant.start_values(), **scenario.plant_parameters}
-        factors = {name: 1.0 + rng.uniform(-perturb, perturb) for name in PERTURBED}
+        calibrated = CALIBRATED.get(plant.description.coSimulation.modelIdentifier, ())
+        factors = {name: 1.0 + rng.uniform(-perturb, perturb) for name in calibrated}
         parameters = {**nominal, **{k: nominal[k] * f for k, f in factors.items()}}
         fmu_parameters = set(plant.parameter_names())
         for effect in effects:
