@@ -51,11 +51,13 @@ def test_torque_ripple_is_found_and_closes_the_gap(tmp_path):
 
 
 @pytest.mark.slow
-def test_dead_time_is_reported_with_its_look_alike(tmp_path):
+def test_dead_time_is_found_or_its_look_alike(tmp_path):
+    """Dead time and current lag act alike; either (or their group) explains the gap."""
     summary = blind(tmp_path, ["dead_time:dead_time_steps=8"])
-    assert summary["accepted"] == [["current_lag", "dead_time"]] or summary["accepted"] == [
-        ["dead_time", "current_lag"]
-    ]
+    first = summary["accepted"][0]
+    assert set(first if isinstance(first, list) else [first]) <= {"dead_time", "current_lag"}
+    assert "dead_time" in [row["name"] for row in summary["effects"][:3]]
+    assert summary["steps"][0]["reduction"] >= 0.5
 
 
 @pytest.mark.slow
