@@ -1,7 +1,9 @@
-"""Shared fixtures: the project's FMU (built once per session) and open-loop stepping."""
+"""Shared fixtures: the project's FMU (built once per session), open-loop stepping, the CLI."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
@@ -10,6 +12,19 @@ import pytest
 
 from fmu_build.build import build_fmu
 from twin_cosim.plant import Plant
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="session")
+def twin_cli() -> Callable[..., subprocess.CompletedProcess]:
+    """Run ``python -m twin_cosim ARGS...`` from the repository root, as a user would."""
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        command = [sys.executable, "-m", "twin_cosim", *args]
+        return subprocess.run(command, capture_output=True, text=True, cwd=ROOT)
+
+    return run
 
 
 @pytest.fixture(scope="session")

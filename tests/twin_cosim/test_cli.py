@@ -3,27 +3,19 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def twin(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "twin_cosim", *args], capture_output=True, text=True, cwd=cwd
-    )
-
-
-def test_build_prints_the_fmu_path(tmp_path):
-    result = twin("build", "--out", str(tmp_path))
+def test_build_prints_the_fmu_path(tmp_path, twin_cli):
+    result = twin_cli("build", "--out", str(tmp_path))
     assert result.returncode == 0, result.stderr
     assert Path(result.stdout.strip()) == tmp_path / "drive2mass.fmu"
 
 
-def test_simulate_json_and_files(tmp_path):
-    result = twin(
+def test_simulate_json_and_files(tmp_path, twin_cli):
+    result = twin_cli(
         "simulate", "scenarios/reference1.yaml", "--params", "ga", "--out", str(tmp_path), "--json"
     )
     assert result.returncode == 0, result.stderr
@@ -35,17 +27,17 @@ def test_simulate_json_and_files(tmp_path):
         assert (tmp_path / name).stat().st_size > 0
 
 
-def test_bad_scenario_is_a_clear_error(tmp_path):
+def test_bad_scenario_is_a_clear_error(tmp_path, twin_cli):
     bad = tmp_path / "bad.yaml"
     bad.write_text("reference:\n  segments:\n    - dwell: -1\n")
-    result = twin("simulate", str(bad), "--out", str(tmp_path))
+    result = twin_cli("simulate", str(bad), "--out", str(tmp_path))
     assert result.returncode == 2
     assert "bad.yaml: reference.segments[0].dwell: expected a number > 0" in result.stderr
     assert "Traceback" not in result.stderr
 
 
-def test_optimize_json(tmp_path):
-    result = twin(
+def test_optimize_json(tmp_path, twin_cli):
+    result = twin_cli(
         "optimize",
         "scenarios/reference1.yaml",
         "--method",

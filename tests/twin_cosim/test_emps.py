@@ -6,8 +6,6 @@ Tests that need the benchmark's data skip where ../shared/data/emps is absent.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -90,23 +88,9 @@ def test_replay_reproduces_the_published_position_gap():
 
 @needs_data
 @pytest.mark.slow
-def test_diagnosis_runs_on_the_real_data(tmp_path):
-    result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "twin_cosim",
-            "diagnose",
-            "scenarios/emps.yaml",
-            "--measured",
-            str(DATA),
-            "--out",
-            str(tmp_path),
-            "--json",
-        ],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
+def test_diagnosis_runs_on_the_real_data(twin_cli, tmp_path):
+    result = twin_cli(
+        "diagnose", "scenarios/emps.yaml", "--measured", str(DATA), "--out", str(tmp_path), "--json"
     )
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)
@@ -151,28 +135,20 @@ def twin_mat(tmp_path: Path, name: str, frequency: float, pulses: bool) -> Path:
 
 
 @pytest.mark.slow
-def test_holdout_run_follows_its_own_reference_and_pulses(tmp_path):
+def test_holdout_run_follows_its_own_reference_and_pulses(twin_cli, tmp_path):
     """A held-out run of another trajectory, with pulses, is replayed with both: no gap."""
     train = twin_mat(tmp_path, "train.mat", 0.5, pulses=False)
     held = twin_mat(tmp_path, "held.mat", 0.8, pulses=True)
-    result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "twin_cosim",
-            "diagnose",
-            str(tmp_path / "train.mat.yaml"),
-            "--measured",
-            str(train),
-            "--holdout",
-            str(held),
-            "--out",
-            str(tmp_path / "r"),
-            "--json",
-        ],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
+    result = twin_cli(
+        "diagnose",
+        str(tmp_path / "train.mat.yaml"),
+        "--measured",
+        str(train),
+        "--holdout",
+        str(held),
+        "--out",
+        str(tmp_path / "r"),
+        "--json",
     )
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)

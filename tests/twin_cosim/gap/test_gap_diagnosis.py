@@ -7,8 +7,6 @@ diagnosis is not told the answer.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -69,49 +67,33 @@ def test_effect_outside_the_library_is_not_a_confident_wrong_answer(tmp_path):
 
 
 @pytest.mark.slow
-def test_cli_synth_then_diagnose(tmp_path):
+def test_cli_synth_then_diagnose(twin_cli, tmp_path):
     run = tmp_path / "run.csv"
-    synth = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "twin_cosim",
-            "synth",
-            str(SCENARIO),
-            "--effect",
-            "inertia_change:relative_change=0.3",
-            "--perturb",
-            "0.02",
-            "--seed",
-            "3",
-            "--out",
-            str(run),
-        ],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
+    synth = twin_cli(
+        "synth",
+        str(SCENARIO),
+        "--effect",
+        "inertia_change:relative_change=0.3",
+        "--perturb",
+        "0.02",
+        "--seed",
+        "3",
+        "--out",
+        str(run),
     )
     assert synth.returncode == 0, synth.stderr
     assert (
         json.loads(Path(str(run) + ".truth.json").read_text())["effects"][0]["name"]
         == "inertia_change"
     )
-    result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "twin_cosim",
-            "diagnose",
-            str(SCENARIO),
-            "--measured",
-            str(run),
-            "--out",
-            str(tmp_path / "report"),
-            "--json",
-        ],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
+    result = twin_cli(
+        "diagnose",
+        str(SCENARIO),
+        "--measured",
+        str(run),
+        "--out",
+        str(tmp_path / "report"),
+        "--json",
     )
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)
@@ -129,14 +111,9 @@ def test_cli_synth_then_diagnose(tmp_path):
         assert (tmp_path / "report" / name).stat().st_size > 0
 
 
-def test_bad_measured_file_is_a_clear_error(tmp_path):
+def test_bad_measured_file_is_a_clear_error(twin_cli, tmp_path):
     bad = tmp_path / "bad.csv"
     bad.write_text("t,x_ref,x\n0,0,0\n")
-    result = subprocess.run(
-        [sys.executable, "-m", "twin_cosim", "diagnose", str(SCENARIO), "--measured", str(bad)],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-    )
+    result = twin_cli("diagnose", str(SCENARIO), "--measured", str(bad))
     assert result.returncode == 2
     assert "bad.csv: missing column(s) ['current']" in result.stderr

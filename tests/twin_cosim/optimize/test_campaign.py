@@ -69,7 +69,7 @@ def test_existing_folder_needs_resume(short_scenario, tmp_path):
         campaign(short_scenario, tmp_path, "once", workers=1, budget=20)
 
 
-def test_kill_9_mid_generation_then_resume_loses_nothing(short_scenario, tmp_path):
+def test_kill_9_mid_generation_then_resume_loses_nothing(short_scenario, tmp_path, twin_cli):
     reference = campaign(short_scenario, tmp_path, "uninterrupted", workers=1, budget=100)
     out = tmp_path / "killed"
     command = [
@@ -106,22 +106,7 @@ def test_kill_9_mid_generation_then_resume_loses_nothing(short_scenario, tmp_pat
         json.loads(line)["key"] for line in log.read_text().splitlines() if line.endswith("}")
     }
     assert 30 <= len(before) < 100
-    result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "twin_cosim",
-            "optimize",
-            short_scenario,
-            "--resume",
-            str(out),
-            "--quiet",
-            "--json",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-    )
+    result = twin_cli("optimize", short_scenario, "--resume", str(out), "--quiet", "--json")
     assert result.returncode == 0, result.stderr
     resumed = json.loads(result.stdout)
     after = [json.loads(line)["key"] for line in log.read_text().splitlines()]
@@ -132,24 +117,9 @@ def test_kill_9_mid_generation_then_resume_loses_nothing(short_scenario, tmp_pat
     assert resumed["evaluations"] == reference.evaluations
 
 
-def test_resume_refuses_other_options(short_scenario, tmp_path):
+def test_resume_refuses_other_options(short_scenario, tmp_path, twin_cli):
     campaign(short_scenario, tmp_path, "done", workers=1, budget=20)
-    result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "twin_cosim",
-            "optimize",
-            short_scenario,
-            "--resume",
-            str(tmp_path / "done"),
-            "--seed",
-            "4",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-    )
+    result = twin_cli("optimize", short_scenario, "--resume", str(tmp_path / "done"), "--seed", "4")
     assert result.returncode == 2
     assert "options differ from the stored campaign" in result.stderr
 
