@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
@@ -36,7 +37,9 @@ def test_fmpy_validate_reports_no_problem(fmu_path):
 
 def test_fmutool_check_reports_no_problem(fmu_path):
     result = subprocess.run(
-        ["fmutool", "-input", str(fmu_path), "-check"], capture_output=True, text=True
+        [str(Path(sys.executable).with_name("fmutool")), "-input", str(fmu_path), "-check"],
+        capture_output=True,
+        text=True,
     )
     output = result.stdout + result.stderr
     assert result.returncode == 0, output
