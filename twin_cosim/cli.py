@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import platform
 import sys
@@ -234,11 +233,39 @@ def _compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _emps_gains(scenario, follow, fmu) -> dict[str, float]:
+    """kp, kv, gtau of an EMPS-format run: the followed run's, else the scenario's."""
+    from twin_cosim.measured import read_measured
+
+    measured = read_measured(follow) if follow else None
+    scalars = measured.extra if measured else {}
+    if all(k in scalars for k in ("kp", "kv", "gtau")):
+        return {k: float(scalars[k]) for k in ("kp", "kv", "gtau")}
+    with Plant(Path(fmu) if fmu else scenario.fmu) as plant:
+        gtau = plant.start_values().get("drive_gain", 1.0)
+    tuned, settings = scenario.tuned, scenario.settings
+    return {
+        "kp": tuned.Kp_pos,
+        "kv": tuned.Kp_vel / settings.travel_per_rad,
+        "gtau": gtau,
+    }
+
+
 def _synth(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from twin_cosim.emps_runs import write_emps_mat
     from twin_cosim.gap.synth import parse_effect, synthesize
+    from twin_cosim.measured import read_measured
+    from twin_cosim.scenario import for_measured_run
 
     scenario = load_scenario(args.scenario)
+    if args.follow:
+        scenario = for_measured_run(scenario, read_measured(args.follow))
     effects = [parse_effect(text) for text in args.effect]
+    out = Path(args.out)
+    if out.suffix.lower() not in (".csv", ".mat"):
+        raise ValueError(f"--out {out}: expected a .csv or an EMPS .mat file name")
     synthesis = synthesize(
         scenario,
         effects,
@@ -248,39 +275,74 @@ def _synth(args: argparse.Namespace) -> int:
         args.noise_position,
         args.noise_current,
     )
-    out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    synthesis.run.to_csv(out, index=False)
+    run = synthesis.run
+    if out.suffix.lower() == ".mat":
+        pulses = None
+        if args.follow and scenario.disturbance_spec:
+            followed = read_measured(args.follow)
+            values = followed.extra.get(scenario.disturbance_spec["variable"])
+            if isinstance(values, np.ndarray):
+                pulses = np.interp(run["t"], followed.t, values)
+        gains = _emps_gains(scenario, args.follow, args.plant)
+        write_emps_mat(out, run["t"], run["x_ref"], run["x"], run["current"], gains, pulses)
+    else:
+        run.to_csv(out, index=False)
     truth = out.with_name(out.name + ".truth.json")
-    write_json(truth, synthesis.truth)
-    print(f"wrote {out} ({len(synthesis.run)} samples) and the known answer in {truth}")
+    write_json(truth, {**synthesis.truth, "followed": args.follow})
+    print(f"wrote {out} ({len(run)} samples) and the known answer in {truth}")
     return 0
 
 
+def _progress_bar(enabled: bool):
+    """A factory of tqdm progress bars on stderr (none when disabled)."""
+    from tqdm import tqdm
+
+    def make(total: int, label: str):
+        bar = tqdm(total=total, desc=label, unit="task", disable=not enabled, file=sys.stderr)
+
+        def tick(done: int) -> None:
+            if bar.n + done > bar.total:
+                bar.total = bar.n + done
+            bar.update(done)
+
+        return tick
+
+    return make
+
+
 def _diagnose(args: argparse.Namespace) -> int:
-    from twin_cosim.gap.diagnosis import diagnose, settings_from
+    from twin_cosim.gap.diagnosis import diagnose
     from twin_cosim.gap.report import write_report
+    from twin_cosim.gap.settings import settings_from
     from twin_cosim.measured import read_measured
 
     scenario = load_scenario(args.scenario)
     measured = [read_measured(path) for path in args.measured]
     holdout = [read_measured(path) for path in args.holdout or []]
-    settings = settings_from(scenario, args.split)
-    if args.max_effects is not None:
-        settings = dataclasses.replace(settings, max_effects=args.max_effects)
+    settings = settings_from(scenario, args.split, args.max_effects)
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"--workers: expected a whole number >= 1, got {args.workers}")
     start = time.perf_counter()
-    result = diagnose(scenario, measured, holdout, args.plant, settings, workers=args.workers)
-    result.summary["wall_s"] = time.perf_counter() - start
-    result.summary["versions"] = versions()
+    show = not args.quiet and not (args.json and not sys.stdout.isatty())
+    result = diagnose(
+        scenario,
+        measured,
+        holdout,
+        args.plant,
+        settings,
+        workers=args.workers,
+        progress=_progress_bar(show),
+    )
+    extra = {"wall_s": time.perf_counter() - start, "versions": versions()}
     out = Path(args.out) if args.out else Path("out") / f"diagnosis-{scenario.name}"
-    with Plant(Path(args.plant) if args.plant else scenario.fmu) as plant:
-        gear_ratio = plant.start_values().get("gear_ratio", 1.5)
-    files = write_report(result, out, gear_ratio)
+    files = write_report(result, out, extra)
+    summary = {**result.summary(), **extra}
     if args.json:
-        print(json.dumps(result.summary))
+        print(json.dumps(summary))
     else:
-        print(result.summary["gap"]["verdict"])
-        for step in result.summary["steps"]:
+        print(summary["gap"]["verdict"])
+        for step in summary["steps"]:
             print(
                 f"  {step['effect']}: held-out position gap {step['holdout_gap_before_um']:.3f} -> "
                 f"{step['holdout_gap_after_um']:.3f} um, current "
@@ -288,8 +350,7 @@ def _diagnose(args: argparse.Namespace) -> int:
                 f"{step['holdout_current_after_A']:.4f} A; fitted {step['params']}"
             )
         print(
-            f"wrote {files['markdown']}, {files['html']}, {files['json']} "
-            f"({result.summary['wall_s']:.1f} s)"
+            f"wrote {files['markdown']}, {files['html']}, {files['json']} ({extra['wall_s']:.1f} s)"
         )
     return 0
 
@@ -373,7 +434,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--noise-current", type=float, default=5e-3, help="white noise on the current, A"
     )
     synth.add_argument("--plant", help="another FMU offering the plant contract")
-    synth.add_argument("--out", required=True, help="measured-run CSV to write")
+    synth.add_argument(
+        "--follow",
+        metavar="RUN",
+        help="follow this measured run's reference and disturbance (a scenario whose reference "
+        "comes from a measured file), e.g. a pulse template for an EMPS validation run",
+    )
+    synth.add_argument(
+        "--out", required=True, help="measured run to write: .csv, or .mat in the EMPS format"
+    )
     synth.set_defaults(handler=_synth)
 
     diag = commands.add_parser("diagnose", help="where the twin is wrong, why, and by how much")
@@ -392,6 +461,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     diag.add_argument("--out", help="report folder (default: out/diagnosis-<scenario name>)")
     diag.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    diag.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress bar (there is none either with --json when stdout is not a terminal)",
+    )
     diag.set_defaults(handler=_diagnose)
 
     table3 = commands.add_parser(

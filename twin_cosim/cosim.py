@@ -65,16 +65,15 @@ def _value_references(plant: Plant, names: tuple[str, ...]) -> np.ndarray:
     return np.array([plant.value_reference(n) for n in names], dtype=np.uint32)
 
 
-def _check_inputs(grid: ReferenceGrid, disturbance: np.ndarray | None) -> np.ndarray:
+def _check_inputs(grid: ReferenceGrid, signal: np.ndarray | None, what: str) -> np.ndarray:
+    """An input signal per position sample (zeros when None), checked for shape and finiteness."""
     n = len(grid.position)
-    if disturbance is None:
+    if signal is None:
         return np.zeros(n)
-    disturbance = np.ascontiguousarray(disturbance, dtype=np.float64)
-    if disturbance.shape != (n,) or not np.all(np.isfinite(disturbance)):
-        raise ValueError(
-            f"disturbance torque must be {n} finite values (N.m), one per position sample"
-        )
-    return disturbance
+    signal = np.ascontiguousarray(signal, dtype=np.float64)
+    if signal.shape != (n,) or not np.all(np.isfinite(signal)):
+        raise ValueError(f"{what} must be {n} finite values, one per position sample")
+    return signal
 
 
 def _raise_aborted(abort_error: float, t: float) -> None:
@@ -93,6 +92,7 @@ def run_reference_path(
     plant_parameters: Mapping[str, float] | None = None,
     disturbance: np.ndarray | None = None,
     abort_error: float = math.inf,
+    command_offset: np.ndarray | None = None,
 ) -> pd.DataFrame:
     """Closed-loop run in plain Python through fmpy (the readable reference path).
 
@@ -110,13 +110,18 @@ def run_reference_path(
         Disturbance torque (N.m) per position sample; zero when None.
     abort_error
         Stop with :class:`RunAborted` once |x_ref - x| exceeds this (m).
+    command_offset
+        Signal added to the controller's output (after its limit) before the plant's
+        ``current_cmd`` input, per position sample (A, or the command's unit); zero when None.
+        The record's ``current`` is the controller's output without it.
 
     Returns
     -------
     pandas.DataFrame
         One row per position-loop sample, columns :data:`RECORD_COLUMNS`.
     """
-    disturbance = _check_inputs(grid, disturbance)
+    disturbance = _check_inputs(grid, disturbance, "disturbance torque")
+    command_offset = _check_inputs(grid, command_offset, "command offset")
     p = controller.parameter_vector(tuned, settings)
     s = controller.initial_state()
     ratio = settings.speed_steps_per_position_step
@@ -149,7 +154,8 @@ def run_reference_path(
             k = i * ratio + j
             current = controller.speed_loop(p, s, k * h, speed)
             current_sum += current
-            plant.call("fmi2SetReal", fmu.setReal, vr_in, [current, disturbance[i]])
+            inputs = [current + command_offset[i], disturbance[i]]
+            plant.call("fmi2SetReal", fmu.setReal, vr_in, inputs)
             plant.call("fmi2DoStep", fmu.doStep, k * h, h)
             speed, position, angle = plant.call("fmi2GetReal", fmu.getReal, vr_out)
         record[i, _CURRENT] = current_sum / ratio
@@ -176,6 +182,7 @@ def _closed_loop(
     v_ref,
     a_ref,
     disturbance,
+    command_offset,
     abort_error,
     record,
 ):  # pragma: no cover - compiled
@@ -201,9 +208,10 @@ def _closed_loop(
         current_sum = 0.0
         for j in range(ratio):
             k = i * ratio + j
-            inputs[0] = _speed_loop(p, s, k * h, outputs[0])
+            current = _speed_loop(p, s, k * h, outputs[0])
+            inputs[0] = current + command_offset[i]
             inputs[1] = disturbance[i]
-            current_sum += inputs[0]
+            current_sum += current
             status = set_real(component, vr_in.ctypes, 2, inputs.ctypes)
             if status > _FMI2_OK_OR_WARNING:
                 return status, k
@@ -261,9 +269,11 @@ def run_fast_path(
     plant_parameters: Mapping[str, float] | None = None,
     disturbance: np.ndarray | None = None,
     abort_error: float = math.inf,
+    command_offset: np.ndarray | None = None,
 ) -> pd.DataFrame:
     """Closed-loop run compiled by numba; arguments and record as :func:`run_reference_path`."""
-    disturbance = _check_inputs(grid, disturbance)
+    disturbance = _check_inputs(grid, disturbance, "disturbance torque")
+    command_offset = _check_inputs(grid, command_offset, "command offset")
     calls = _FAST_CALLS.get(plant)
     if calls is None:
         calls = _FAST_CALLS[plant] = FastCalls(plant)
@@ -286,6 +296,7 @@ def run_fast_path(
         grid.velocity,
         grid.acceleration,
         disturbance,
+        command_offset,
         abort_error,
         record,
     )
@@ -324,11 +335,15 @@ def run_scenario(
         FMU parameters applied on top of the scenario's.
     abort_error
         Stop with :class:`RunAborted` once |x_ref - x| exceeds this (m).
+
+    The scenario's signal conventions apply (``reference.disturbance``): a disturbance that
+    enters at the command is added to the controller's output, and the record's ``current``
+    includes it when the scenario says the measured command does.
     """
     parameters = {**scenario.plant_parameters, **(plant_overrides or {})}
     run = run_fast_path if fast else run_reference_path
     tuned = tuned or scenario.tuned
-    return run(
+    record = run(
         plant,
         scenario.reference,
         tuned,
@@ -336,4 +351,8 @@ def run_scenario(
         parameters,
         scenario.disturbance,
         abort_error,
+        scenario.command_disturbance,
     )
+    if scenario.command_disturbance is not None and scenario.disturbance_in_record:
+        record["current"] += scenario.command_disturbance
+    return record

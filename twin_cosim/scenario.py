@@ -112,6 +112,12 @@ class Scenario:
         simulate`` compares the replay with it.
     disturbance : numpy.ndarray or None
         Disturbance input (N.m, or N on a linear axis) per position-loop sample.
+    command_disturbance : numpy.ndarray or None
+        Signal added to the controller's output before the plant, per position-loop sample
+        (the command's unit: A, or V for EMPS).
+    disturbance_in_record : bool
+        The measured command includes ``command_disturbance`` (the twin's recorded command then
+        does too).
     """
 
     name: str
@@ -128,6 +134,8 @@ class Scenario:
     disturbance: np.ndarray | None = None
     diagnose: dict[str, Any] = field(default_factory=dict)
     disturbance_spec: dict[str, Any] = field(default_factory=dict)
+    command_disturbance: np.ndarray | None = None
+    disturbance_in_record: bool = False
 
 
 class _Checker:
@@ -211,19 +219,57 @@ class _Reference:
     plant_start: float | None = None
     disturbance: np.ndarray | None = None
     disturbance_spec: dict[str, Any] = field(default_factory=dict)
+    command_disturbance: np.ndarray | None = None
+
+
+# Where a measured run's disturbance signal enters the loop (reference.disturbance.enters).
+DISTURBANCE_ENTRIES = ("disturbance_input", "command")
 
 
 def _run_disturbance(
     run: MeasuredRun, spec: dict[str, Any], grid: ReferenceGrid
-) -> np.ndarray | None:
-    """The disturbance input (N.m, or N) of a run: ``gain`` x its ``variable``, on the grid.
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """(disturbance input, command disturbance) of a run: ``gain`` x its ``variable`` on the
+    grid, at the plant's disturbance input (N.m, or N) or added to the command (its unit).
 
     A run without that variable (e.g. the EMPS estimation run, which has no pulses) has none.
     """
     values = run.extra.get(spec["variable"]) if spec else None
     if not isinstance(values, np.ndarray):
-        return None
-    return spec["gain"] * np.interp(grid.time, run.t, values)
+        return None, None
+    signal = spec["gain"] * np.interp(grid.time, run.t, values)
+    return (signal, None) if spec["enters"] == "disturbance_input" else (None, signal)
+
+
+def _disturbance_spec(check: _Checker, data: Any) -> dict[str, Any]:
+    """The signal convention of ``reference.disturbance`` (empty when absent)."""
+    keys = {"variable", "gain", "enters", "in_recorded_command"}
+    spec = check.mapping(data, "reference.disturbance", keys)
+    if not spec:
+        return {}
+    variable = spec.get("variable")
+    if not isinstance(variable, str):
+        raise check.fail("reference.disturbance.variable", "the name of a signal", variable)
+    enters = spec.get("enters", "disturbance_input")
+    if enters not in DISTURBANCE_ENTRIES:
+        raise check.fail(
+            "reference.disturbance.enters", f"one of {list(DISTURBANCE_ENTRIES)}", enters
+        )
+    recorded = spec.get("in_recorded_command", False)
+    if not isinstance(recorded, bool):
+        raise check.fail("reference.disturbance.in_recorded_command", "true or false", recorded)
+    if recorded and enters != "command":
+        raise check.fail(
+            "reference.disturbance.in_recorded_command",
+            "false unless the disturbance enters at the command (enters: command)",
+            recorded,
+        )
+    return {
+        "variable": variable,
+        "gain": check.number(spec.get("gain", 1.0), "reference.disturbance.gain"),
+        "enters": enters,
+        "in_recorded_command": recorded,
+    }
 
 
 def _from_measured(check: _Checker, data: dict[str, Any], position_period: float) -> _Reference:
@@ -239,18 +285,9 @@ def _from_measured(check: _Checker, data: dict[str, Any], position_period: float
         grid = interpolate(run.x_ref, run.period, position_period)
     except ReferenceError as exc:
         raise ScenarioError(f"{check.source}: reference: {exc}") from exc
-    spec = check.mapping(data.get("disturbance"), "reference.disturbance", {"variable", "gain"})
-    if spec:
-        variable = spec.get("variable")
-        if not isinstance(variable, str):
-            raise check.fail("reference.disturbance.variable", "the name of a signal", variable)
-        spec = {
-            "variable": variable,
-            "gain": check.number(spec.get("gain", 1.0), "reference.disturbance.gain"),
-        }
-    return _Reference(
-        grid, float(run.x_ref[0]), path, float(run.x[0]), _run_disturbance(run, spec, grid), spec
-    )
+    spec = _disturbance_spec(check, data.get("disturbance"))
+    at_input, at_command = _run_disturbance(run, spec, grid)
+    return _Reference(grid, float(run.x_ref[0]), path, float(run.x[0]), at_input, spec, at_command)
 
 
 def _reference(check: _Checker, data: Any, position_period: float) -> _Reference:
@@ -386,6 +423,8 @@ def load_scenario(path: Path | str) -> Scenario:
         measured=chosen.measured,
         disturbance=chosen.disturbance,
         disturbance_spec=chosen.disturbance_spec,
+        command_disturbance=chosen.command_disturbance,
+        disturbance_in_record=bool(chosen.disturbance_spec.get("in_recorded_command", False)),
     )
 
 
@@ -404,12 +443,14 @@ def for_measured_run(scenario: Scenario, run: MeasuredRun) -> Scenario:
         grid = interpolate(run.x_ref, run.period, scenario.settings.position_period)
     except ReferenceError as exc:
         raise ScenarioError(f"{run.source}: reference: {exc}") from exc
+    at_input, at_command = _run_disturbance(run, scenario.disturbance_spec, grid)
     return dataclasses.replace(
         scenario,
         reference=grid,
         plant_parameters={**scenario.plant_parameters, "load_position_start": float(run.x[0])},
         measured=Path(run.source),
-        disturbance=_run_disturbance(run, scenario.disturbance_spec, grid),
+        disturbance=at_input,
+        command_disturbance=at_command,
     )
 
 

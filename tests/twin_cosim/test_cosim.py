@@ -88,3 +88,32 @@ def test_failing_fmu_stops_the_run_with_its_message(plant, reference1, fast):
 def test_unknown_plant_parameter_is_named(plant, reference1):
     with pytest.raises(PlantError, match="no parameter named 'stiffnes'"):
         run_scenario(plant, reference1, plant_overrides={"stiffnes": 1.0})
+
+
+@pytest.mark.parametrize("recorded", [False, True])
+def test_a_command_disturbance_is_cancelled_by_the_integral_action(plant, tmp_path, recorded):
+    """A constant offset added to the controller's output before the plant, at standstill
+    without friction or backlash: the speed loop's integral drives its own output to minus the
+    offset and the position error to zero; the recorded command includes the offset exactly
+    when the scenario says the measured one does."""
+    import dataclasses
+
+    text = (SCENARIOS / "reference1.yaml").read_text().split("reference:")[0]
+    path = tmp_path / "dwell.yaml"
+    path.write_text(text + "reference:\n  sample_period: 0.004\n  segments:\n    - dwell: 1.5\n")
+    scenario = load_scenario(path)
+    offset = 0.2  # A
+    n = len(scenario.reference.position)
+    dwell = dataclasses.replace(
+        scenario, command_disturbance=np.full(n, offset), disturbance_in_record=recorded
+    )
+    ideal = {"coulomb_friction": 0.0, "viscous_friction": 0.0, "backlash": 0.0}
+    fast = run_scenario(plant, dwell, plant_overrides=ideal)
+    slow = run_scenario(plant, dwell, fast=False, plant_overrides=ideal)
+    assert np.max(np.abs(fast["current"] - slow["current"])) < 1e-9
+    early = fast["current"][fast["t"] < 0.05].to_numpy() - (offset if recorded else 0.0)
+    assert early.min() < -offset  # the loop first answers the push, then settles
+    end = fast["t"] > 1.0
+    expected = 0.0 if recorded else -offset
+    assert fast["current"][end].to_numpy() == pytest.approx(expected, abs=1e-6)
+    assert np.max(np.abs(fast["x"][end])) < 1e-12

@@ -16,7 +16,7 @@ from twin_cosim.cosim import run_scenario
 from twin_cosim.measured import MeasuredDataError, read_measured
 from twin_cosim.metrics import compare_with_measured
 from twin_cosim.plant import Plant
-from twin_cosim.scenario import load_scenario
+from twin_cosim.scenario import ScenarioError, load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT.parent / "shared" / "data" / "emps" / "DATA_EMPS.mat"
@@ -59,20 +59,52 @@ def test_mat_loader_errors(tmp_path):
         read_measured(other)
 
 
-def test_pulses_become_the_disturbance_input(tmp_path):
+def emps_scenario_with(tmp_path: Path, disturbance: str | None = None):
+    """scenarios/emps.yaml on a fake run with pulses, with another disturbance convention."""
     fake_mat(tmp_path / "run.mat", True)
+    text = (ROOT / "scenarios" / "emps.yaml").read_text()
+    text = text.replace("measured: ../../shared/data/emps/DATA_EMPS.mat", "measured: run.mat")
+    if disturbance is not None:
+        start = text.index("  disturbance: {")
+        end = text.index("\n", start)
+        text = text[:start] + f"  disturbance: {disturbance}" + text[end:]
     scenario_file = tmp_path / "s.yaml"
-    scenario_file.write_text(
-        (ROOT / "scenarios" / "emps.yaml")
-        .read_text()
-        .replace(
-            "measured: ../../shared/data/emps/DATA_EMPS.mat",
-            "measured: run.mat\n  disturbance: {variable: pulses_N, gain: -35.15065188}",
-        )
+    scenario_file.write_text(text)
+    return load_scenario(scenario_file)
+
+
+def test_the_emps_pulses_are_added_to_the_recorded_command(tmp_path):
+    """The benchmark's convention (scenarios/emps.yaml): pulses in V on the drive command."""
+    scenario = emps_scenario_with(tmp_path)
+    assert scenario.disturbance is None
+    assert scenario.command_disturbance[-1] == pytest.approx(1.0)
+    assert scenario.command_disturbance[50] == 0.0
+    assert scenario.disturbance_in_record
+
+
+def test_pulses_can_enter_at_the_disturbance_input(tmp_path):
+    scenario = emps_scenario_with(
+        tmp_path, "{variable: pulses_N, gain: -35.15065188, enters: disturbance_input}"
     )
-    scenario = load_scenario(scenario_file)
+    assert scenario.command_disturbance is None and not scenario.disturbance_in_record
     assert scenario.disturbance[-1] == pytest.approx(-35.15065188)
     assert scenario.disturbance[50] == 0.0
+
+
+@pytest.mark.parametrize(
+    ("convention", "message"),
+    [
+        ("{variable: pulses_N, enters: drive}", "reference.disturbance.enters: expected one of"),
+        (
+            "{variable: pulses_N, enters: disturbance_input, in_recorded_command: true}",
+            "in_recorded_command: expected false unless the disturbance enters at the command",
+        ),
+        ("{variable: pulses_N, in_recorded_command: 1}", "expected true or false"),
+    ],
+)
+def test_a_bad_signal_convention_is_named(tmp_path, convention, message):
+    with pytest.raises(ScenarioError, match=message):
+        emps_scenario_with(tmp_path, convention)
 
 
 @needs_data
@@ -154,4 +186,50 @@ def test_holdout_run_follows_its_own_reference_and_pulses(twin_cli, tmp_path):
     summary = json.loads(result.stdout)
     assert summary["holdout"] == [str(held)]
     assert summary["gap"]["validation_figures"]["rms_um"] < 0.05
+    assert summary["accepted"] == []
+
+
+@pytest.mark.slow
+def test_synthetic_validation_run_with_pulses_leaves_only_noise(twin_cli, tmp_path):
+    """The signal convention end to end: a validation-like run made by the twin itself (pulses
+    added to the command, recorded in it) leaves a held-out command residual at noise level."""
+    from twin_cosim.emps_runs import pulse_template
+
+    train = twin_mat(tmp_path, "train.mat", 0.5, pulses=False)
+    gains = {"kp": 160.18, "kv": 243.45, "gtau": 35.15065188}
+    template = pulse_template(tmp_path / "template.mat", 4, gains, duration=6.0, pulse_height=3.0)
+    held = tmp_path / "held.mat"
+    made = twin_cli(
+        "synth",
+        str(tmp_path / "train.mat.yaml"),
+        "--follow",
+        str(template),
+        "--out",
+        str(held),
+        "--noise-current",
+        "0.005",
+        "--seed",
+        "2",
+    )
+    assert made.returncode == 0, made.stderr
+    run = read_measured(held)
+    assert run.extra["pulses_N"].std() > 1.0  # the pulses are there, in the recorded command
+    result = twin_cli(
+        "diagnose",
+        str(tmp_path / "train.mat.yaml"),
+        "--measured",
+        str(train),
+        "--holdout",
+        str(held),
+        "--out",
+        str(tmp_path / "r"),
+        "--json",
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    (held_run,) = summary["gap"]["holdout_runs"]
+    assert held_run["current_rms_before"] < 0.0075  # the 5 mV of white noise, not the pulses
+    errors = summary["gap"]["holdout_relative_errors_before"]
+    assert set(errors) == {"position", "velocity", "acceleration", "force"}
+    assert errors["force"] < 1.0 and errors["position"] < 0.01
     assert summary["accepted"] == []

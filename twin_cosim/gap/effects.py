@@ -7,7 +7,11 @@ peak of the residual's order spectrum, see :mod:`twin_cosim.gap.diagnosis`); the
 phase are fitted as a cosine and a sine coefficient so that the fit has no phase wrapping.
 
 Fitting kinds: ``continuous`` (scipy least_squares), ``scan`` (a few discrete values, each
-replayed): dead time in controller samples, encoder resolution estimated from the data.
+replayed, given by the hypothesis' own ``scan``): dead time in controller samples, encoder
+resolution estimated from the data.
+
+One registry, :data:`LIBRARIES`, holds the hypotheses of each plant model; adding an effect means
+its FMU block, one :class:`Hypothesis` entry here and its test.
 """
 
 from __future__ import annotations
@@ -20,6 +24,10 @@ import numpy as np
 
 Overrides = dict[str, float]
 Context = Mapping[str, float]
+
+# Orders of periodic effects when the data show none (the diagnosis takes them from the
+# residual's order spectra; twin synth uses them when an effect is given without ``order``).
+DEFAULT_CONTEXT: dict[str, float] = {"motor_order": 6.0, "screw_order": 1.0}
 
 
 @dataclass(frozen=True)
@@ -69,6 +77,11 @@ class Hypothesis:
     relative_size : callable or None
         For a change of a calibrated parameter: (values, nominal) -> size of the change relative
         to the nominal value, compared with the calibration tolerance; None for the others.
+    scan : callable or None
+        For a ``scan`` hypothesis: (hypothesis, context) -> the values to try.
+    periodic_in : str or None
+        ``"motor"`` or ``"screw"`` for an effect periodic in that angle, whose order the
+        diagnosis reads from the residual (context key ``motor_order`` / ``screw_order``).
     """
 
     name: str
@@ -77,6 +90,8 @@ class Hypothesis:
     kind: str
     signature: str
     relative_size: Callable[[np.ndarray, Mapping[str, float]], float] | None = None
+    scan: Callable[[Hypothesis, Context], list[np.ndarray]] | None = None
+    periodic_in: str | None = None
 
     def from_unit(self, u: np.ndarray) -> np.ndarray:
         """Fit coordinates in [0, 1] -> physical values."""
@@ -144,6 +159,19 @@ def _dead_time(v, nominal, context) -> Overrides:
     return {"dead_time_steps": float(round(v[0]))}
 
 
+def _scan_dead_time(hypothesis: Hypothesis, context: Context) -> list[np.ndarray]:
+    """Whole numbers of samples between the bounds, the nominal one left out."""
+    low, high = int(hypothesis.parameters[0].lower), int(hypothesis.parameters[0].upper)
+    nominal = int(context.get("dead_time_steps", 0))
+    return [np.array([float(n)]) for n in range(low, high + 1) if n != nominal]
+
+
+def _scan_resolution(hypothesis: Hypothesis, context: Context) -> list[np.ndarray]:
+    """The encoder resolution read off the measured position, when it lies on a grid."""
+    resolution = context.get("position_resolution", 0.0)
+    return [np.array([resolution])] if resolution > 0 else []
+
+
 def _quantization(v, nominal, context) -> Overrides:
     return {"position_resolution": v[0]}
 
@@ -198,6 +226,7 @@ LIBRARY: tuple[Hypothesis, ...] = (
         _position_friction,
         "continuous",
         "constant velocity; current; a fixed order of the screw angle at every speed",
+        periodic_in="screw",
     ),
     Hypothesis(
         "pitch_error",
@@ -216,6 +245,7 @@ LIBRARY: tuple[Hypothesis, ...] = (
         _torque_ripple,
         "continuous",
         "constant velocity; current; a fixed order of the motor angle at every speed",
+        periodic_in="motor",
     ),
     Hypothesis(
         "current_lag",
@@ -230,6 +260,7 @@ LIBRARY: tuple[Hypothesis, ...] = (
         _dead_time,
         "scan",
         "reversals and high jerk; phase of position and current",
+        scan=_scan_dead_time,
     ),
     Hypothesis(
         "quantization",
@@ -237,6 +268,7 @@ LIBRARY: tuple[Hypothesis, ...] = (
         _quantization,
         "scan",
         "standstill dither; high frequency; position",
+        scan=_scan_resolution,
     ),
     Hypothesis(
         "backlash_change",
@@ -359,6 +391,7 @@ EMPS_LIBRARY: tuple[Hypothesis, ...] = (
         _torque_ripple,
         "continuous",
         "constant velocity; force; a fixed order of the motor angle at every speed",
+        periodic_in="motor",
     ),
     Hypothesis(
         "dead_time",
@@ -366,6 +399,7 @@ EMPS_LIBRARY: tuple[Hypothesis, ...] = (
         _emps_dead_time,
         "scan",
         "phase of force and position at every change of acceleration",
+        scan=_scan_dead_time,
     ),
 )
 LIBRARIES: dict[str, tuple[Hypothesis, ...]] = {"drive2mass": LIBRARY, "emps": EMPS_LIBRARY}
@@ -387,21 +421,32 @@ CALIBRATED: dict[str, tuple[str, ...]] = {
 BY_NAME: dict[str, Hypothesis] = {h.name: h for h in LIBRARY}
 
 
+class UnknownModelError(ValueError):
+    """No hypothesis library for a plant model."""
+
+
 def library_for(model_identifier: str) -> tuple[Hypothesis, ...]:
-    """The hypotheses of a plant model (its FMU's modelIdentifier); drive2mass's for others."""
-    return LIBRARIES.get(model_identifier, LIBRARY)
+    """The hypotheses of a plant model (its FMU's modelIdentifier).
+
+    Raises
+    ------
+    UnknownModelError
+        For a model without a library (the diagnosis cannot guess what another plant's
+        effects are called).
+    """
+    if model_identifier not in LIBRARIES:
+        raise UnknownModelError(
+            f"no hypothesis library for plant model {model_identifier!r}; "
+            f"libraries exist for {sorted(LIBRARIES)} (twin_cosim/gap/effects.py)"
+        )
+    return LIBRARIES[model_identifier]
 
 
 def scan_values(hypothesis: Hypothesis, context: Context) -> list[np.ndarray]:
-    """Values a ``scan`` hypothesis tries: dead time 1 to 8 samples, or the context's resolution."""
-    if hypothesis.name == "dead_time":
-        low, high = int(hypothesis.parameters[0].lower), int(hypothesis.parameters[0].upper)
-        nominal = int(context.get("dead_time_steps", 0))
-        return [np.array([float(n)]) for n in range(low, high + 1) if n != nominal]
-    if hypothesis.name == "quantization":
-        resolution = context.get("position_resolution", 0.0)
-        return [np.array([resolution])] if resolution > 0 else []
-    raise ValueError(f"hypothesis {hypothesis.name!r} is not a scan")
+    """Values a ``scan`` hypothesis tries."""
+    if hypothesis.scan is None:
+        raise ValueError(f"hypothesis {hypothesis.name!r} is not a scan")
+    return hypothesis.scan(hypothesis, context)
 
 
 def estimate_resolution(x: np.ndarray) -> float:

@@ -1,15 +1,21 @@
 """Replays of a scenario on the twin, and hypothesis fits on them, done by pool workers.
 
-A :class:`ReplaySpec` (paths, numbers and the training data: it pickles) builds a
+A :class:`ReplaySpec` (the scenarios, numbers and the training data: it pickles) builds a
 :class:`Replayer` once per worker process: one plant instance, reset for every replay. Tasks:
 
-- :class:`SimulateTask`: replay the whole scenario with some FMU parameters; returns the record;
+- :class:`SimulateTask`: replay the judging scenarios (the training scenario first when asked)
+  with some FMU parameters; returns the records;
 - :class:`FitTask`: fit one hypothesis on the training data (scipy least_squares on replays, or a
   scan of discrete values) on top of already accepted effects.
 
 The fit minimises the normalised training residual: position residual / sigma_x and current
 residual / sigma_i (sigma: noise floors measured at standstill), over the training samples only;
 a replay for the fit stops at the end of the training window.
+
+Every parameter set is clipped into the FMU's variable ranges before it reaches the FMU, so that
+nothing derived from data can be refused by the plant; a replay that fails anyway scores ten
+times the residual of the fit's starting point (at least 1e3 per sample), never better than a
+valid fit.
 """
 
 from __future__ import annotations
@@ -24,16 +30,42 @@ import pandas as pd
 from scipy.optimize import differential_evolution, least_squares
 
 from twin_cosim.cosim import RunAborted, run_scenario
-from twin_cosim.gap.effects import library_for, scan_values
-from twin_cosim.measured import read_measured
+from twin_cosim.gap.effects import Hypothesis, library_for, scan_values
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
-from twin_cosim.scenario import Scenario, for_measured_run, load_scenario
+from twin_cosim.scenario import Scenario
 
 FIT_EVALUATIONS = 10  # residual evaluations per least_squares polish (plus its Jacobians)
 FIT_STEP = 0.02  # finite-difference step, as a fraction of each parameter's range
 GLOBAL_EVALUATIONS = 50  # replays of the global search per fitted parameter (one or two)
 GLOBAL_POPULATION_PER_PARAMETER = 8
+FAILURE_FACTOR = 10.0  # a failed replay's residual, relative to the fit's starting residual
+FAILURE_FLOOR = 1e3  # least normalised residual per sample of a failed replay
+
+
+def bounded(hypothesis: Hypothesis, ranges: dict[str, tuple[float, float]]) -> Hypothesis:
+    """The hypothesis with the bounds of parameters that are FMU parameters narrowed to their
+    ranges in the variable table (the start value moved inside when needed)."""
+    parameters = []
+    for p in hypothesis.parameters:
+        if p.name in ranges:
+            low, high = max(p.lower, ranges[p.name][0]), min(p.upper, ranges[p.name][1])
+            p = dataclasses.replace(
+                p, lower=low, upper=high, initial=min(max(p.initial, low), high)
+            )
+        parameters.append(p)
+    return dataclasses.replace(hypothesis, parameters=tuple(parameters))
+
+
+def clipped(
+    overrides: dict[str, float], ranges: dict[str, tuple[float, float]]
+) -> dict[str, float]:
+    """FMU parameters clipped into their (min, max) ranges of the variable table."""
+    result = {}
+    for name, value in overrides.items():
+        low, high = ranges.get(name, (-np.inf, np.inf))
+        result[name] = float(min(max(value, low), high))
+    return result
 
 
 @dataclass(frozen=True)
@@ -70,10 +102,24 @@ def normalised_residual(record: pd.DataFrame, data: TrainingData) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class Replays:
+    """Records of one parameter set: the training scenario's (when asked) and each judging
+    scenario's, in the order of :attr:`ReplaySpec.judging`."""
+
+    training: pd.DataFrame | None
+    judging: list[pd.DataFrame]
+
+
+@dataclass(frozen=True)
 class SimulateTask:
-    """Replay the held-out runs' scenario with these FMU parameters (on top of the nominal)."""
+    """Replay the judging scenarios with these FMU parameters (on top of the nominal).
+
+    ``with_training``: also the training scenario's replay (the first judging scenario's when
+    they are the same, as for a time split).
+    """
 
     overrides: dict[str, float]
+    with_training: bool = False
 
 
 @dataclass(frozen=True)
@@ -107,27 +153,30 @@ class ReplaySpec:
 
     Attributes
     ----------
-    scenario : str
-        Scenario file.
-    fmu : str or None
-        Plant FMU (the scenario's when None).
+    scenario : Scenario
+        The training scenario.
+    judging : list of Scenario
+        The distinct scenarios the held-out runs follow (the training scenario itself for a
+        time split or runs of the same reference).
+    fmu : str
+        Plant FMU.
     nominal : dict
         Nominal FMU parameters of the twin (start values, the scenario's, the identified noise).
     training : TrainingData
         What the fits see.
     model : str
         The FMU's model identifier, which selects the hypothesis library.
-    holdout_run : str or None
-        A held-out run file whose own reference the judging replays follow (see
-        :func:`twin_cosim.scenario.for_measured_run`); None: the scenario's.
+    ranges : dict
+        (min, max) of every FMU parameter, from the variable table.
     """
 
-    scenario: str
-    fmu: str | None
+    scenario: Scenario
+    judging: list[Scenario]
+    fmu: str
     nominal: dict[str, float]
     training: TrainingData
     model: str
-    holdout_run: str | None = None
+    ranges: dict[str, tuple[float, float]]
 
     def build(self) -> Replayer:
         """The worker."""
@@ -140,13 +189,9 @@ class Replayer:
     def __init__(self, spec: ReplaySpec) -> None:
         self.spec = spec
         self.hypotheses = {h.name: h for h in library_for(spec.model)}
-        self.scenario: Scenario = load_scenario(spec.scenario)
-        self.holdout_scenario = (
-            for_measured_run(self.scenario, read_measured(spec.holdout_run))
-            if spec.holdout_run
-            else self.scenario
-        )
-        self.plant = Plant(Path(spec.fmu) if spec.fmu else self.scenario.fmu)
+        self.scenario = spec.scenario
+        self.plant = Plant(Path(spec.fmu))
+        self.failure_residual = FAILURE_FLOOR
         grid = self.scenario.reference
         keep = grid.time <= spec.training.end + 1e-12
         self.training_scenario = dataclasses.replace(
@@ -156,30 +201,37 @@ class Replayer:
             ),
         )
 
-    def simulate(self, overrides: dict[str, float], training_only: bool = False) -> pd.DataFrame:
-        """Replay the held-out scenario (or the training part) with nominal plus ``overrides``."""
-        scenario = self.training_scenario if training_only else self.holdout_scenario
-        return run_scenario(
-            self.plant, scenario, plant_overrides={**self.spec.nominal, **overrides}
-        )
+    def replay(self, scenario: Scenario, overrides: dict[str, float]) -> pd.DataFrame:
+        """One scenario replayed with nominal plus ``overrides`` (clipped into their ranges)."""
+        parameters = clipped({**self.spec.nominal, **overrides}, self.spec.ranges)
+        return run_scenario(self.plant, scenario, plant_overrides=parameters)
+
+    def simulate(self, task: SimulateTask) -> Replays:
+        """The judging scenarios' replays (and the training scenario's when asked)."""
+        judging = [self.replay(s, task.overrides) for s in self.spec.judging]
+        training = None
+        if task.with_training:
+            same = self.spec.judging[0] is self.scenario
+            training = judging[0] if same else self.replay(self.scenario, task.overrides)
+        return Replays(training, judging)
 
     def training_residual(self, overrides: dict[str, float]) -> np.ndarray:
         """Normalised training residual; a failed replay scores a large constant residual."""
         try:
-            record = self.simulate(overrides, training_only=True)
+            record = self.replay(self.training_scenario, overrides)
         except (RunAborted, PlantError):
             n = sum(2 * len(t) for t in self.spec.training.t)
-            return np.full(n, 1e3)
+            return np.full(n, self.failure_residual)
         return normalised_residual(record, self.spec.training)
 
     def __call__(self, task: SimulateTask | FitTask) -> Any:
         if isinstance(task, SimulateTask):
-            return self.simulate(task.overrides)
+            return self.simulate(task)
         return self.fit(task)
 
     def fit(self, task: FitTask) -> FitResult:
         """Fit a hypothesis by least squares on replays, or by scanning its discrete values."""
-        hypothesis = self.hypotheses[task.hypothesis]
+        hypothesis = bounded(self.hypotheses[task.hypothesis], self.spec.ranges)
         nominal = {**self.spec.nominal, **task.base}
 
         def overrides_of(values: np.ndarray) -> dict[str, float]:
@@ -188,6 +240,11 @@ class Replayer:
         def cost(values: np.ndarray) -> float:
             residual = self.training_residual(overrides_of(values))
             return float(np.mean(residual**2))
+
+        start = self.training_residual(dict(task.base))
+        self.failure_residual = max(
+            FAILURE_FLOOR, FAILURE_FACTOR * float(np.sqrt(np.mean(start**2)))
+        )
 
         if hypothesis.kind == "scan":
             candidates = scan_values(hypothesis, task.context)
@@ -198,7 +255,7 @@ class Replayer:
             return FitResult(
                 task.hypothesis,
                 hypothesis.named(best),
-                overrides_of(best),
+                clipped(overrides_of(best), self.spec.ranges),
                 min(costs),
                 len(candidates),
                 f"scanned {len(candidates)} values",
@@ -222,7 +279,7 @@ class Replayer:
         return FitResult(
             task.hypothesis,
             hypothesis.named(values),
-            overrides_of(values),
+            clipped(overrides_of(values), self.spec.ranges),
             train_cost,
             replays,
             solution.message,

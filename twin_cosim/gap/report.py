@@ -16,6 +16,7 @@ import numpy as np  # noqa: E402
 from twin_cosim.gap import regimes as regime_model  # noqa: E402
 from twin_cosim.gap import spectra  # noqa: E402
 from twin_cosim.gap.diagnosis import Diagnosis  # noqa: E402
+from twin_cosim.gap.residuals import joined  # noqa: E402
 from twin_cosim.metrics import UM_PER_M  # noqa: E402
 
 REGIME_COLOURS = {
@@ -50,7 +51,7 @@ def plot_residuals(d: Diagnosis, path: Path) -> Path:
     for ax in axes:
         _shade_regimes(ax, d.train_before.t, d.train_before.regimes)
         _shade_regimes(ax, d.holdout_before.t, d.holdout_before.regimes)
-        ax.axvline(d.train_end, color="k", ls="--", lw=1)
+        ax.axvline(d.context.train_end, color="k", ls="--", lw=1)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
     axes[0].set_ylabel("position residual [um]")
@@ -64,13 +65,13 @@ def plot_residuals(d: Diagnosis, path: Path) -> Path:
     return path
 
 
-def plot_regimes(summary: dict[str, Any], path: Path) -> Path:
+def plot_regimes(d: Diagnosis, path: Path) -> Path:
     """Share of residual energy against share of time per regime."""
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     names = list(regime_model.REGIMES)
     x = np.arange(len(names))
     for ax, signal in zip(axes, ("position", "current"), strict=True):
-        shares = summary["where"][signal]
+        shares = getattr(d.where, signal)
         ax.bar(x - 0.2, [shares[n]["time_share"] for n in names], 0.4, label="time share")
         ax.bar(
             x + 0.2, [shares[n]["energy_share"] for n in names], 0.4, label="residual energy share"
@@ -85,9 +86,10 @@ def plot_regimes(summary: dict[str, Any], path: Path) -> Path:
     return path
 
 
-def plot_spectra(d: Diagnosis, gear_ratio: float, path: Path) -> Path:
+def plot_spectra(d: Diagnosis, path: Path) -> Path:
     """Residual spectra: in Hz, and in orders of the motor and screw angle (constant velocity)."""
     res = d.train_before
+    gear_ratio = d.context.gear_ratio
     dt = float(np.median(np.diff(res.t)))
     stretches = regime_model.segments(res.regimes, regime_model.REGIMES.index("constant_velocity"))
     fig, axes = plt.subplots(3, 2, figsize=(11, 9))
@@ -113,19 +115,59 @@ def plot_spectra(d: Diagnosis, gear_ratio: float, path: Path) -> Path:
     return path
 
 
-def plot_ranking(summary: dict[str, Any], path: Path) -> Path:
+def plot_ranking(d: Diagnosis, path: Path) -> Path:
     """Held-out reduction of the gap per hypothesis (first round), with the acceptance line."""
-    rows = summary["effects"]
+    rows = d.rounds[0].candidates
     fig, ax = plt.subplots(figsize=(9, 4))
     if rows:
-        ax.barh([r["name"] for r in rows], [100 * r["holdout_reduction"] for r in rows])
-        ax.axvline(
-            100 * summary["thresholds"]["accept_reduction"], color="r", ls="--", label="acceptance"
-        )
+        ax.barh([c.name for c in rows], [100 * c.reduction for c in rows])
+        ax.axvline(100 * d.settings.accept_reduction, color="r", ls="--", label="acceptance")
         ax.invert_yaxis()
         ax.legend()
     ax.set_xlabel("held-out normalised RMS reduction [%] (listed by training BIC, best first)")
     ax.grid(alpha=0.3, axis="x")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def plot_along_axis(d: Diagnosis, path: Path) -> Path:
+    """Normalised residual energy over the carriage position, per direction, before and after
+    the accepted effects, with the spans where it is concentrated."""
+    fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
+    sigma_x, sigma_i = d.floors.sigma_position_m, d.floors.sigma_current
+    for ax, (res, label, spans) in zip(
+        axes,
+        (
+            (joined([d.train_before, d.holdout_before]), "before", d.where.along_axis),
+            (
+                d.holdout_after,
+                "after the accepted effects (held out)",
+                d.remaining_where.along_axis,
+            ),
+        ),
+        strict=True,
+    ):
+        energy = res.normalised_energy(sigma_x, sigma_i)
+        for sign, colour in ((1, "tab:blue"), (-1, "tab:orange")):
+            inside = res.direction == sign
+            ax.plot(
+                res.x[inside] * 1e3,
+                energy[inside],
+                ".",
+                ms=1.5,
+                color=colour,
+                label=f"moving {'+' if sign > 0 else '-'}",
+            )
+        for span in spans:
+            ax.axvspan(span.from_mm, span.to_mm, color="red", alpha=0.2)
+        if np.any(energy > 0):
+            ax.set_yscale("log")
+        ax.set_ylabel(f"normalised energy ({label})")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+    axes[1].set_xlabel("carriage position [mm]  (red: spans where the residual is concentrated)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -181,40 +223,75 @@ SHARE_COLUMNS = [
 ]
 
 
-def sections(summary: dict[str, Any]) -> list[tuple[str, str | list[list[str]]]]:
+AXIS_COLUMNS = [
+    ("from_mm", "from [mm]"),
+    ("to_mm", "to [mm]"),
+    ("direction", "direction"),
+    ("energy_share", "energy share"),
+    ("enrichment", "enrichment"),
+]
+RUN_COLUMNS = [
+    ("source", "held-out run"),
+    ("position_rms_um_before", "position RMS before [um]"),
+    ("position_rms_um_after", "after [um]"),
+    ("current_rms_before", "current RMS before"),
+    ("current_rms_after", "after"),
+    ("relative_errors_before", "relative errors before [%]"),
+    ("relative_errors_after", "after [%]"),
+]
+
+
+def _percent(values: dict[str, float]) -> str:
+    return " / ".join(f"{100 * v:.2f} %" for v in values.values())
+
+
+def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
     """The report as (heading, text or table) pairs, shared by Markdown and HTML."""
-    gap = summary["gap"]
-    fig = gap["validation_figures"]
-    before, after = gap["holdout_metrics_before"], gap["holdout_metrics_after"]
+    summary = d.summary()
+    before, after = d.metrics_before[0], d.metrics_after[0]
+    figures = d.validation
+    accepted = summary["accepted"] or "none"
     parts: list[tuple[str, str | list[list[str]]]] = [
-        ("Verdict", gap["verdict"] + f". Accepted, in order: {summary['accepted'] or 'none'}."),
+        ("Verdict", f"{d.verdict}. Accepted, in order: {accepted}."),
+        ("What is left", d.remaining.text + "."),
         (
             "Data",
-            f"Scenario {summary['scenario']}; measured {summary['measured']}; held out: "
-            f"{summary['holdout']}.",
+            f"Scenario {d.context.scenario.source}; plant model {d.context.model}; measured "
+            f"{d.context.measured}; split: {d.context.split}.",
+        ),
+        (
+            "Noise floors",
+            f"position {d.floors.sigma_position_m * 1e6:.4g} um ({d.floors.position_source}); "
+            f"current {d.floors.sigma_current:.4g} A ({d.floors.current_source}).",
         ),
         (
             "Validation figures (whole run, as in the paper)",
-            f"max |gap| {fig['max_um']:.3f} um, mean |gap| {fig['mean_abs_um']:.3f} um, "
-            f"RMS {fig['rms_um']:.3f} um. Held-out relative errors of E_pk / ITAE / IAU before: "
-            + " / ".join(f"{100 * v:.2f} %" for v in before["relative_error"].values())
-            + "; after: "
-            + " / ".join(f"{100 * v:.2f} %" for v in after["relative_error"].values())
-            + f" (significant from {100 * summary['thresholds']['significance_metric']:.0f} %). "
-            f"Normalised held-out RMS {gap['holdout_normalised_rms']:.3g} (1: noise floor).",
+            f"max |gap| {figures['max_um']:.3f} um, mean |gap| {figures['mean_abs_um']:.3f} um, "
+            f"RMS {figures['rms_um']:.3f} um. Held-out relative errors of E_pk / ITAE / IAU "
+            f"before: {_percent(before.relative_error)}; after: {_percent(after.relative_error)}"
+            f" (significant above {_percent(before.threshold)}: "
+            f"{d.settings.significance_metric:.0%} plus what noise alone makes). Normalised "
+            f"held-out RMS {d.rounds[0].holdout_rms:.3g} (1: noise floor).",
         ),
+        ("Held-out runs, before and after", _table(summary["gap"]["holdout_runs"], RUN_COLUMNS)),
         (
             "Where: position residual by regime",
-            _table(_shares_rows(summary["where"]["position"]), SHARE_COLUMNS),
+            _table(_shares_rows(d.where.position), SHARE_COLUMNS),
         ),
         (
             "Where: current residual by regime",
-            _table(_shares_rows(summary["where"]["current"]), SHARE_COLUMNS),
+            _table(_shares_rows(d.where.current), SHARE_COLUMNS),
+        ),
+        (
+            "Where: along the axis (spans where the residual is concentrated)",
+            _table(summary["where"]["along_axis"], AXIS_COLUMNS)
+            if d.where.along_axis
+            else "The residual is spread evenly along the axis: no span stands out.",
         ),
         (
             "Where: position-periodic or temporal",
             "; ".join(
-                f"{k}: {v['verdict']} ({v['reason']})" for k, v in summary["periodicity"].items()
+                f"{k}: {v['verdict']} ({v['reason']})" for k, v in d.where.periodicity.items()
             ),
         ),
         (
@@ -230,14 +307,14 @@ def sections(summary: dict[str, Any]) -> list[tuple[str, str | list[list[str]]]]
         (
             "Unexplained share of the held-out position residual energy, by regime",
             ", ".join(
-                f"{k} {100 * v:.1f} %" for k, v in gap["unexplained_share_by_regime"].items()
+                f"{k} {100 * v:.1f} %"
+                for k, v in summary["gap"]["unexplained_share_by_regime"].items()
             ),
         ),
         (
             "Noise model (Fourier series at standstill; add to the scenario's plant.parameters)",
-            json.dumps(summary["noise"]["plant_parameters"]) + f"; noise floors: "
-            f"{summary['noise']['sigma_position_um']:.4g} um, "
-            f"{summary['noise']['sigma_current_A']:.4g} A",
+            json.dumps(d.noise.plant_parameters)
+            + (f"; dropped: {'; '.join(d.noise.dropped)}" if d.noise.dropped else ""),
         ),
         ("Thresholds", json.dumps(summary["thresholds"])),
         ("Warnings", "; ".join(summary["warnings"]) or "none"),
@@ -245,19 +322,21 @@ def sections(summary: dict[str, Any]) -> list[tuple[str, str | list[list[str]]]]
     return parts
 
 
-FIGURES = ("residuals.png", "regimes.png", "spectra.png", "ranking.png")
+FIGURES = ("residuals.png", "regimes.png", "along_axis.png", "spectra.png", "ranking.png")
 
 
-def write_report(d: Diagnosis, out: Path, gear_ratio: float) -> dict[str, str]:
-    """Write diagnosis.json, report.md, report.html and the figures into ``out``."""
+def write_report(d: Diagnosis, out: Path, extra: dict[str, Any] | None = None) -> dict[str, str]:
+    """Write diagnosis.json (the summary and ``extra``), report.md, report.html and the figures
+    into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
-    summary = d.summary
+    summary = {**d.summary(), **(extra or {})}
     (out / "diagnosis.json").write_text(json.dumps(summary, indent=2) + "\n")
     plot_residuals(d, out / "residuals.png")
-    plot_regimes(summary, out / "regimes.png")
-    plot_spectra(d, gear_ratio, out / "spectra.png")
-    plot_ranking(summary, out / "ranking.png")
-    parts = sections(summary)
+    plot_regimes(d, out / "regimes.png")
+    plot_along_axis(d, out / "along_axis.png")
+    plot_spectra(d, out / "spectra.png")
+    plot_ranking(d, out / "ranking.png")
+    parts = sections(d)
     markdown = ["# Sim-to-real gap diagnosis", ""]
     page = [
         "<!DOCTYPE html><html><head><meta charset='utf-8'>",

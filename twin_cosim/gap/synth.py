@@ -25,11 +25,9 @@ import numpy as np
 import pandas as pd
 
 from twin_cosim.cosim import run_scenario
-from twin_cosim.gap.effects import BY_NAME, CALIBRATED
+from twin_cosim.gap.effects import CALIBRATED, DEFAULT_CONTEXT, LIBRARIES, library_for
 from twin_cosim.plant import Plant
 from twin_cosim.scenario import Scenario
-
-DEFAULT_ORDERS = {"motor_order": 6.0, "screw_order": 1.0}
 
 
 @dataclass(frozen=True)
@@ -43,10 +41,10 @@ class EffectSpec:
 def parse_effect(text: str) -> EffectSpec:
     """Parse ``NAME:param=value,param=value``; ValueError says what was expected."""
     name, _, body = text.partition(":")
-    if name != "plant" and name not in BY_NAME:
+    known = sorted({h.name for library in LIBRARIES.values() for h in library})
+    if name != "plant" and name not in known:
         raise ValueError(
-            f"--effect {text!r}: unknown effect {name!r}; "
-            f"expected 'plant' or one of {sorted(BY_NAME)}"
+            f"--effect {text!r}: unknown effect {name!r}; expected 'plant' or one of {known}"
         )
     params = {}
     for item in filter(None, body.split(",")):
@@ -63,15 +61,21 @@ def parse_effect(text: str) -> EffectSpec:
 
 
 def effect_overrides(
-    effect: EffectSpec, nominal: dict[str, float], fmu_parameters: set[str]
+    effect: EffectSpec, nominal: dict[str, float], fmu_parameters: set[str], model: str
 ) -> dict[str, float]:
-    """FMU parameters that switch one effect on."""
+    """FMU parameters that switch one effect on in a plant of the given model."""
     if effect.name == "plant" or set(effect.params) <= fmu_parameters:
         unknown = sorted(set(effect.params) - fmu_parameters)
         if unknown:
             raise ValueError(f"effect {effect.name}: the FMU has no parameter(s) {unknown}")
         return dict(effect.params)
-    hypothesis = BY_NAME[effect.name]
+    by_name = {h.name: h for h in library_for(model)}
+    if effect.name not in by_name:
+        raise ValueError(
+            f"effect {effect.name}: not an effect of plant model {model!r}; "
+            f"expected one of {sorted(by_name)} or 'plant'"
+        )
+    hypothesis = by_name[effect.name]
     names = [p.name for p in hypothesis.parameters]
     extra = sorted(set(effect.params) - set(names) - {"order"})
     missing = [n for n in names if n not in effect.params]
@@ -81,7 +85,7 @@ def effect_overrides(
             f"parameters of its block; missing {missing}, unknown {extra}"
         )
     order = effect.params.get("order")
-    context = {k: order if order else v for k, v in DEFAULT_ORDERS.items()}
+    context = {k: order if order else v for k, v in DEFAULT_CONTEXT.items()}
     values = np.array([effect.params[n] for n in names])
     return hypothesis.to_plant(values, nominal, context)
 
@@ -127,12 +131,13 @@ def synthesize(
     rng = np.random.default_rng(seed)
     with Plant(fmu or scenario.fmu) as plant:
         nominal = {**plant.start_values(), **scenario.plant_parameters}
-        calibrated = CALIBRATED.get(plant.description.coSimulation.modelIdentifier, ())
+        model = plant.description.coSimulation.modelIdentifier
+        calibrated = CALIBRATED.get(model, ())
         factors = {name: 1.0 + rng.uniform(-perturb, perturb) for name in calibrated}
         parameters = {**nominal, **{k: nominal[k] * f for k, f in factors.items()}}
         fmu_parameters = set(plant.parameter_names())
         for effect in effects:
-            parameters |= effect_overrides(effect, parameters, fmu_parameters)
+            parameters |= effect_overrides(effect, parameters, fmu_parameters, model)
         record = run_scenario(plant, scenario, plant_overrides=parameters)
     n = len(record)
     x = record["x"].to_numpy() + rng.normal(0.0, noise_position, n)

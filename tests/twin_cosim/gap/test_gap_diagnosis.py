@@ -1,6 +1,6 @@
 """Blind diagnoses of synthetic runs (a seeded subset of benchmarks/blind_gap.py).
 
-The data come from the twin with a known effect, 2 % calibration error and white noise; the
+The data come from the twin with known effects, calibration error and white noise; the
 diagnosis is not told the answer.
 """
 
@@ -11,23 +11,36 @@ from pathlib import Path
 
 import pytest
 
-from twin_cosim.gap.diagnosis import DiagnosisSettings, diagnose
+from twin_cosim.gap.defects import build_tight_spot_fmu
+from twin_cosim.gap.diagnosis import diagnose
+from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.synth import parse_effect, synthesize
 from twin_cosim.measured import read_measured_csv
 from twin_cosim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
 SCENARIO = ROOT / "scenarios" / "diagnosis.yaml"
+SWEEP = ROOT / "scenarios" / "sweep.yaml"
 
 
-def blind(tmp_path, effects: list[str], seed: int = 1):
-    scenario = load_scenario(SCENARIO)
-    synthesis = synthesize(scenario, [parse_effect(e) for e in effects], perturb=0.02, seed=seed)
+def blind(
+    tmp_path,
+    effects: list[str],
+    seed: int = 1,
+    scenario_file: Path = SCENARIO,
+    perturb: float = 0.02,
+    max_effects: int = 1,
+    fmu: Path | None = None,
+):
+    scenario = load_scenario(scenario_file)
+    synthesis = synthesize(
+        scenario, [parse_effect(e) for e in effects], perturb=perturb, seed=seed, fmu=fmu
+    )
     path = tmp_path / "run.csv"
     synthesis.run.to_csv(path, index=False)
     return diagnose(
-        scenario, [read_measured_csv(path)], settings=DiagnosisSettings(max_effects=1)
-    ).summary
+        scenario, [read_measured_csv(path)], settings=DiagnosisSettings(max_effects=max_effects)
+    ).summary()
 
 
 @pytest.mark.slow
@@ -117,3 +130,88 @@ def test_bad_measured_file_is_a_clear_error(twin_cli, tmp_path):
     result = twin_cli("diagnose", str(SCENARIO), "--measured", str(bad))
     assert result.returncode == 2
     assert "bad.csv: missing column(s) ['current']" in result.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario_file", [SCENARIO, SWEEP])
+def test_noise_alone_is_no_gap(tmp_path, scenario_file):
+    """A clean run (no effect, no calibration error, default noise) is not a false alarm."""
+    summary = blind(tmp_path, [], seed=11, scenario_file=scenario_file, perturb=0.0)
+    assert summary["accepted"] == []
+    assert not summary["gap"]["significant"], summary["gap"]["holdout_metrics_before"]
+    assert summary["gap"]["verdict"].startswith("no significant gap")
+
+
+@pytest.mark.slow
+def test_two_effects_at_once_are_both_found(tmp_path):
+    """Stribeck friction and a torque ripple: the second round looks again at what is left."""
+    summary = blind(
+        tmp_path,
+        [
+            "stribeck:stribeck_friction=0.25,stribeck_speed=0.3",
+            "torque_ripple:ripple_amplitude=0.04,ripple_order=6",
+        ],
+        seed=5,
+        scenario_file=SWEEP,
+        max_effects=3,
+    )
+    assert {"stribeck", "torque_ripple"} <= set(summary["accepted"])
+    remaining = summary["gap"]["remaining"]
+    assert remaining["energy_share"] < 0.25
+    assert "left:" in summary["gap"]["verdict"]
+
+
+@pytest.mark.slow
+def test_a_tight_spot_is_no_library_effect_and_is_located(twin_cli, tmp_path):
+    """A friction bump at 25 mm, built as a patched copy of drive2mass, is found where it is."""
+    fmu = build_tight_spot_fmu(1.0, 0.025, 0.5e-3, tmp_path / "spot")
+    run = tmp_path / "run.csv"
+    scenario = load_scenario(SWEEP)
+    synthesize(scenario, [], perturb=0.02, seed=7, fmu=fmu).run.to_csv(run, index=False)
+    result = twin_cli(
+        "diagnose", str(SWEEP), "--measured", str(run), "--out", str(tmp_path / "r"), "--json"
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["accepted"] == []
+    assert summary["gap"]["significant"]
+    first = summary["where"]["along_axis"][0]
+    assert abs(0.5 * (first["from_mm"] + first["to_mm"]) - 25.0) <= 2.0
+    assert first["direction"] == 0  # a friction bump acts moving either way
+    text = summary["gap"]["remaining"]["text"]
+    assert "times the noise floor" in text and "mm along the axis" in text
+    for name in ("report.md", "report.html"):
+        assert "times the noise floor" in (tmp_path / "r" / name).read_text()
+    assert (tmp_path / "r" / "along_axis.png").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_an_outlier_is_reported_not_a_crash(twin_cli, tmp_path):
+    """One absurd sample (current[1234] = 1e12) is repaired before fitting and reported."""
+    run = tmp_path / "run.csv"
+    scenario = load_scenario(SCENARIO)
+    frame = synthesize(scenario, [parse_effect("coulomb_change:delta_coulomb=0.2")], seed=2).run
+    frame.loc[1234, "current"] = 1e12
+    frame.to_csv(run, index=False)
+    result = twin_cli(
+        "diagnose",
+        str(SCENARIO),
+        "--measured",
+        str(run),
+        "--max-effects",
+        "1",
+        "--json",
+        "--out",
+        str(tmp_path / "r"),
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert any("current[1234] = 1e+12" in w for w in summary["warnings"])
+    assert summary["accepted"] == ["coulomb_change"]
+
+
+def test_a_plant_model_without_a_library_is_refused(plant):
+    from twin_cosim.gap.effects import UnknownModelError, library_for
+
+    with pytest.raises(UnknownModelError, match="no hypothesis library for plant model 'other'"):
+        library_for("other")

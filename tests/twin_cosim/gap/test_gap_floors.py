@@ -1,0 +1,141 @@
+"""Noise stage: harmonics that cannot be identified are dropped, floors come from the data, and
+noise alone is not a gap."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from twin_cosim.gap import floors as floors_module
+from twin_cosim.gap.floors import (
+    Floors,
+    compare_metrics,
+    high_frequency_sigma,
+    identify_noise,
+    noise_floors,
+)
+from twin_cosim.gap.noise import Harmonic
+from twin_cosim.gap.regimes import CONSTANT_VELOCITY, STANDSTILL
+from twin_cosim.gap.residuals import Residuals
+from twin_cosim.gap.settings import DiagnosisSettings
+from twin_cosim.measured import MeasuredRun
+
+DT = 250e-6
+
+
+def residuals(position, current, regime=STANDSTILL) -> Residuals:
+    n = len(position)
+    t = np.arange(n) * DT
+    return Residuals(
+        t,
+        np.asarray(position, float),
+        np.asarray(current, float),
+        np.full(n, regime),
+        np.zeros(n),
+        np.zeros(n),
+        np.zeros(n),
+    )
+
+
+RANGES = {
+    **{f"noise_amplitude_{k}": (0.0, 1e-3) for k in range(1, 5)},
+    **{f"noise_frequency_{k}": (0.0, 1e6) for k in range(1, 5)},
+    **{f"noise_phase_{k}": (-100.0, 100.0) for k in range(1, 5)},
+}
+
+
+def test_a_harmonic_with_a_negative_frequency_is_dropped_and_reported(monkeypatch):
+    """The crash of issue 10: noise_frequency_1 = -2.8865 reached the FMU."""
+    found = [Harmonic(3e-8, -2.8865, 0.1), Harmonic(2e-8, 120.0, 0.2)]
+    monkeypatch.setattr(floors_module.noise_model, "noise_harmonics", lambda *a, **k: found)
+    model = identify_noise(residuals(np.zeros(4000), np.zeros(4000)), DT, RANGES)
+    assert [h.frequency_hz for h in model.harmonics] == [120.0]
+    assert model.plant_parameters["noise_frequency_1"] == 120.0
+    assert len(model.dropped) == 1 and "-2.886" in model.dropped[0]
+    for name, value in model.plant_parameters.items():
+        low, high = RANGES[name]
+        assert low <= value <= high
+
+
+def test_a_harmonic_outside_the_variable_range_is_dropped():
+    rng = np.random.default_rng(0)
+    t = np.arange(8000) * DT
+    position = 1e-7 * np.sin(2 * np.pi * 60.0 * t) + rng.normal(0, 2e-9, t.size)
+    narrow = {**RANGES, "noise_frequency_1": (0.0, 50.0)}
+    model = identify_noise(residuals(position, np.zeros_like(t)), DT, narrow)
+    assert model.harmonics == []
+    assert "noise_frequency_1" in model.dropped[0]
+
+
+def test_high_frequency_sigma_sees_white_noise_under_a_smooth_error():
+    rng = np.random.default_rng(1)
+    t = np.arange(40000) * DT
+    smooth = 5e-6 * np.sin(2 * np.pi * 0.7 * t) + 1e-6 * t
+    sigma = 20e-9
+    estimate = high_frequency_sigma(t, smooth + rng.normal(0, sigma, t.size), DT)
+    assert estimate == pytest.approx(sigma, rel=0.05)
+
+
+def test_floors_without_standstill_come_from_the_high_frequency_residual():
+    rng = np.random.default_rng(2)
+    n = 20000
+    res = residuals(
+        1e-6 * np.sin(np.arange(n) * 1e-3) + rng.normal(0, 3e-8, n),
+        rng.normal(0, 4e-3, n),
+        regime=CONSTANT_VELOCITY,
+    )
+    floors = noise_floors(res, DT, resolution=0.0)
+    assert floors.sigma_position_m == pytest.approx(3e-8, rel=0.08)
+    assert floors.sigma_current == pytest.approx(4e-3, rel=0.08)
+    assert "high-frequency" in floors.position_source
+
+
+def test_an_encoder_grid_bounds_the_position_floor_from_below():
+    res = residuals(np.zeros(5000), np.full(5000, 1e-3), regime=CONSTANT_VELOCITY)
+    floors = noise_floors(res, DT, resolution=1e-6)
+    assert floors.sigma_position_m == pytest.approx(1e-6 / np.sqrt(12))
+    assert "quantisation" in floors.position_source
+
+
+def _twin_and_run(extra_error: float, seed: int) -> tuple[MeasuredRun, pd.DataFrame]:
+    """A replay and a 'measured' run = replay + white noise (+ a scaled tracking error)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(20000) * DT
+    x_ref = 0.01 * np.sin(2 * np.pi * 0.5 * t)
+    error = 2e-7 * np.sin(2 * np.pi * 1.0 * t) ** 3
+    current = 0.3 * np.cos(2 * np.pi * 0.5 * t) ** 3
+    record = pd.DataFrame({"t": t, "x": x_ref - error, "current": current})
+    run = MeasuredRun(
+        "run.csv",
+        t,
+        x_ref,
+        x_ref - error * (1 + extra_error) + rng.normal(0, 3e-8, t.size),
+        current + rng.normal(0, 5e-3, t.size),
+    )
+    return run, record
+
+
+def test_noise_alone_is_not_a_metric_gap():
+    """White noise raises ITAE and IAU of the measured run; the comparison accounts for it."""
+    floors = Floors(3e-8, 5e-3, "given", "given")
+    settings = DiagnosisSettings()
+    for seed in range(4):
+        run, record = _twin_and_run(0.0, seed)
+        comparison = compare_metrics(run, record, floors, settings)
+        assert comparison.off == [], comparison
+        naive = abs(
+            floors_module.run_metrics(run.t, run.x_ref - run.x, run.current)["ITAE"]
+            / floors_module.run_metrics(run.t, run.x_ref - record["x"].to_numpy(), run.current)[
+                "ITAE"
+            ]
+            - 1
+        )
+        assert naive > settings.significance_metric  # what a comparison without noise says
+
+
+def test_a_real_change_of_the_tracking_error_is_a_metric_gap():
+    floors = Floors(3e-8, 5e-3, "given", "given")
+    run, record = _twin_and_run(0.4, 0)
+    comparison = compare_metrics(run, record, floors, DiagnosisSettings())
+    assert "E_pk_um" in comparison.off and "ITAE" in comparison.off

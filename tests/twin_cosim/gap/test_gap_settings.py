@@ -1,0 +1,39 @@
+"""Diagnosis settings: from the scenario and the command line, with clear errors."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import pytest
+
+from twin_cosim.gap.settings import settings_from
+from twin_cosim.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def scenario_with(diagnose: dict):
+    return dataclasses.replace(
+        load_scenario(ROOT / "scenarios" / "diagnosis.yaml"), diagnose=diagnose
+    )
+
+
+def test_defaults_and_overrides():
+    settings = settings_from(scenario_with({"accept_reduction": 0.3}), split=0.6, max_effects=2)
+    assert (settings.accept_reduction, settings.split, settings.max_effects) == (0.3, 0.6, 2)
+
+
+@pytest.mark.parametrize(
+    ("diagnose", "split", "max_effects", "message"),
+    [
+        ({"nope": 1}, None, None, r"diagnose: unknown key\(s\) \['nope'\]"),
+        ({"max_effects": 1.5}, None, None, "diagnose.max_effects: expected a whole number"),
+        ({"accept_reduction": float("nan")}, None, None, "expected a finite number"),
+        ({}, None, -1, "--max-effects: expected a whole number >= 1, got -1"),
+        ({}, 0.95, None, r"split: expected a fraction in \[0.1, 0.9\]"),
+    ],
+)
+def test_bad_settings_are_named(diagnose, split, max_effects, message):
+    with pytest.raises(ValueError, match=message):
+        settings_from(scenario_with(diagnose), split, max_effects)

@@ -1,0 +1,252 @@
+"""Where the gap lies: by motion regime, by position along the axis, by order and frequency.
+
+- Regimes: share of time and of residual energy per regime (:mod:`twin_cosim.gap.regimes`).
+- Along the axis: the normalised residual energy 0.5 ((r_x / sigma_x)^2 + (r_i / sigma_i)^2)
+  of the moving samples, reversal and breakaway windows left out (their residual belongs to the
+  event, not to the place), binned over the measured carriage position (``axis_bin`` wide)
+  separately for each direction of motion. A bin whose mean energy reaches ``axis_enrichment``
+  times the median bin's is a concentration; neighbouring concentrated bins (one quiet bin
+  between them allowed) form a span, trimmed to the bins around its peak that reach a tenth of
+  the peak's energy (the residual trails a local defect in the direction of motion as the loop
+  recovers; the trimming keeps the span on the defect). Spans found in both directions that overlap are one span of
+  direction 0. Each span's ``energy_share`` is its share of the binned energy above the median
+  level (what is there beyond the even spread); spans below ``axis_min_share`` of it are not
+  named; largest first.
+- Orders and frequencies: order spectra of the motor and screw angle and a spectrum in Hz on the
+  constant-velocity stretches, with the position-periodic / temporal rule of
+  :func:`twin_cosim.gap.spectra.periodicity`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from twin_cosim.gap import regimes as regime_model
+from twin_cosim.gap import spectra
+from twin_cosim.gap.residuals import Residuals
+from twin_cosim.gap.settings import DiagnosisSettings
+
+MM_PER_M = 1e3
+MIN_BIN_SAMPLES = 4  # a bin with fewer moving samples in a direction is not judged
+PEAK_FRACTION = 0.1  # a span keeps the bins around its peak above this share of the peak's energy
+
+
+@dataclass(frozen=True)
+class AxisSpan:
+    """A stretch of the axis where the residual is concentrated.
+
+    Attributes
+    ----------
+    from_mm, to_mm : float
+        Ends of the span (carriage position), mm.
+    direction : int
+        +1 or -1 when it shows moving that way only, 0 when in both directions.
+    energy_share : float
+        Share of the binned residual energy above the median level that lies in the span.
+    enrichment : float
+        Mean energy in the span over the median bin's.
+    """
+
+    from_mm: float
+    to_mm: float
+    direction: int
+    energy_share: float
+    enrichment: float
+
+
+@dataclass(frozen=True)
+class Location:
+    """Where the residual lies (see the module docstring)."""
+
+    position: dict[str, dict[str, float]]
+    current: dict[str, dict[str, float]]
+    along_axis: list[AxisSpan]
+    periodicity: dict[str, Any]
+
+    def describe(self, most: int = 3) -> str:
+        """'reversal (4.1x, 38 % of the energy), 12.0-14.0 mm (+1, 61 %)' or ''."""
+        regimes = sorted(self.position.items(), key=lambda kv: -kv[1]["energy_share"])
+        named = [
+            f"{name.replace('_', ' ')} ({v['enrichment']:.1f}x its time share, "
+            f"{100 * v['energy_share']:.0f} % of the position residual energy)"
+            for name, v in regimes[:2]
+            if v["enrichment"] > 1.5
+        ]
+        named += [
+            f"{s.from_mm:.1f}-{s.to_mm:.1f} mm along the axis (direction {s.direction:+d}; "
+            f"{100 * s.energy_share:.0f} % of the energy above the even level)"
+            for s in self.along_axis[:most]
+        ]
+        return "; ".join(named)
+
+
+def _bin_energy(
+    x: np.ndarray, energy: np.ndarray, edges: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sum of energy and sample count per bin."""
+    index = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+    total = np.bincount(index, weights=energy, minlength=len(edges) - 1)
+    count = np.bincount(index, minlength=len(edges) - 1)
+    return total, count
+
+
+def _spans_of(flagged: np.ndarray, mean: np.ndarray) -> list[tuple[int, int]]:
+    """[first, last] bin ranges of flagged bins (bridging single quiet bins), each trimmed to
+    the bins around its peak that reach PEAK_FRACTION of the peak's mean energy."""
+    spans: list[list[int]] = []
+    for i in np.flatnonzero(flagged):
+        if spans and i - spans[-1][1] <= 2:
+            spans[-1][1] = int(i)
+        else:
+            spans.append([int(i), int(i)])
+    trimmed = []
+    for a, b in spans:
+        peak = a + int(np.argmax(mean[a : b + 1]))
+        strong = mean >= PEAK_FRACTION * mean[peak]
+        first, last = peak, peak
+        while first > a and strong[first - 1]:
+            first -= 1
+        while last < b and strong[last + 1]:
+            last += 1
+        trimmed.append((first, last))
+    return trimmed
+
+
+def along_axis(
+    res: Residuals, sigma_x: float, sigma_i: float, settings: DiagnosisSettings
+) -> list[AxisSpan]:
+    """Spans of the axis where the residual is concentrated, largest first."""
+    excluded = (res.regimes == regime_model.REVERSAL) | (res.regimes == regime_model.BREAKAWAY)
+    moving = (res.direction != 0) & ~excluded
+    if moving.sum() < 10 * MIN_BIN_SAMPLES:
+        return []
+    x = res.x[moving]
+    low, high = float(x.min()), float(x.max())
+    if high - low < 3 * settings.axis_bin:
+        return []
+    edges = np.arange(low, high + settings.axis_bin, settings.axis_bin)
+    energy = res.normalised_energy(sigma_x, sigma_i)[moving]
+    direction = res.direction[moving]
+    found: list[tuple[float, float, int, float, float]] = []
+    excess_total = 0.0
+    per_direction = []
+    for sign in (1, -1):
+        inside = direction == sign
+        total, count = _bin_energy(x[inside], energy[inside], edges)
+        judged = count >= MIN_BIN_SAMPLES
+        if judged.sum() < 3:
+            continue
+        mean = np.where(judged, total / np.maximum(count, 1), 0.0)
+        level = float(np.median(mean[judged]))
+        excess = np.where(judged, np.maximum(total - level * count, 0.0), 0.0)
+        excess_total += float(excess.sum())
+        flagged = judged & (mean >= settings.axis_enrichment * max(level, 1e-300))
+        per_direction.append((sign, flagged, excess, mean, level))
+    for sign, flagged, excess, mean, level in per_direction:
+        for a, b in _spans_of(flagged, mean):
+            share = float(excess[a : b + 1].sum())
+            enrichment = float(mean[a : b + 1].max() / max(level, 1e-300))
+            found.append((float(edges[a]), float(edges[b + 1]), sign, share, enrichment))
+    spans = _merge_directions(found)
+    if excess_total <= 0:
+        return []
+    result = [
+        AxisSpan(a * MM_PER_M, b * MM_PER_M, d, share / excess_total, enrichment)
+        for a, b, d, share, enrichment in spans
+        if share >= settings.axis_min_share * excess_total
+    ]
+    return sorted(result, key=lambda s: -s.energy_share)
+
+
+def _merge_directions(
+    spans: list[tuple[float, float, int, float, float]],
+) -> list[tuple[float, float, int, float, float]]:
+    """Spans of the two directions that overlap become one span of direction 0."""
+    plus = [s for s in spans if s[2] == 1]
+    minus = [s for s in spans if s[2] == -1]
+    merged, used = [], set()
+    for p in plus:
+        partners = [i for i, m in enumerate(minus) if m[0] < p[1] and p[0] < m[1]]
+        if not partners:
+            merged.append(p)
+            continue
+        group = [p] + [minus[i] for i in partners]
+        used.update(partners)
+        merged.append(
+            (
+                min(s[0] for s in group),
+                max(s[1] for s in group),
+                0,
+                sum(s[3] for s in group),
+                max(s[4] for s in group),
+            )
+        )
+    merged += [m for i, m in enumerate(minus) if i not in used]
+    return merged
+
+
+def speed_groups(res: Residuals, dt: float) -> list[list[tuple[int, int]]]:
+    """Constant-velocity stretches grouped by speed level (within 10 %)."""
+    stretches = regime_model.segments(res.regimes, regime_model.CONSTANT_VELOCITY)
+    levels: list[tuple[float, list[tuple[int, int]]]] = []
+    for start, stop in stretches:
+        if stop - start < 2:
+            continue
+        angle = res.motor_angle[start:stop]
+        speed = abs(angle[-1] - angle[0]) / ((stop - start - 1) * dt)
+        for level, members in levels:
+            if abs(speed - level) <= 0.1 * level:
+                members.append((start, stop))
+                break
+        else:
+            levels.append((speed, [(start, stop)]))
+    return [members for _, members in levels]
+
+
+def dominant_order(res: Residuals, signal: np.ndarray, angle: np.ndarray) -> float | None:
+    """The whole order (>= 1) of the dominant peak of a residual's order spectrum, or None."""
+    stretches = regime_model.segments(res.regimes, regime_model.CONSTANT_VELOCITY)
+    orders, amplitude = spectra.order_spectrum(signal, angle, stretches)
+    if len(orders) == 0:
+        return None
+    peak = spectra.dominant_peak(orders, amplitude)
+    return float(max(1, round(peak.location))) if peak else None
+
+
+def _jsonable_periodicity(value: Any) -> Any:
+    if hasattr(value, "__dataclass_fields__"):
+        return asdict(value)
+    if isinstance(value, dict):
+        return {k: _jsonable_periodicity(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_jsonable_periodicity(v) for v in value]
+    return value
+
+
+def locate(
+    res: Residuals,
+    sigma_x: float,
+    sigma_i: float,
+    gear_ratio: float,
+    dt: float,
+    settings: DiagnosisSettings,
+) -> Location:
+    """Regime shares, along-axis spans and periodicity of a residual."""
+    groups = speed_groups(res, dt)
+    periodicity = {}
+    for signal, residual in (("position", res.position), ("current", res.current)):
+        for angle_name, angle in (
+            ("motor", res.motor_angle),
+            ("screw", res.motor_angle / gear_ratio),
+        ):
+            verdict = spectra.periodicity(residual, angle, dt, groups)
+            periodicity[f"{signal}_vs_{angle_name}_angle"] = _jsonable_periodicity(verdict)
+    return Location(
+        regime_model.energy_shares(res.position, res.regimes),
+        regime_model.energy_shares(res.current, res.regimes),
+        along_axis(res, sigma_x, sigma_i, settings),
+        periodicity,
+    )

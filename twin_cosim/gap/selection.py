@@ -1,0 +1,422 @@
+"""Which effect: rounds of fitting the hypotheses and judging them on held-out data.
+
+Every round looks again at the residual the accepted effects leave: its training residual gives
+the orders of the periodic hypotheses (dominant peaks of the order spectra of the motor and
+screw angle, :data:`~twin_cosim.gap.effects.DEFAULT_CONTEXT` when there is none), the
+hypotheses are fitted on top of the accepted effects (:mod:`twin_cosim.gap.replay`), ranked by
+BIC on the training residual and judged on the held-out runs. The first round fits the whole
+library; later rounds the periodic hypotheses (their orders may have changed) and the
+``later_round_candidates`` best of the previous round by held-out reduction.
+
+An effect is *accepted* when, on the held-out data,
+
+1. the gap is significant (:func:`twin_cosim.gap.floors.is_significant`, judged on the replay
+   after the best calibration correction, so that calibration error alone is not a gap);
+2. it cuts the normalised RMS by at least ``accept_reduction`` (25 %);
+3. it goes beyond the calibration floor: after the best calibration correction
+   (:mod:`twin_cosim.gap.calibration`) with the effect, the normalised RMS is still at least
+   ``accept_reduction`` below what the best correction leaves without it; and a change of a
+   calibrated parameter itself (Coulomb level, backlash, inertia, stiffness) exceeds the
+   tolerance;
+4. it is consistent: it makes neither the position nor the current held-out RMS worse than
+   ``worsen_limit`` (1.1) times what it was, plus the noise floor (a wrong effect can trade one
+   signal for the other).
+
+The best passing effect by BIC is accepted; passing effects whose reductions differ by less
+than ``group_reduction_margin`` and whose predicted changes correlate at ``group_correlation``
+or more form a *group* with it (look-alikes the data cannot tell apart).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from twin_cosim.gap.calibration import (
+    CalibrationBasis,
+    CalibrationFloor,
+    floor_of,
+    normalised_vector,
+)
+from twin_cosim.gap.effects import CALIBRATED, DEFAULT_CONTEXT, Hypothesis, library_for
+from twin_cosim.gap.floors import Floors, MetricComparison, compare_metrics, is_significant
+from twin_cosim.gap.location import dominant_order
+from twin_cosim.gap.replay import FitResult, FitTask, Replays, SimulateTask
+from twin_cosim.gap.residuals import Residuals, residuals_of
+from twin_cosim.gap.settings import DiagnosisSettings
+from twin_cosim.measured import MeasuredRun
+from twin_cosim.reference import ReferenceGrid
+
+EFFECTIVE_SAMPLE_SPACING_S = 0.01  # residuals are correlated: one independent sample per 10 ms
+
+Progress = Callable[[int], None]
+
+
+@dataclass(frozen=True)
+class Judging:
+    """The held-out runs and what they are compared with.
+
+    Attributes
+    ----------
+    runs : list of MeasuredRun
+        Held-out runs (files or the held-out windows of a time split).
+    scenario_of_run : list of int
+        Per run, the index of the judging scenario it follows.
+    grids : list of ReferenceGrid
+        Reference of each judging scenario.
+    floors : Floors
+        Noise floors that normalise the residuals.
+    """
+
+    runs: list[MeasuredRun]
+    scenario_of_run: list[int]
+    grids: list[ReferenceGrid]
+    floors: Floors
+
+    def residuals(self, replays: Replays) -> Residuals:
+        """Held-out residuals against the judging replays."""
+        return residuals_of(
+            self.runs,
+            [replays.judging[k] for k in self.scenario_of_run],
+            [self.grids[k] for k in self.scenario_of_run],
+        )
+
+    def vector(self, res: Residuals) -> np.ndarray:
+        """The normalised residual vector (norm = normalised RMS)."""
+        return normalised_vector(res, self.floors.sigma_position_m, self.floors.sigma_current)
+
+    def metrics(self, replays: Replays, settings: DiagnosisSettings) -> list[MetricComparison]:
+        """Measured against twin metrics (with noise) for every held-out run."""
+        return [
+            compare_metrics(run, replays.judging[k], self.floors, settings, seed=i)
+            for i, (run, k) in enumerate(zip(self.runs, self.scenario_of_run, strict=True))
+        ]
+
+
+@dataclass
+class Candidate:
+    """A fitted hypothesis judged on the held-out data."""
+
+    fit: FitResult
+    n_parameters: int
+    bic: float
+    holdout_rms: float = 0.0
+    reduction: float = 0.0
+    reduction_beyond_calibration: float = 0.0
+    size_above_tolerance: bool = True
+    consistent: bool = True
+    explained: float = 0.0
+    position_rms_um: float = 0.0
+    current_rms: float = 0.0
+    passes: bool = False
+    change: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    replays: Replays | None = field(default=None, repr=False)
+
+    @property
+    def name(self) -> str:
+        """The hypothesis' name."""
+        return self.fit.hypothesis
+
+
+@dataclass
+class Round:
+    """One round of selection.
+
+    Attributes
+    ----------
+    index : int
+        1 for the first round.
+    context : dict
+        Data-derived settings of the hypotheses (orders, encoder resolution, dead time).
+    significant : bool
+        Whether the held-out gap left was significant after the best calibration correction.
+    holdout_rms : float
+        Normalised held-out RMS at the start of the round.
+    position_rms_um, current_rms : float
+        Held-out RMS of the position (um) and current (A) residuals at the start.
+    calibration : CalibrationFloor
+        What calibration error can explain of the held-out residual.
+    metrics : list of MetricComparison
+        The held-out metric comparison after the best calibration correction.
+    candidates : list of Candidate
+        Fitted hypotheses, best training BIC first (empty when the gap was not significant).
+    accepted : list of str
+        The accepted effect (with its look-alikes) or empty.
+    """
+
+    index: int
+    context: dict[str, float]
+    significant: bool
+    holdout_rms: float
+    position_rms_um: float
+    current_rms: float
+    calibration: CalibrationFloor
+    metrics: list[MetricComparison]
+    candidates: list[Candidate] = field(default_factory=list)
+    accepted: list[str] = field(default_factory=list)
+
+    @property
+    def best(self) -> Candidate | None:
+        """The accepted candidate."""
+        return next(
+            (c for c in self.candidates if self.accepted and c.name == self.accepted[0]), None
+        )
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The rounds, the accepted effects' FMU parameters and the replays with them."""
+
+    rounds: list[Round]
+    plant_parameters: dict[str, float]
+    replays: Replays
+    basis: CalibrationBasis
+
+
+def _bic(cost: float, n_parameters: int, train_seconds: float) -> float:
+    n_eff = max(train_seconds / EFFECTIVE_SAMPLE_SPACING_S, 1.0)
+    return n_eff * math.log(max(cost, 1e-300)) + n_parameters * math.log(n_eff)
+
+
+def _correlation(a: np.ndarray, b: np.ndarray) -> float:
+    if len(a) != len(b) or np.std(a) == 0 or np.std(b) == 0:
+        return 0.0
+    return float(abs(np.corrcoef(a, b)[0, 1]))
+
+
+def _imap(pool, tasks: list, progress: Progress | None) -> list:
+    """Results of tasks on the pool, in task order, reporting each completion."""
+    results: list = [None] * len(tasks)
+    for i, result in pool.imap(tasks):
+        results[i] = result
+        if progress:
+            progress(1)
+    return results
+
+
+class Selector:
+    """Runs the rounds of selection on a pool of replay workers.
+
+    Parameters
+    ----------
+    pool
+        Pool of :class:`~twin_cosim.gap.replay.Replayer` workers.
+    model : str
+        Plant model (selects the hypothesis library and the calibrated parameters).
+    nominal : dict
+        Nominal FMU parameters of the twin (noise model included).
+    judging : Judging
+        The held-out runs.
+    training : list of MeasuredRun
+        The training runs (all follow the scenario).
+    training_grid : ReferenceGrid
+        The scenario's reference.
+    gear_ratio : float
+        Motor revolutions per screw revolution.
+    train_seconds : float
+        Length of the training data, s (for the BIC).
+    settings : DiagnosisSettings
+    progress : callable or None
+        Called with the number of tasks done.
+    """
+
+    def __init__(
+        self,
+        pool,
+        model: str,
+        nominal: dict[str, float],
+        judging: Judging,
+        training: list[MeasuredRun],
+        training_grid: ReferenceGrid,
+        gear_ratio: float,
+        train_seconds: float,
+        settings: DiagnosisSettings,
+        context: dict[str, float],
+        progress: Progress | None = None,
+    ) -> None:
+        self.pool = pool
+        self.library: dict[str, Hypothesis] = {h.name: h for h in library_for(model)}
+        self.calibrated = [n for n in CALIBRATED.get(model, ()) if n in nominal]
+        self.nominal = nominal
+        self.judging = judging
+        self.training = training
+        self.training_grid = training_grid
+        self.gear_ratio = gear_ratio
+        self.train_seconds = train_seconds
+        self.settings = settings
+        self.base_context = context
+        self.progress = progress
+
+    def tasks_per_round(self, fits: int) -> int:
+        """Pool tasks of a round with ``fits`` fits (for progress bars)."""
+        return 2 * len(self.calibrated) + 1 + 2 * fits
+
+    def basis(self, base: dict[str, float]) -> CalibrationBasis:
+        """Calibration directions around the parameter set ``nominal + base``."""
+        tolerance = self.settings.calibration_tolerance
+        current = {**self.nominal, **base}
+        moves = [
+            {**base, name: current[name] * (1.0 + sign * tolerance)}
+            for name in self.calibrated
+            for sign in (1.0, -1.0)
+        ]
+        replays = _imap(self.pool, [SimulateTask(m) for m in moves], self.progress)
+        columns = []
+        for i in range(0, len(moves), 2):
+            up = self.judging.vector(self.judging.residuals(replays[i]))
+            down = self.judging.vector(self.judging.residuals(replays[i + 1]))
+            columns.append(0.5 * (down - up))  # residual = measured - simulated
+        directions = np.column_stack(columns) if columns else np.zeros((0, 0))
+        return CalibrationBasis(self.calibrated, directions)
+
+    def context(self, training_residual: Residuals) -> dict[str, float]:
+        """Orders of the periodic hypotheses read off the training residual left."""
+        context = dict(self.base_context)
+        angle = training_residual.motor_angle
+        for key, signal_angle in (("motor_order", angle), ("screw_order", angle / self.gear_ratio)):
+            order = dominant_order(training_residual, training_residual.current, signal_angle)
+            context[key] = order if order is not None else DEFAULT_CONTEXT[key]
+        return context
+
+    def calibrated_replay(self, base: dict[str, float], floor: CalibrationFloor) -> Replays:
+        """Replays with the best calibration correction applied to the calibrated parameters."""
+        current = {**self.nominal, **base}
+        tolerance = self.settings.calibration_tolerance
+        corrected = {
+            **base,
+            **{n: current[n] * (1.0 + a * tolerance) for n, a in floor.coefficients.items()},
+        }
+        return _imap(self.pool, [SimulateTask(corrected)], self.progress)[0]
+
+    def run(self, start: Replays) -> Selection:
+        """Greedy forward selection from the replays of the nominal twin."""
+        settings = self.settings
+        base: dict[str, float] = {}
+        replays = start
+        remaining = list(settings.hypotheses or self.library)
+        rounds: list[Round] = []
+        basis = CalibrationBasis([], np.zeros((0, 0)))
+        while remaining and len([r for r in rounds if r.accepted]) < settings.max_effects:
+            held = self.judging.residuals(replays)
+            vector = self.judging.vector(held)
+            basis = self.basis(base)
+            floor = floor_of(basis, vector)
+            calibrated = self.calibrated_replay(base, floor)
+            metrics = self.judging.metrics(calibrated, settings)
+            significant = is_significant(metrics, floor.left, settings)
+            train = residuals_of(
+                self.training,
+                [replays.training] * len(self.training),
+                [self.training_grid] * len(self.training),
+            )
+            context = self.context(train)
+            current = Round(
+                len(rounds) + 1,
+                context,
+                significant,
+                float(np.linalg.norm(vector)),
+                held.position_rms_um(),
+                held.current_rms(),
+                floor,
+                metrics,
+            )
+            rounds.append(current)
+            if not significant:
+                break
+            current.candidates = self._fit_and_judge(
+                remaining, base, context, held, vector, basis, floor
+            )
+            passing = [c for c in current.candidates if c.passes]
+            if not passing:
+                break
+            best = passing[0]
+            group = [best.name] + [
+                c.name
+                for c in passing[1:]
+                if abs(c.reduction - best.reduction) < settings.group_reduction_margin
+                and _correlation(c.change, best.change) >= settings.group_correlation
+            ]
+            current.accepted = group
+            base = dict(best.fit.overrides)
+            replays = _imap(self.pool, [SimulateTask(base, with_training=True)], self.progress)[0]
+            remaining = self._next_candidates(current, group, remaining)
+        return Selection(rounds, base, replays, basis)
+
+    def _next_candidates(self, done: Round, group: list[str], remaining: list[str]) -> list[str]:
+        """Periodic hypotheses and the best of the round by held-out reduction."""
+        left = [n for n in remaining if n not in group]
+        periodic = [n for n in left if self.library[n].periodic_in]
+        ranked = sorted(
+            (c for c in done.candidates if c.name in left and c.name not in periodic),
+            key=lambda c: -c.reduction,
+        )
+        return periodic + [c.name for c in ranked[: self.settings.later_round_candidates]]
+
+    def _fit_and_judge(
+        self,
+        names: list[str],
+        base: dict[str, float],
+        context: dict[str, float],
+        held: Residuals,
+        vector: np.ndarray,
+        basis: CalibrationBasis,
+        floor: CalibrationFloor,
+    ) -> list[Candidate]:
+        """Fit every hypothesis, replay it on the held-out runs and judge it."""
+        fits = _imap(self.pool, [FitTask(n, base, context) for n in names], self.progress)
+        replays = _imap(self.pool, [SimulateTask(f.overrides) for f in fits], self.progress)
+        candidates = []
+        for fit, replay in zip(fits, replays, strict=True):
+            hypothesis = self.library[fit.hypothesis]
+            candidate = Candidate(
+                fit,
+                len(hypothesis.parameters),
+                _bic(fit.train_cost, len(hypothesis.parameters), self.train_seconds),
+                replays=replay,
+            )
+            if hypothesis.relative_size is not None and fit.values:
+                values = np.array(list(fit.values.values()))
+                size = hypothesis.relative_size(values, {**self.nominal, **base})
+                candidate.size_above_tolerance = size >= self.settings.calibration_tolerance
+            self._judge(candidate, held, vector, basis, floor)
+            candidates.append(candidate)
+        return sorted(candidates, key=lambda c: c.bic)
+
+    def _judge(
+        self,
+        candidate: Candidate,
+        held: Residuals,
+        vector: np.ndarray,
+        basis: CalibrationBasis,
+        floor: CalibrationFloor,
+    ) -> None:
+        """Held-out figures and the acceptance tests of a fitted candidate."""
+        settings = self.settings
+        sigma_x, sigma_i = self.judging.floors.sigma_position_m, self.judging.floors.sigma_current
+        after = self.judging.residuals(candidate.replays)
+        after_vector = self.judging.vector(after)
+        before_rms = float(np.linalg.norm(vector))
+        candidate.holdout_rms = float(np.linalg.norm(after_vector))
+        candidate.reduction = 1.0 - candidate.holdout_rms / before_rms if before_rms else 0.0
+        candidate.explained = math.sqrt(max(before_rms**2 - candidate.holdout_rms**2, 0.0))
+        left_with = basis.left_after(after_vector)
+        candidate.reduction_beyond_calibration = (
+            1.0 - left_with / floor.left if floor.left > 0 else 0.0
+        )
+        candidate.position_rms_um = after.position_rms_um()
+        candidate.current_rms = after.current_rms()
+        worse_x = (
+            after.position_rms_um() / 1e6 - settings.worsen_limit * held.position_rms_um() / 1e6
+        )
+        worse_i = after.current_rms() - settings.worsen_limit * held.current_rms()
+        candidate.consistent = worse_x <= sigma_x and worse_i <= sigma_i
+        candidate.change = vector - after_vector
+        candidate.passes = (
+            candidate.reduction >= settings.accept_reduction
+            and candidate.reduction_beyond_calibration >= settings.accept_reduction
+            and candidate.size_above_tolerance
+            and candidate.consistent
+        )

@@ -1,0 +1,128 @@
+"""Settings of a diagnosis: the split, the thresholds and the effort (one frozen dataclass).
+
+The scenario's ``diagnose`` section may set any field but ``hypotheses``; the command line
+overrides ``split`` and ``max_effects``. What each threshold means is said where it is used:
+significance in :mod:`twin_cosim.gap.floors`, acceptance in :mod:`twin_cosim.gap.selection`,
+localisation in :mod:`twin_cosim.gap.location`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+from twin_cosim.scenario import Scenario
+
+
+@dataclass(frozen=True)
+class DiagnosisSettings:
+    """Split, thresholds and effort of a diagnosis.
+
+    Attributes
+    ----------
+    split : float
+        Fraction of each measured run used for training when no held-out file is given.
+    significance_metric : float
+        Least relative error of E_pk, ITAE or IAU (beyond what noise alone makes) that makes
+        the held-out gap significant.
+    significance_noise : float
+        How many standard deviations of the noise-only spread of a metric are added to
+        ``significance_metric``.
+    significance_rms : float or None
+        Also significant when the normalised held-out RMS reaches this (None: not used).
+    accept_reduction : float
+        Least held-out reduction of the normalised RMS for an effect to be accepted, after the
+        best calibration correction has been applied with and without it.
+    calibration_tolerance : float
+        Relative uncertainty of the calibrated parameters (the calibration floor).
+    worsen_limit : float
+        Largest factor by which an accepted effect may make either signal's held-out RMS worse.
+    group_reduction_margin, group_correlation : float
+        Two passing effects form a group when their reductions differ by less than the margin
+        and their predicted changes correlate at least this much.
+    max_effects : int
+        Most effects accepted (rounds of selection).
+    later_round_candidates : int
+        Hypotheses refitted in a later round besides the periodic ones (best of the previous
+        round by held-out reduction).
+    noise_draws : int
+        Draws of white noise at the noise floors used to find what noise alone does to each
+        metric.
+    outlier_share : float
+        Largest share of samples of a run that may be outliers (repaired and reported); a run
+        with more is refused.
+    axis_bin : float
+        Width of the position bins of the along-axis map, m.
+    axis_enrichment : float
+        Least ratio of a bin's mean residual energy to the median bin's for a bin to count
+        as a concentration.
+    axis_min_share : float
+        Least share of the residual energy above the even level for a span to be named.
+    """
+
+    split: float = 0.5
+    significance_metric: float = 0.02
+    significance_noise: float = 3.0
+    significance_rms: float | None = None
+    accept_reduction: float = 0.25
+    calibration_tolerance: float = 0.03
+    worsen_limit: float = 1.1
+    group_reduction_margin: float = 0.1
+    group_correlation: float = 0.9
+    max_effects: int = 3
+    later_round_candidates: int = 5
+    noise_draws: int = 12
+    outlier_share: float = 0.001
+    axis_bin: float = 0.5e-3
+    axis_enrichment: float = 4.0
+    axis_min_share: float = 0.05
+    hypotheses: tuple[str, ...] | None = None  # None: the whole library of the plant model
+
+
+_INTEGER_FIELDS = {"max_effects", "later_round_candidates", "noise_draws"}
+
+
+def settings_from(
+    scenario: Scenario, split: float | None = None, max_effects: int | None = None
+) -> DiagnosisSettings:
+    """Settings from the scenario's ``diagnose`` section, then the command line's overrides.
+
+    Raises
+    ------
+    ValueError
+        Naming the file and the key on an unknown key, a value that is not a finite number, a
+        count below 1 or a split outside [0.1, 0.9].
+    """
+    allowed = {f.name for f in dataclasses.fields(DiagnosisSettings) if f.name != "hypotheses"}
+    section = dict(scenario.diagnose)
+    unknown = sorted(set(section) - allowed)
+    if unknown:
+        raise ValueError(
+            f"{scenario.source}: diagnose: unknown key(s) {unknown}; allowed: {sorted(allowed)}"
+        )
+    for key, value in section.items():
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not math.isfinite(value)
+            or value < 0
+        ):
+            raise ValueError(
+                f"{scenario.source}: diagnose.{key}: expected a finite number >= 0, got {value!r}"
+            )
+        if key in _INTEGER_FIELDS and (value != int(value) or value < 1):
+            raise ValueError(
+                f"{scenario.source}: diagnose.{key}: expected a whole number >= 1, got {value!r}"
+            )
+    if split is not None:
+        section["split"] = split
+    if max_effects is not None:
+        if max_effects < 1:
+            raise ValueError(f"--max-effects: expected a whole number >= 1, got {max_effects}")
+        section["max_effects"] = max_effects
+    if not 0.1 <= section.get("split", 0.5) <= 0.9:
+        raise ValueError(f"split: expected a fraction in [0.1, 0.9], got {section['split']}")
+    return DiagnosisSettings(
+        **{k: int(v) if k in _INTEGER_FIELDS else v for k, v in section.items()}
+    )
