@@ -9,9 +9,9 @@
   between them allowed) form a span, trimmed to the bins around its peak that reach a tenth of
   the peak's energy (the residual trails a local defect in the direction of motion as the loop
   recovers; the trimming keeps the span on the defect). Spans found in both directions that
-  overlap are one span of direction 0. Each span's ``energy_share`` is its share of the binned energy above the median
-  level (what is there beyond the even spread); spans below ``axis_min_share`` of it are not
-  named; largest first.
+  overlap are one span of direction 0. Each span's ``energy_share`` is its share of the binned
+  energy above the median level (what is there beyond the even spread); spans below
+  ``axis_min_share`` of it are not named; largest first.
 - Orders and frequencies: order spectra of the motor and screw angle and a spectrum in Hz on the
   constant-velocity stretches, with the position-periodic / temporal rule of
   :func:`twin_cosim.gap.spectra.periodicity`.
