@@ -46,6 +46,7 @@ from twin_cosim.gap.replay import Replays, ReplaySpec, TrainingData
 from twin_cosim.gap.residuals import (
     Residuals,
     joined,
+    pulse_response,
     relative_errors,
     residuals_of,
     validation_figures,
@@ -89,6 +90,11 @@ class DiagnosisContext:
         The files given.
     train : list of MeasuredRun
         Training data.
+    training_scenarios : list of Scenario
+        Distinct scenarios the training runs follow (their own reference and disturbance when
+        the scenario's reference comes from a measured file).
+    train_scenario_of_run : list of int
+        Per training run, the index of its scenario.
     judged : list of MeasuredRun
         Held-out data.
     judging_scenarios : list of Scenario
@@ -113,6 +119,8 @@ class DiagnosisContext:
     measured: list[str]
     holdout: list[str]
     train: list[MeasuredRun]
+    training_scenarios: list[Scenario]
+    train_scenario_of_run: list[int]
     judged: list[MeasuredRun]
     judging_scenarios: list[Scenario]
     scenario_of_run: list[int]
@@ -142,6 +150,19 @@ def _checked(runs: list[MeasuredRun], scenarios: list[Scenario], settings, limit
     return checked, warnings
 
 
+def _distinct(scenarios: list[Scenario]) -> tuple[list[Scenario], list[int]]:
+    """The distinct scenarios of a list (by identity) and each item's index among them."""
+    distinct: list[Scenario] = []
+    index_of = []
+    for applies in scenarios:
+        index = next((i for i, s in enumerate(distinct) if s is applies), None)
+        if index is None:
+            distinct.append(applies)
+            index = len(distinct) - 1
+        index_of.append(index)
+    return distinct, index_of
+
+
 def build_context(
     scenario: Scenario,
     measured: list[MeasuredRun],
@@ -160,20 +181,15 @@ def build_context(
             if k not in PER_RUN_PARAMETERS
         }
         ranges = variable_ranges(plant)
+    following = [for_measured_run(scenario, run) for run in measured]
     judging_of_holdout = [for_measured_run(scenario, run) for run in holdout]
     limit = scenario.settings.current_limit
-    train_runs, warnings = _checked(measured, [scenario] * len(measured), settings, limit)
+    train_runs, warnings = _checked(measured, following, settings, limit)
     held_runs, held_warnings = _checked(holdout, judging_of_holdout, settings, limit)
     warnings += held_warnings
+    training, train_scenario_of_run = _distinct(following)
     if held_runs:
-        judging: list[Scenario] = []
-        scenario_of_run = []
-        for applies in judging_of_holdout:
-            index = next((i for i, s in enumerate(judging) if s is applies), None)
-            if index is None:
-                judging.append(applies)
-                index = len(judging) - 1
-            scenario_of_run.append(index)
+        judging, scenario_of_run = _distinct(judging_of_holdout)
         train, judged = train_runs, held_runs
         train_end = max(float(r.t[-1]) for r in train_runs)
         split = f"held-out runs {[r.source for r in held_runs]}"
@@ -182,7 +198,7 @@ def build_context(
         train_end = float(min(starts))
         train = [r.select(r.t < train_end) for r in train_runs]
         judged = [r.select(r.t >= train_end) for r in train_runs]
-        judging, scenario_of_run = [scenario], [0] * len(judged)
+        judging, scenario_of_run = training, train_scenario_of_run
         split = f"time split at t = {train_end:.4g} s"
     return DiagnosisContext(
         scenario,
@@ -195,6 +211,8 @@ def build_context(
         [r.source for r in measured],
         [r.source for r in holdout],
         train,
+        training,
+        train_scenario_of_run,
         judged,
         judging,
         scenario_of_run,
@@ -219,6 +237,9 @@ class HeldOutRun:
     relative_errors_before, relative_errors_after : dict
         The benchmark's 100 ||y - y_sim|| / ||y|| (%) of position, velocity, acceleration and
         force.
+    pulse_response_before, pulse_response_after : dict or None
+        For a run with a disturbance signal: how the acceleration residual concentrates after
+        its edges (:func:`twin_cosim.gap.residuals.pulse_response`).
     """
 
     source: str
@@ -228,6 +249,8 @@ class HeldOutRun:
     current_rms_after: float
     relative_errors_before: dict[str, float]
     relative_errors_after: dict[str, float]
+    pulse_response_before: dict[str, float] | None = None
+    pulse_response_after: dict[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -424,24 +447,38 @@ def _unexplained(before: Residuals, after: Residuals) -> dict[str, float]:
     return shares
 
 
-def _training_residuals(context: DiagnosisContext, record: pd.DataFrame) -> Residuals:
-    n = len(context.train)
-    return residuals_of(context.train, [record] * n, [context.scenario.reference] * n)
+def _training_residuals(context: DiagnosisContext, records: list[pd.DataFrame]) -> Residuals:
+    """Training residuals, each run against the replay of the scenario it follows."""
+    k = context.train_scenario_of_run
+    return residuals_of(
+        context.train,
+        [records[i] for i in k],
+        [context.training_scenarios[i].reference for i in k],
+    )
 
 
 def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float], Replays]:
     """Stage 2a: the noise harmonics from the replay of the nominal twin, and the replays of
     the twin with them (in this process: a few replays do not pay for a pool)."""
-    scenario = context.scenario
     with Plant(context.fmu) as plant:
-        first = run_scenario(plant, scenario, plant_overrides=context.nominal)
+
+        def replay(scenarios: list[Scenario], parameters: dict[str, float]):
+            return [run_scenario(plant, s, plant_overrides=parameters) for s in scenarios]
+
+        first = replay(context.training_scenarios, context.nominal)
         noise = identify_noise(_training_residuals(context, first), context.dt, context.ranges)
         nominal = {**context.nominal, **noise.plant_parameters}
         if noise.plant_parameters:
-            first = run_scenario(plant, scenario, plant_overrides=nominal)
+            first = replay(context.training_scenarios, nominal)
         judging = [
-            first if s is scenario else run_scenario(plant, s, plant_overrides=nominal)
+            next(
+                (r for t, r in zip(context.training_scenarios, first, strict=True) if t is s), None
+            )
             for s in context.judging_scenarios
+        ]
+        judging = [
+            r if r is not None else run_scenario(plant, s, plant_overrides=nominal)
+            for r, s in zip(judging, context.judging_scenarios, strict=True)
         ]
     return noise, nominal, Replays(first, judging)
 
@@ -484,12 +521,13 @@ def diagnose(
         [r.t for r in context.train],
         [r.x for r in context.train],
         [r.current for r in context.train],
+        context.train_scenario_of_run,
         floors.sigma_position_m,
         floors.sigma_current,
         context.train_end,
     )
     spec = ReplaySpec(
-        scenario,
+        context.training_scenarios,
         context.judging_scenarios,
         str(context.fmu),
         nominal,
@@ -527,8 +565,7 @@ def diagnose(
             context.model,
             nominal,
             judging,
-            context.train,
-            scenario.reference,
+            lambda records: _training_residuals(context, records),
             context.gear_ratio,
             sum(float(r.t[-1] - r.t[0]) for r in context.train),
             settings,
@@ -575,7 +612,7 @@ def diagnose(
     ]
     groups = [r.accepted for r in selection.rounds if r.accepted]
     verdict = verdict_text(significant, groups, below, remaining)
-    held_runs = _held_out_runs(judging, start, final)
+    held_runs = _held_out_runs(judging, context.judging_scenarios, start, final)
     return Diagnosis(
         context,
         settings,
@@ -592,21 +629,35 @@ def diagnose(
         held_runs,
         selection.plant_parameters,
         validation_figures(joined([train0, hold0])),
-        start.training,
-        final.training if final.training is not None else final.judging[0],
+        start.training[0],
+        final.training[0],
         train0,
         hold0,
         hold_final,
     )
 
 
-def _held_out_runs(judging: Judging, before: Replays, after: Replays) -> list[HeldOutRun]:
+def _held_out_runs(
+    judging: Judging, scenarios: list[Scenario], before: Replays, after: Replays
+) -> list[HeldOutRun]:
     """Per held-out run: RMS gaps and the benchmark's relative errors, before and after."""
     result = []
     for run, k in zip(judging.runs, judging.scenario_of_run, strict=True):
         grid = judging.grids[k]
         res_before = residuals_of([run], [before.judging[k]], [grid])
         res_after = residuals_of([run], [after.judging[k]], [grid])
+        scenario = scenarios[k]
+        signal = next(
+            (s for s in (scenario.command_disturbance, scenario.disturbance) if s is not None),
+            None,
+        )
+        pulses = (
+            (None, None)
+            if signal is None
+            else tuple(
+                pulse_response(run, replays.judging[k], signal, grid) for replays in (before, after)
+            )
+        )
         result.append(
             HeldOutRun(
                 run.source,
@@ -616,6 +667,7 @@ def _held_out_runs(judging: Judging, before: Replays, after: Replays) -> list[He
                 res_after.current_rms(),
                 relative_errors(run, before.judging[k]),
                 relative_errors(run, after.judging[k]),
+                *pulses,
             )
         )
     return result

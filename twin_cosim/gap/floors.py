@@ -71,6 +71,8 @@ def identify_noise(raw: Residuals, dt: float, ranges: dict[str, tuple[float, flo
     ranges : dict
         (min, max) of the FMU parameters by name.
     """
+    if "noise_amplitude_1" not in ranges:
+        return NoiseModel([], {}, [])  # the plant model has no noise harmonics to set
     still = raw.regimes == regime_model.STANDSTILL
     try:
         found = noise_model.noise_harmonics(raw.t, raw.position, still)
@@ -97,7 +99,9 @@ def identify_noise(raw: Residuals, dt: float, ranges: dict[str, tuple[float, flo
 def _out_of_range(values: dict[str, float], ranges: dict[str, tuple[float, float]]) -> str:
     """'' when every value is finite and inside its range, else what is wrong."""
     for name, value in values.items():
-        low, high = ranges.get(name, (-math.inf, math.inf))
+        if name not in ranges:
+            return f"the plant has no parameter {name}"
+        low, high = ranges[name]
         if not math.isfinite(value) or not low <= value <= high:
             return f"{name} = {value:.5g} outside [{low:g}, {high:g}]"
     return ""

@@ -70,12 +70,14 @@ def clipped(
 
 @dataclass(frozen=True)
 class TrainingData:
-    """Training samples of the measured runs (all runs of the same scenario).
+    """Training samples of the measured runs.
 
     Attributes
     ----------
     t, x, current : list of numpy.ndarray
         Per run: sample times (s), measured position (m), measured current (A).
+    scenario_of_run : list of int
+        Per run: the index of the training scenario it follows.
     sigma_x, sigma_i : float
         Noise floors used to normalise the position (m) and current (A) residuals.
     end : float
@@ -85,17 +87,37 @@ class TrainingData:
     t: list[np.ndarray]
     x: list[np.ndarray]
     current: list[np.ndarray]
+    scenario_of_run: list[int]
     sigma_x: float
     sigma_i: float
     end: float
 
 
-def normalised_residual(record: pd.DataFrame, data: TrainingData) -> np.ndarray:
-    """Position and current residuals of every run over its samples, normalised by the floors."""
+def cut(scenario: Scenario, end: float) -> Scenario:
+    """The scenario up to ``end`` (s): reference and disturbance signals."""
+    grid = scenario.reference
+    keep = grid.time <= end + 1e-12
+    if keep.all():
+        return scenario
+    return dataclasses.replace(
+        scenario,
+        reference=ReferenceGrid(
+            grid.period, grid.position[keep], grid.velocity[keep], grid.acceleration[keep]
+        ),
+        disturbance=None if scenario.disturbance is None else scenario.disturbance[keep],
+        command_disturbance=(
+            None if scenario.command_disturbance is None else scenario.command_disturbance[keep]
+        ),
+    )
+
+
+def normalised_residual(records: list[pd.DataFrame], data: TrainingData) -> np.ndarray:
+    """Position and current residuals of every run over its samples, normalised by the floors;
+    each run against the record of the training scenario it follows."""
     parts = []
-    t_sim = record["t"].to_numpy()
-    x_sim, i_sim = record["x"].to_numpy(), record["current"].to_numpy()
-    for t, x, current in zip(data.t, data.x, data.current, strict=True):
+    for t, x, current, k in zip(data.t, data.x, data.current, data.scenario_of_run, strict=True):
+        t_sim = records[k]["t"].to_numpy()
+        x_sim, i_sim = records[k]["x"].to_numpy(), records[k]["current"].to_numpy()
         parts.append((x - np.interp(t, t_sim, x_sim)) / data.sigma_x)
         parts.append((current - np.interp(t, t_sim, i_sim)) / data.sigma_i)
     return np.concatenate(parts)
@@ -103,10 +125,11 @@ def normalised_residual(record: pd.DataFrame, data: TrainingData) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Replays:
-    """Records of one parameter set: the training scenario's (when asked) and each judging
-    scenario's, in the order of :attr:`ReplaySpec.judging`."""
+    """Records of one parameter set: each training scenario's (when asked) and each judging
+    scenario's, in the order of :attr:`ReplaySpec.training_scenarios` and
+    :attr:`ReplaySpec.judging`."""
 
-    training: pd.DataFrame | None
+    training: list[pd.DataFrame] | None
     judging: list[pd.DataFrame]
 
 
@@ -114,8 +137,8 @@ class Replays:
 class SimulateTask:
     """Replay the judging scenarios with these FMU parameters (on top of the nominal).
 
-    ``with_training``: also the training scenario's replay (the first judging scenario's when
-    they are the same, as for a time split).
+    ``with_training``: also the training scenarios' replays (a judging scenario's replay when
+    it is the same scenario, as for a time split).
     """
 
     overrides: dict[str, float]
@@ -153,11 +176,12 @@ class ReplaySpec:
 
     Attributes
     ----------
-    scenario : Scenario
-        The training scenario.
+    training_scenarios : list of Scenario
+        The distinct scenarios the training runs follow (the scenario itself, or, for a scenario
+        whose reference comes from a measured file, each run's own reference and disturbance).
     judging : list of Scenario
-        The distinct scenarios the held-out runs follow (the training scenario itself for a
-        time split or runs of the same reference).
+        The distinct scenarios the held-out runs follow (the training scenarios themselves for a
+        time split).
     fmu : str
         Plant FMU.
     nominal : dict
@@ -170,7 +194,7 @@ class ReplaySpec:
         (min, max) of every FMU parameter, from the variable table.
     """
 
-    scenario: Scenario
+    training_scenarios: list[Scenario]
     judging: list[Scenario]
     fmu: str
     nominal: dict[str, float]
@@ -189,17 +213,9 @@ class Replayer:
     def __init__(self, spec: ReplaySpec) -> None:
         self.spec = spec
         self.hypotheses = {h.name: h for h in library_for(spec.model)}
-        self.scenario = spec.scenario
         self.plant = Plant(Path(spec.fmu))
         self.failure_residual = FAILURE_FLOOR
-        grid = self.scenario.reference
-        keep = grid.time <= spec.training.end + 1e-12
-        self.training_scenario = dataclasses.replace(
-            self.scenario,
-            reference=ReferenceGrid(
-                grid.period, grid.position[keep], grid.velocity[keep], grid.acceleration[keep]
-            ),
-        )
+        self.training_cut = [cut(s, spec.training.end) for s in spec.training_scenarios]
 
     def replay(self, scenario: Scenario, overrides: dict[str, float]) -> pd.DataFrame:
         """One scenario replayed with nominal plus ``overrides`` (clipped into their ranges)."""
@@ -211,18 +227,20 @@ class Replayer:
         judging = [self.replay(s, task.overrides) for s in self.spec.judging]
         training = None
         if task.with_training:
-            same = self.spec.judging[0] is self.scenario
-            training = judging[0] if same else self.replay(self.scenario, task.overrides)
+            training = []
+            for scenario in self.spec.training_scenarios:
+                same = [i for i, j in enumerate(self.spec.judging) if j is scenario]
+                training.append(judging[same[0]] if same else self.replay(scenario, task.overrides))
         return Replays(training, judging)
 
     def training_residual(self, overrides: dict[str, float]) -> np.ndarray:
         """Normalised training residual; a failed replay scores a large constant residual."""
         try:
-            record = self.replay(self.training_scenario, overrides)
+            records = [self.replay(s, overrides) for s in self.training_cut]
         except (RunAborted, PlantError):
             n = sum(2 * len(t) for t in self.spec.training.t)
             return np.full(n, self.failure_residual)
-        return normalised_residual(record, self.spec.training)
+        return normalised_residual(records, self.spec.training)
 
     def __call__(self, task: SimulateTask | FitTask) -> Any:
         if isinstance(task, SimulateTask):

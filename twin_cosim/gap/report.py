@@ -238,6 +238,8 @@ RUN_COLUMNS = [
     ("current_rms_after", "after"),
     ("relative_errors_before", "relative errors before [%]"),
     ("relative_errors_after", "after [%]"),
+    ("pulse_response_before", "acceleration residual after pulse edges, before"),
+    ("pulse_response_after", "after"),
 ]
 
 

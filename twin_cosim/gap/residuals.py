@@ -147,6 +147,53 @@ def _derivatives(t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return velocity, np.gradient(velocity, dt)
 
 
+PULSE_WINDOW = 0.2  # s after each edge of a disturbance signal
+
+
+def pulse_response(
+    run: MeasuredRun, record: pd.DataFrame, signal: np.ndarray, grid: ReferenceGrid
+) -> dict[str, float] | None:
+    """How the acceleration residual concentrates after the edges of a disturbance signal.
+
+    The edges are the samples where the signal (per position sample of ``grid``) jumps by at
+    least half its largest jump. Returns the share of time and of acceleration-residual energy
+    in the :data:`PULSE_WINDOW` after the edges, their ratio (``enrichment``), and the frequency
+    (Hz) of the largest peak of the residual's spectrum inside those windows (``ringing_hz``,
+    the frequency a flexibility excited by the pulses would ring at); None without edges.
+    """
+    from twin_cosim.gap.spectra import dominant_peak, mean_amplitude_spectrum
+
+    jumps = np.abs(np.diff(signal))
+    if len(jumps) == 0 or jumps.max() <= 0:
+        return None
+    edges = grid.time[1:][jumps >= 0.5 * jumps.max()]
+    inside = np.zeros(len(run.t), dtype=bool)
+    for edge in edges:
+        inside |= (run.t >= edge) & (run.t < edge + PULSE_WINDOW)
+    _, a = _derivatives(run.t, run.x)
+    _, a_sim = _derivatives(run.t, sim_at(record, "x", run.t))
+    residual = a - a_sim
+    energy = residual**2
+    total = float(energy.sum())
+    time_share = float(inside.mean())
+    energy_share = float(energy[inside].sum()) / total if total > 0 else 0.0
+    dt = float(np.median(np.diff(run.t)))
+    pieces = [residual[(run.t >= e) & (run.t < e + PULSE_WINDOW)] for e in edges]
+    pieces = [p - p.mean() for p in pieces if len(p) > 8]
+    ringing = None
+    if pieces:
+        frequency, amplitude = mean_amplitude_spectrum(pieces, dt)
+        peak = dominant_peak(frequency[1:], amplitude[1:], min_ratio=0.0)
+        ringing = float(peak.location) if peak else None
+    return {
+        "edges": len(edges),
+        "time_share": time_share,
+        "energy_share": energy_share,
+        "enrichment": energy_share / time_share if time_share > 0 else 0.0,
+        "ringing_hz": ringing,
+    }
+
+
 def relative_errors(run: MeasuredRun, record: pd.DataFrame) -> dict[str, float]:
     """The benchmark's figures of merit 100 ||y - y_sim|| / ||y|| (%) of a run.
 

@@ -210,10 +210,8 @@ class Selector:
         Nominal FMU parameters of the twin (noise model included).
     judging : Judging
         The held-out runs.
-    training : list of MeasuredRun
-        The training runs (all follow the scenario).
-    training_grid : ReferenceGrid
-        The scenario's reference.
+    training_residuals : callable
+        Training residuals from the training scenarios' replays.
     gear_ratio : float
         Motor revolutions per screw revolution.
     train_seconds : float
@@ -229,8 +227,7 @@ class Selector:
         model: str,
         nominal: dict[str, float],
         judging: Judging,
-        training: list[MeasuredRun],
-        training_grid: ReferenceGrid,
+        training_residuals: Callable[[list], Residuals],
         gear_ratio: float,
         train_seconds: float,
         settings: DiagnosisSettings,
@@ -242,8 +239,7 @@ class Selector:
         self.calibrated = [n for n in CALIBRATED.get(model, ()) if n in nominal]
         self.nominal = nominal
         self.judging = judging
-        self.training = training
-        self.training_grid = training_grid
+        self.training_residuals = training_residuals
         self.gear_ratio = gear_ratio
         self.train_seconds = train_seconds
         self.settings = settings
@@ -307,12 +303,7 @@ class Selector:
             calibrated = self.calibrated_replay(base, floor)
             metrics = self.judging.metrics(calibrated, settings)
             significant = is_significant(metrics, floor.left, settings)
-            train = residuals_of(
-                self.training,
-                [replays.training] * len(self.training),
-                [self.training_grid] * len(self.training),
-            )
-            context = self.context(train)
+            context = self.context(self.training_residuals(replays.training))
             current = Round(
                 len(rounds) + 1,
                 context,

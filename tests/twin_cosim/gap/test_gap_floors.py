@@ -139,3 +139,11 @@ def test_a_real_change_of_the_tracking_error_is_a_metric_gap():
     run, record = _twin_and_run(0.4, 0)
     comparison = compare_metrics(run, record, floors, DiagnosisSettings())
     assert "E_pk_um" in comparison.off and "ITAE" in comparison.off
+
+
+def test_a_plant_without_a_noise_model_gets_no_noise_parameters():
+    rng = np.random.default_rng(3)
+    t = np.arange(8000) * DT
+    position = 1e-7 * np.sin(2 * np.pi * 60.0 * t) + rng.normal(0, 2e-9, t.size)
+    model = identify_noise(residuals(position, np.zeros_like(t)), DT, {"mass": (0.0, 1e3)})
+    assert model.plant_parameters == {} and model.harmonics == []
