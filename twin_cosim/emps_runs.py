@@ -107,3 +107,35 @@ def pulse_template(
     for k, start in enumerate(starts):
         pulses[(t >= start) & (t < start + pulse_length)] = pulse_height * (-1) ** k
     return write_emps_mat(path, t, reference, reference, np.zeros_like(t), gains, pulses)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m twin_cosim.emps_runs --out T.mat``: write a validation-like pulse template."""
+    import argparse
+
+    parser = argparse.ArgumentParser(
+        description="Write an EMPS-format template: bang-bang moves and a pulse train, for "
+        "`twin synth SCENARIO --follow T.mat`",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    parser.add_argument("--out", required=True, help="the .mat file to write")
+    parser.add_argument("--seed", type=int, default=0, help="seed of moves and pulses")
+    parser.add_argument("--duration", type=float, default=20.0, help="least length, s")
+    parser.add_argument(
+        "--pulse-height", type=float, default=3.0, help="pulse height, unit of pulses_N"
+    )
+    parser.add_argument("--kp", type=float, default=160.18, help="position gain, 1/s")
+    parser.add_argument("--kv", type=float, default=243.45, help="speed gain, V/(m/s)")
+    parser.add_argument("--gtau", type=float, default=35.15065188, help="drive gain, N/V")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    if out.exists():
+        parser.error(f"--out {out}: the file exists; choose another name")
+    gains = {"kp": args.kp, "kv": args.kv, "gtau": args.gtau}
+    pulse_template(out, args.seed, gains, args.duration, pulse_height=args.pulse_height)
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

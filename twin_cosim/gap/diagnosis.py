@@ -466,7 +466,9 @@ def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float
             return [run_scenario(plant, s, plant_overrides=parameters) for s in scenarios]
 
         first = replay(context.training_scenarios, context.nominal)
-        noise = identify_noise(_training_residuals(context, first), context.dt, context.ranges)
+        noise = identify_noise(
+            _training_residuals(context, first), context.dt, context.ranges, context.nominal
+        )
         nominal = {**context.nominal, **noise.plant_parameters}
         if noise.plant_parameters:
             first = replay(context.training_scenarios, nominal)

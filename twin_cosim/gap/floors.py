@@ -58,7 +58,12 @@ class Floors:
     current_source: str
 
 
-def identify_noise(raw: Residuals, dt: float, ranges: dict[str, tuple[float, float]]) -> NoiseModel:
+def identify_noise(
+    raw: Residuals,
+    dt: float,
+    ranges: dict[str, tuple[float, float]],
+    start_values: dict[str, float],
+) -> NoiseModel:
     """Noise harmonics of the measured position at standstill, checked against the FMU's ranges.
 
     Parameters
@@ -70,18 +75,21 @@ def identify_noise(raw: Residuals, dt: float, ranges: dict[str, tuple[float, flo
         Sample period, s.
     ranges : dict
         (min, max) of the FMU parameters by name.
+    start_values : dict
+        The FMU's parameter values (the number of harmonic slots and their defaults).
     """
-    if "noise_amplitude_1" not in ranges:
+    slots = noise_model.plant_slots(start_values)
+    if slots == 0:
         return NoiseModel([], {}, [])  # the plant model has no noise harmonics to set
     still = raw.regimes == regime_model.STANDSTILL
     try:
-        found = noise_model.noise_harmonics(raw.t, raw.position, still)
+        found = noise_model.noise_harmonics(raw.t, raw.position, still, count=slots)
     except ValueError as exc:
         return NoiseModel([], {}, [f"noise harmonics not identified: {exc}"])
     nyquist = 0.5 / dt
     kept, dropped = [], []
-    for harmonic in found[: noise_model.PLANT_HARMONICS]:
-        slot = noise_model.as_plant_parameters([*kept, harmonic])
+    for harmonic in found[:slots]:
+        slot = noise_model.as_plant_parameters([*kept, harmonic], start_values)
         problem = _out_of_range(slot, ranges)
         if not 0.0 < harmonic.frequency_hz < nyquist:
             problem = f"frequency {harmonic.frequency_hz:.4g} Hz outside (0, {nyquist:.4g}) Hz"
@@ -92,7 +100,7 @@ def identify_noise(raw: Residuals, dt: float, ranges: dict[str, tuple[float, flo
             )
         else:
             kept.append(harmonic)
-    parameters = noise_model.as_plant_parameters(kept) if kept else {}
+    parameters = noise_model.as_plant_parameters(kept, start_values) if kept else {}
     return NoiseModel(kept, parameters, dropped)
 
 

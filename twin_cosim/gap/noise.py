@@ -28,7 +28,7 @@ out since removing their mean shrinks the spread noticeably.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,8 +41,6 @@ MIN_STRETCH = 0.2  # s, shortest standstill stretch used for the harmonics
 MIN_CYCLES = 2.0  # least cycles of a harmonic in the longest stretch
 MIN_FLOOR_SAMPLES = 16  # shortest stretch used for the noise floor
 MAD_TO_SIGMA = 1.4826  # standard deviation / MAD of a normal distribution
-PLANT_HARMONICS = 4  # noise harmonics of the plant model
-PLANT_UNUSED_FREQUENCY = 50.0  # Hz; unused slot k keeps the plant default k * 50 Hz
 
 
 @dataclass(frozen=True)
@@ -202,27 +200,43 @@ def _harmonics(
     return sorted(harmonics, key=lambda h: -h.amplitude_m)
 
 
-def as_plant_parameters(harmonics: Sequence[Harmonic]) -> dict[str, float]:
-    """Noise parameters of the plant FMU for up to four harmonics.
+def plant_slots(start_values: Mapping[str, float]) -> int:
+    """Number of noise harmonics a plant model holds: its parameters noise_amplitude_1, 2, ..."""
+    count = 0
+    while f"noise_amplitude_{count + 1}" in start_values:
+        count += 1
+    return count
+
+
+def as_plant_parameters(
+    harmonics: Sequence[Harmonic], start_values: Mapping[str, float]
+) -> dict[str, float]:
+    """Noise parameters of the plant FMU for its harmonic slots (:func:`plant_slots`).
 
     Keys noise_amplitude_k (m), noise_frequency_k (Hz) and noise_phase_k (rad, wrapped to
-    [-pi, pi)) for k = 1..4, in the order given. Unused slots get amplitude 0, frequency
-    50 k Hz (the plant default) and phase 0.
+    [-pi, pi)), in the order given. Unused slots get amplitude 0 and keep the frequency and
+    phase of ``start_values`` (the FMU's start values).
 
     Raises
     ------
     ValueError
-        When there are more than four harmonics.
+        When there are more harmonics than slots.
     """
-    if len(harmonics) > PLANT_HARMONICS:
-        raise ValueError(f"the plant holds {PLANT_HARMONICS} noise harmonics, got {len(harmonics)}")
-    unused = range(len(harmonics) + 1, PLANT_HARMONICS + 1)
-    slots = [*harmonics, *(Harmonic(0.0, PLANT_UNUSED_FREQUENCY * k, 0.0) for k in unused)]
+    slots = plant_slots(start_values)
+    if len(harmonics) > slots:
+        raise ValueError(f"the plant holds {slots} noise harmonics, got {len(harmonics)}")
     parameters = {}
-    for k, h in enumerate(slots, start=1):
-        parameters[f"noise_amplitude_{k}"] = h.amplitude_m
-        parameters[f"noise_frequency_{k}"] = h.frequency_hz
-        parameters[f"noise_phase_{k}"] = _wrap(h.phase_rad)
+    for k in range(1, slots + 1):
+        if k <= len(harmonics):
+            h = harmonics[k - 1]
+            amplitude, frequency, phase = h.amplitude_m, h.frequency_hz, _wrap(h.phase_rad)
+        else:
+            amplitude = 0.0
+            frequency = start_values[f"noise_frequency_{k}"]
+            phase = start_values[f"noise_phase_{k}"]
+        parameters[f"noise_amplitude_{k}"] = amplitude
+        parameters[f"noise_frequency_{k}"] = frequency
+        parameters[f"noise_phase_{k}"] = phase
     return parameters
 
 

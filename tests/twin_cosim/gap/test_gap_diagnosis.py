@@ -168,11 +168,11 @@ def test_a_tight_spot_is_no_library_effect_and_is_located(twin_cli, tmp_path):
     run = tmp_path / "run.csv"
     scenario = load_scenario(SWEEP)
     synthesize(scenario, [], perturb=0.02, seed=7, fmu=fmu).run.to_csv(run, index=False)
-    result = twin_cli(
-        "diagnose", str(SWEEP), "--measured", str(run), "--out", str(tmp_path / "r"), "--json"
-    )
+    result = twin_cli("diagnose", str(SWEEP), "--measured", str(run), "--out", str(tmp_path / "r"))
     assert result.returncode == 0, result.stderr
-    summary = json.loads(result.stdout)
+    assert "diagnose:" in result.stderr  # the progress bar, on stderr
+    assert "no effect of the library explains" in result.stdout
+    summary = json.loads((tmp_path / "r" / "diagnosis.json").read_text())
     assert summary["accepted"] == []
     assert summary["gap"]["significant"]
     first = summary["where"]["along_axis"][0]
@@ -205,6 +205,7 @@ def test_an_outlier_is_reported_not_a_crash(twin_cli, tmp_path):
         str(tmp_path / "r"),
     )
     assert result.returncode == 0, result.stderr
+    assert "diagnose:" not in result.stderr  # no progress bar with --json piped
     summary = json.loads(result.stdout)
     assert any("current[1234] = 1e+12" in w for w in summary["warnings"])
     assert summary["accepted"] == ["coulomb_change"]

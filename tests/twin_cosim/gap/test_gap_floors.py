@@ -43,13 +43,18 @@ RANGES = {
     **{f"noise_frequency_{k}": (0.0, 1e6) for k in range(1, 5)},
     **{f"noise_phase_{k}": (-100.0, 100.0) for k in range(1, 5)},
 }
+START = {
+    **{f"noise_amplitude_{k}": 0.0 for k in range(1, 5)},
+    **{f"noise_frequency_{k}": 50.0 * k for k in range(1, 5)},
+    **{f"noise_phase_{k}": 0.0 for k in range(1, 5)},
+}
 
 
 def test_a_harmonic_with_a_negative_frequency_is_dropped_and_reported(monkeypatch):
     """The crash of issue 10: noise_frequency_1 = -2.8865 reached the FMU."""
     found = [Harmonic(3e-8, -2.8865, 0.1), Harmonic(2e-8, 120.0, 0.2)]
     monkeypatch.setattr(floors_module.noise_model, "noise_harmonics", lambda *a, **k: found)
-    model = identify_noise(residuals(np.zeros(4000), np.zeros(4000)), DT, RANGES)
+    model = identify_noise(residuals(np.zeros(4000), np.zeros(4000)), DT, RANGES, START)
     assert [h.frequency_hz for h in model.harmonics] == [120.0]
     assert model.plant_parameters["noise_frequency_1"] == 120.0
     assert len(model.dropped) == 1 and "-2.886" in model.dropped[0]
@@ -63,7 +68,7 @@ def test_a_harmonic_outside_the_variable_range_is_dropped():
     t = np.arange(8000) * DT
     position = 1e-7 * np.sin(2 * np.pi * 60.0 * t) + rng.normal(0, 2e-9, t.size)
     narrow = {**RANGES, "noise_frequency_1": (0.0, 50.0)}
-    model = identify_noise(residuals(position, np.zeros_like(t)), DT, narrow)
+    model = identify_noise(residuals(position, np.zeros_like(t)), DT, narrow, START)
     assert model.harmonics == []
     assert "noise_frequency_1" in model.dropped[0]
 
@@ -145,5 +150,5 @@ def test_a_plant_without_a_noise_model_gets_no_noise_parameters():
     rng = np.random.default_rng(3)
     t = np.arange(8000) * DT
     position = 1e-7 * np.sin(2 * np.pi * 60.0 * t) + rng.normal(0, 2e-9, t.size)
-    model = identify_noise(residuals(position, np.zeros_like(t)), DT, {"mass": (0.0, 1e3)})
+    model = identify_noise(residuals(position, np.zeros_like(t)), DT, {"mass": (0, 1)}, {"mass": 1})
     assert model.plant_parameters == {} and model.harmonics == []

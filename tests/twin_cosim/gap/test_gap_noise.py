@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from twin_cosim.gap.noise import Harmonic, as_plant_parameters, noise_floor, noise_harmonics
+from twin_cosim.gap.noise import (
+    Harmonic,
+    as_plant_parameters,
+    noise_floor,
+    noise_harmonics,
+    plant_slots,
+)
 
 DT = 250e-6  # s
 T0 = 10.0  # s, the record starts late: phases are referenced to t = 0 (the frequency error
@@ -65,9 +71,12 @@ def test_no_usable_standstill_or_no_peak():
     assert noise_harmonics(t, 1e-8 * rng.standard_normal(t.size), mask) == []
 
 
-def test_plant_parameters():
+def test_plant_parameters(plant):
+    """As many slots as the FMU has; unused ones off, at the FMU's start values."""
     harmonics = [Harmonic(0.3e-6, 47.3, 0.7), Harmonic(0.1e-6, 123.7, 3.5)]
-    parameters = as_plant_parameters(harmonics)
+    start = plant.start_values()
+    assert plant_slots(start) == 4
+    parameters = as_plant_parameters(harmonics, start)
     assert set(parameters) == {
         f"noise_{kind}_{k}" for kind in ("amplitude", "frequency", "phase") for k in range(1, 5)
     }
@@ -75,10 +84,11 @@ def test_plant_parameters():
     assert parameters["noise_frequency_2"] == 123.7
     assert parameters["noise_phase_2"] == pytest.approx(3.5 - 2 * np.pi)
     assert [parameters[f"noise_amplitude_{k}"] for k in (3, 4)] == [0.0, 0.0]
-    assert [parameters[f"noise_frequency_{k}"] for k in (3, 4)] == [150.0, 200.0]
-    assert [parameters[f"noise_phase_{k}"] for k in (3, 4)] == [0.0, 0.0]
+    for k in (3, 4):
+        assert parameters[f"noise_frequency_{k}"] == start[f"noise_frequency_{k}"]
+        assert parameters[f"noise_phase_{k}"] == start[f"noise_phase_{k}"]
     with pytest.raises(ValueError, match="holds 4 noise harmonics"):
-        as_plant_parameters(harmonics * 3)
+        as_plant_parameters(harmonics * 3, start)
 
 
 def test_noise_floor_of_white_noise():
