@@ -29,7 +29,6 @@ import numpy as np
 import pandas as pd
 
 from twin_cosim.cosim import run_scenario
-from twin_cosim.gap.calibration import floor_of
 from twin_cosim.gap.effects import CALIBRATED, estimate_resolution, library_for
 from twin_cosim.gap.floors import (
     Floors,
@@ -580,9 +579,7 @@ def diagnose(
         selection = selector.run(start)
         final = selection.replays
         hold_final = judging.residuals(final)
-        basis = selector.basis(selection.plant_parameters)
-        floor = floor_of(basis, judging.vector(hold_final))
-        calibrated_final = selector.calibrated_replay(selection.plant_parameters, floor)
+        floor, calibrated_final = selection.floor, selection.calibrated
     finally:
         pool.close()
     metrics_before = judging.metrics(start, settings)

@@ -168,12 +168,14 @@ class Round:
 
 @dataclass(frozen=True)
 class Selection:
-    """The rounds, the accepted effects' FMU parameters and the replays with them."""
+    """The rounds, the accepted effects' FMU parameters, the replays with them, and the
+    calibration floor of what they leave with its calibrated replays."""
 
     rounds: list[Round]
     plant_parameters: dict[str, float]
     replays: Replays
-    basis: CalibrationBasis
+    floor: CalibrationFloor
+    calibrated: Replays
 
 
 def _bic(cost: float, n_parameters: int, train_seconds: float) -> float:
@@ -294,13 +296,13 @@ class Selector:
         replays = start
         remaining = list(settings.hypotheses or self.library)
         rounds: list[Round] = []
-        basis = CalibrationBasis([], np.zeros((0, 0)))
         while remaining and len([r for r in rounds if r.accepted]) < settings.max_effects:
             held = self.judging.residuals(replays)
             vector = self.judging.vector(held)
             basis = self.basis(base)
             floor = floor_of(basis, vector)
             calibrated = self.calibrated_replay(base, floor)
+            last = (floor, calibrated)
             metrics = self.judging.metrics(calibrated, settings)
             significant = is_significant(metrics, floor.left, settings)
             context = self.context(self.training_residuals(replays.training))
@@ -334,7 +336,11 @@ class Selector:
             base = dict(best.fit.overrides)
             replays = _imap(self.pool, [SimulateTask(base, with_training=True)], self.progress)[0]
             remaining = self._next_candidates(current, group, remaining)
-        return Selection(rounds, base, replays, basis)
+        if rounds[-1].accepted:  # what the last accepted effect leaves has no floor yet
+            vector = self.judging.vector(self.judging.residuals(replays))
+            floor = floor_of(self.basis(base), vector)
+            last = (floor, self.calibrated_replay(base, floor))
+        return Selection(rounds, base, replays, *last)
 
     def _next_candidates(self, done: Round, group: list[str], remaining: list[str]) -> list[str]:
         """Periodic hypotheses and the best of the round by held-out reduction."""

@@ -71,7 +71,7 @@ class DiagnosisSettings:
     group_reduction_margin: float = 0.1
     group_correlation: float = 0.9
     max_effects: int = 3
-    later_round_candidates: int = 5
+    later_round_candidates: int = 3
     noise_draws: int = 12
     outlier_share: float = 0.001
     axis_bin: float = 0.5e-3
