@@ -8,7 +8,10 @@ from fmu_build.build import COMMON_DIR
 from fmu_build.variable_table import VariableTableError, load_variable_table
 
 HEADER = "model: {name: m, description: d, version: '1'}\nvariables:\n"
-STEP = "  - {name: sample_period, causality: parameter, unit: s, start: 1.0e-3, positive: true, description: x}\n"
+STEP = (
+    "  - {name: sample_period, causality: parameter, unit: s, start: 1.0e-3, positive: true,"
+    " description: x}\n"
+)
 
 
 def table(tmp_path, body: str, step: str = STEP):
@@ -71,7 +74,8 @@ def test_value_references_are_dense_reals_first(tmp_path):
             r"depends_on names \['b'\], which are not inputs",
         ),
         (
-            "  - {name: a, causality: input, unit: A, start: 0.0, depends_on: [a], description: x}\n",
+            "  - {name: a, causality: input, unit: A, start: 0.0, depends_on: [a],"
+            " description: x}\n",
             "only an output takes depends_on",
         ),
         (
