@@ -62,9 +62,10 @@ static inline double command_delay_at(const CommandDelay *d, double tau, double 
 }
 
 /* Integrates [start, start + length] (s) in `substeps` equal substeps with `command` acting;
- * returns 0 on failure (the model logged why). */
+ * `split` is 1 when the segment starts at a command change inside the step. Returns 0 on
+ * failure (the model logged why). */
 typedef int (*CommandSegment)(void *context, double command, double start, double length,
-                              int substeps);
+                              int substeps, int split);
 
 /* Advances from t (s) by h (s) with the delayed command: the step is split where the acting
  * command changes, each part integrated with as many substeps as keep the substep at most
@@ -80,7 +81,7 @@ static inline int command_delay_advance(const CommandDelay *d, double t, double 
         int whole = next_change >= end - tolerance;
         double length = whole ? (start == t ? h : end - start) : next_change - start;
         int n = (int)ceil(substeps * length / h - 1e-9);
-        if (!segment(context, command, start, length, n > 1 ? n : 1)) return 0;
+        if (!segment(context, command, start, length, n > 1 ? n : 1, start != t)) return 0;
         if (whole) return 1;
         start = next_change;
     }

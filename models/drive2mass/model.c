@@ -332,7 +332,7 @@ static double bristle_relaxation_rate(const ModelVariables *v, const ModelState 
 /* Integrates the state in `substeps` RK4 substeps over [start, start + length] (s) with the
  * current command `command` (A) acting; a CommandSegment. */
 static int integrate_segment(void *context, double command, double start, double length,
-                             int substeps) {
+                             int substeps, int split) {
     ModelInstance *inst = (ModelInstance *)context;
     const ModelVariables *v = &inst->v;
     ModelState *s = &inst->s;
@@ -340,7 +340,7 @@ static int integrate_segment(void *context, double command, double start, double
                              s->current_applied, s->bristle};
     double substep = length / substeps;
     int k;
-    if (start != inst->time) {
+    if (split) {
         slave_log_event(inst, "drive2mass: t = %.9g s: the delayed current command changes to "
                         "%g A inside the step", start, command);
     }

@@ -157,13 +157,13 @@ fmi2Status model_initialize(ModelInstance *inst) {
 /* Integrates the state in `substeps` RK4 substeps over [start, start + length] (s) with the
  * drive command `command` (V) acting; a CommandSegment. */
 static int integrate_segment(void *context, double command, double start, double length,
-                             int substeps) {
+                             int substeps, int split) {
     ModelInstance *inst = (ModelInstance *)context;
     ModelState *s = &inst->s;
     double x[STATE_COUNT] = {s->position, s->speed, s->carriage, s->carriage_speed};
     double substep = length / substeps;
     int k;
-    if (start != inst->time) {
+    if (split) {
         slave_log_event(inst, "emps: t = %.9g s: the delayed drive command changes to %g V "
                         "inside the step", start, command);
     }
