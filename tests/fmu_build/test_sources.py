@@ -5,6 +5,7 @@ exports the fmi2 functions only, and two models loaded into one process stay apa
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import textwrap
@@ -72,12 +73,15 @@ def test_sources_build_with_warnings_as_errors_at_O3(rebuilt):
 def test_fmpy_compile_with_warnings_as_errors(model_fmu, tmp_path):
     fmu = tmp_path / model_fmu[1].name
     fmu.write_bytes(model_fmu[1].read_bytes())
-    fmpy = Path(sys.executable).parent / "fmpy"
+    venv_bin = Path(sys.executable).parent
+    # fmpy runs "cmake", which the venv provides (a dependency of fmpy): put it first on PATH
+    env = {**os.environ, "PATH": os.pathsep.join([str(venv_bin), os.environ.get("PATH", "")])}
     result = subprocess.run(
-        [str(fmpy), "compile", "--all-warnings", "--warning-as-error", str(fmu)],
+        [str(venv_bin / "fmpy"), "compile", "--all-warnings", "--warning-as-error", str(fmu)],
         capture_output=True,
         text=True,
         cwd=tmp_path,
+        env=env,
     )
     assert result.returncode == 0, (result.stdout + result.stderr)[-4000:]
     assert f"binaries/linux64/{model_fmu[0]}.so" in zipfile.ZipFile(fmu).namelist()
