@@ -57,7 +57,7 @@ def _c_array(base: str) -> str:
 
 def _family_lines(table: VariableTable) -> list[str]:
     lines = [
-        "/* Families <base>_1 ... <base>_n: count and byte offsets in ModelVariables. */",
+        "/* Families <base>_1 ... <base>_n: count, offsets in ModelVariables; Real values. */",
         "#define MODEL_FAMILY_VALUE(v, family, k) \\",
         "    (*(const double *)((const char *)(v) + (family)[k]))",
     ]

@@ -108,8 +108,8 @@ def _families(path: Path, variables: tuple[Variable, ...]) -> dict[str, list[Var
                 f"{path}: variables {base}_k must be numbered 1 to n without gaps, "
                 f"got k = {sorted(members)}"
             )
-        if len({m.type for m in members.values()}) != 1:
-            raise VariableTableError(f"{path}: variables {base}_k must all have the same type")
+        if any(m.type != "Real" for m in members.values()):
+            raise VariableTableError(f"{path}: variables {base}_k must all be Real")
         families[base] = [members[k] for k in sorted(members)]
     return families
 
