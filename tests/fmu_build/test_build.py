@@ -130,6 +130,17 @@ def test_simulates_in_fmpy_simulate_fmu(fmu_path):
     assert slope == pytest.approx((0.74 * current - 0.625) / (2.9e-4 + 4.2e-4), rel=0.01)
 
 
+def test_emps_simulates_in_fmpy_at_its_default_step():
+    """simulate_fmu without a step size uses DefaultExperiment's (the 1 ms sample period); 3 V
+    drives the axis to the speed where viscous friction takes the rest of the force."""
+    result = simulate_fmu(
+        str(build.build_fmu("emps")), stop_time=4.0, start_values={"current_cmd": 3.0}
+    )
+    gain, coulomb, offset, viscous = 35.15065188, 20.3935, -3.1648, 203.5034  # N/V, N, N, N.s/m
+    terminal = (gain * 3.0 - coulomb - offset) / viscous  # m/s
+    assert result["load_speed"][-1] == pytest.approx(terminal, rel=1e-3)
+
+
 def step_motor_speed(plant: Plant, current: float, k: int, h: float = 62.5e-6) -> float:
     """One step of ``h`` (s) from t = k h with ``current`` (A); the motor speed after it (rad/s)."""
     plant.fmu.setReal([plant.value_reference("current_cmd")], [current])
