@@ -212,3 +212,32 @@ def test_compiler_errors_are_reported(model_copy, tmp_path):
 def test_unknown_model_is_an_error():
     with pytest.raises(build.BuildError, match="unknown model 'nope'"):
         build.build_fmu("nope")
+
+
+@pytest.mark.parametrize("debug_logging", [True, False])
+def test_events_reach_fmpys_logger_only_with_debug_logging(model_fmu, debug_logging):
+    """fmpy instantiates with loggingOn = debug_logging and passes our logger callback; a push
+    then a release of the axis logs its breakaway and its sticking only when logging is on."""
+    messages = []
+
+    def logger(_environment, _instance, _status, category, message):
+        messages.append((category.decode(), message.decode()))
+
+    signal = np.array(
+        [(0.0, 3.0), (0.02, 3.0), (0.02, 0.0), (0.4, 0.0)],
+        dtype=[("time", float), ("current_cmd", float)],
+    )
+    simulate_fmu(
+        str(model_fmu[1]),
+        stop_time=0.4,
+        step_size=1e-4,
+        input=signal,
+        debug_logging=debug_logging,
+        logger=logger,
+    )
+    events = [m for c, m in messages if c == "logEvents"]
+    if debug_logging:
+        assert any("breaks away" in m for m in events), messages
+        assert any("sticks" in m for m in events), messages
+    else:
+        assert events == []
