@@ -28,9 +28,10 @@
 
 enum {
     MOTOR_ANGLE, MOTOR_SPEED, LOAD_ANGLE, LOAD_SPEED,  /* always integrated */
-    CURRENT_APPLIED, BRISTLE,                          /* constant unless current lag or LuGre */
+    CURRENT_APPLIED, BRISTLE,                          /* only with current lag or LuGre friction */
     STATE_COUNT
 };
+enum { MECHANICAL_STATE_COUNT = CURRENT_APPLIED };
 
 static double sign_of(double x) { return (x > 0.0) - (x < 0.0); }
 
@@ -312,6 +313,8 @@ fmi2Status model_initialize(ModelInstance *inst) {
     s->dead_time = v->dead_time_steps * v->sample_period;
     command_delay_reset(&s->delay);
     derive_transmission(v, s);
+    s->state_count = v->current_time_constant > 0.0 || v->lugre_stiffness > 0.0
+                         ? STATE_COUNT : MECHANICAL_STATE_COUNT;
     if (!isfinite(s->load_angle) || !isfinite(s->half_gap) || !isfinite(s->stiffness) ||
         !isfinite(s->pitch_error_start)) {
         slave_log_error(inst, "drive2mass: parameters give a non-finite initial state");
@@ -347,7 +350,7 @@ static int integrate_segment(void *context, double command, double start, double
     s->command = command;
     for (k = 0; k < substeps; k++) {
         double previous_load_speed = x[LOAD_SPEED];
-        rk4_step(derivatives, inst, x, STATE_COUNT, substep);
+        rk4_step(derivatives, inst, x, s->state_count, substep);
         if (v->lugre_stiffness == 0.0) {
             update_friction_mode(inst, s, x, previous_load_speed, start + (k + 1) * substep);
         }
