@@ -12,6 +12,7 @@ from libcosimpy.CosimManipulator import CosimManipulator
 from libcosimpy.CosimObserver import CosimObserver
 from libcosimpy.CosimSlave import CosimLocalSlave
 
+from fmu_build.build import build_fmu
 from twin_cosim.plant import Plant
 
 STEPS = 400
@@ -84,10 +85,8 @@ def test_libcosim_runs_the_fmu_as_fmpy_does(model_fmu):
 
 @pytest.mark.parametrize("model", ["drive2mass", "emps"])
 def test_libcosim_sees_parameters_set_before_initialization(model):
-    from fmu_build.build import build_fmu
-
     fmu_path = build_fmu(model)
-    step_ns, parameters, command = RUNS[model]
+    step_ns, parameters, _ = RUNS[model]
     cosim = run_in_libcosim(fmu_path, step_ns, parameters, lambda k: 0.0)
     description = read_model_description(str(fmu_path))
     outputs = [v.name for v in description.modelVariables if v.causality == "output"]
