@@ -3,11 +3,20 @@
 The table is the single source from which the C variable table and ``modelDescription.xml`` are
 generated. Value references are assigned densely in table order: Real variables first, then
 Integer variables.
+
+Facts that the table holds for the generator as well as for the C code:
+
+- ``depends_on`` of an output: the inputs it depends on directly (ModelStructure dependencies);
+  an output without it depends on no input (it follows from the state alone).
+- the parameter ``sample_period`` (s): its start value is the DefaultExperiment step size.
+- families: variables named ``<base>_1 ... <base>_n`` form a family of n entries (e.g. the
+  noise harmonics); the generator emits their count and offsets for the C code.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,8 +35,11 @@ VARIABLE_KEYS = {
     "max",
     "positive",
     "description",
+    "depends_on",
 }
 MODEL_KEYS = {"name", "description", "version"}
+STEP_PARAMETER = "sample_period"
+FAMILY_NAME = re.compile(r"^(?P<base>[A-Za-z_]\w*?)_(?P<index>[1-9]\d*)$")
 
 
 class VariableTableError(ValueError):
@@ -48,6 +60,7 @@ class Variable:
     positive: bool
     description: str
     value_reference: int
+    depends_on: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -64,6 +77,41 @@ class VariableTable:
     def of_type(self, type_name: str) -> list[Variable]:
         """Variables of one FMI base type, in value-reference order."""
         return [v for v in self.variables if v.type == type_name]
+
+    def by_name(self, name: str) -> Variable:
+        """The variable called ``name``; KeyError names the table when there is none."""
+        for v in self.variables:
+            if v.name == name:
+                return v
+        raise KeyError(f"{self.source}: no variable named {name!r}")
+
+    @property
+    def default_step_size(self) -> float:
+        """Default communication step (s): the start value of the ``sample_period`` parameter."""
+        return float(self.by_name(STEP_PARAMETER).start)
+
+    def families(self) -> dict[str, list[Variable]]:
+        """Variables named ``<base>_1 ... <base>_n`` by base name, in index order."""
+        return _families(self.source, self.variables)
+
+
+def _families(path: Path, variables: tuple[Variable, ...]) -> dict[str, list[Variable]]:
+    indexed: dict[str, dict[int, Variable]] = {}
+    for v in variables:
+        match = FAMILY_NAME.match(v.name)
+        if match:
+            indexed.setdefault(match["base"], {})[int(match["index"])] = v
+    families = {}
+    for base, members in indexed.items():
+        if sorted(members) != list(range(1, len(members) + 1)):
+            raise VariableTableError(
+                f"{path}: variables {base}_k must be numbered 1 to n without gaps, "
+                f"got k = {sorted(members)}"
+            )
+        if any(m.type != "Real" for m in members.values()):
+            raise VariableTableError(f"{path}: variables {base}_k must all be Real")
+        families[base] = [members[k] for k in sorted(members)]
+    return families
 
 
 def _load_yaml(path: Path) -> Any:
@@ -141,6 +189,13 @@ def _parse_variable(path: Path, entry: Any, units: dict[str, dict[str, int]]) ->
         raise VariableTableError(f"{path}: variable {name!r}: positive, but start is {start}")
     if not entry.get("description"):
         raise VariableTableError(f"{path}: variable {name!r}: a description is required")
+    depends_on = entry.get("depends_on", [])
+    if causality != "output" and "depends_on" in entry:
+        raise VariableTableError(f"{path}: variable {name!r}: only an output takes depends_on")
+    if not isinstance(depends_on, list) or not all(isinstance(d, str) for d in depends_on):
+        raise VariableTableError(
+            f"{path}: variable {name!r}: depends_on must be a list of input names"
+        )
     return {
         "name": name,
         "causality": causality,
@@ -151,6 +206,7 @@ def _parse_variable(path: Path, entry: Any, units: dict[str, dict[str, int]]) ->
         "max": hi,
         "positive": bool(entry.get("positive", False)),
         "description": str(entry["description"]),
+        "depends_on": tuple(depends_on),
     }
 
 
@@ -188,10 +244,30 @@ def load_variable_table(path: Path, units_path: Path) -> VariableTable:
     for name in names:
         if not name.isidentifier():
             raise VariableTableError(f"{path}: variable name {name!r} must be a C identifier")
+    inputs = {p["name"] for p in parsed if p["causality"] == "input"}
+    for p in parsed:
+        unknown_inputs = sorted(set(p["depends_on"]) - inputs)
+        if unknown_inputs:
+            raise VariableTableError(
+                f"{path}: variable {p['name']!r}: depends_on names {unknown_inputs}, "
+                f"which are not inputs; inputs are {sorted(inputs)}"
+            )
+    step = next((p for p in parsed if p["name"] == STEP_PARAMETER), None)
+    if (
+        step is None
+        or step["causality"] != "parameter"
+        or step["unit"] != "s"
+        or not step["positive"]
+    ):
+        raise VariableTableError(
+            f"{path}: expected a positive parameter {STEP_PARAMETER!r} in s (the drive's sample "
+            "period, whose start value is the default communication step)"
+        )
     ordered = [p for p in parsed if p["type"] == "Real"] + [
         p for p in parsed if p["type"] != "Real"
     ]
     variables = tuple(Variable(value_reference=i, **p) for i, p in enumerate(ordered))
+    _families(path, variables)
     return VariableTable(
         name=str(model["name"]),
         description=str(model["description"]),

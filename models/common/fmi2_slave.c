@@ -21,16 +21,27 @@
 static const size_t kRealCount = REAL_VARIABLE_COUNT;
 static const size_t kIntegerCount = INTEGER_VARIABLE_COUNT;
 
-void slave_log_error(const ModelInstance *inst, const char *format, ...) {
+static void log_message(const ModelInstance *inst, fmi2Status status, int category,
+                        const char *format, va_list args) {
     char message[512];
+    if (inst->functions.logger == NULL || !(inst->log_categories & (1u << category))) return;
+    vsnprintf(message, sizeof(message), format, args);
+    inst->functions.logger(inst->functions.componentEnvironment, inst->instance_name, status,
+                           kLogCategories[category], "%s", message);
+}
+
+void slave_log_error(const ModelInstance *inst, const char *format, ...) {
     va_list args;
     va_start(args, format);
-    vsnprintf(message, sizeof(message), format, args);
+    log_message(inst, fmi2Error, LOG_STATUS_ERROR, format, args);
     va_end(args);
-    if (inst->functions.logger) {
-        inst->functions.logger(inst->functions.componentEnvironment, inst->instance_name,
-                               fmi2Error, "logStatusError", "%s", message);
-    }
+}
+
+void slave_log_event(const ModelInstance *inst, const char *format, ...) {
+    va_list args;
+    va_start(args, format);
+    log_message(inst, fmi2OK, LOG_EVENTS, format, args);
+    va_end(args);
 }
 
 static const char *state_name(SlaveState state) {
@@ -77,11 +88,15 @@ static int settable(const ModelInstance *inst, Causality causality) {
     return 1;
 }
 
+/* Recomputes the outputs when an input or parameter changed. In initialization mode the initial
+ * state is derived again first, so that parameters set there show in the outputs at once. */
 static fmi2Status refresh_outputs(ModelInstance *inst) {
-    if (inst->outputs_stale) {
-        model_update_outputs(inst, inst->time);
-        inst->outputs_stale = 0;
+    if (!inst->outputs_stale) return fmi2OK;
+    if (inst->state == SLAVE_INITIALIZATION_MODE && model_initialize(inst) != fmi2OK) {
+        return fmi2Error;
     }
+    model_update_outputs(inst, inst->time);
+    inst->outputs_stale = 0;
     return fmi2OK;
 }
 
@@ -91,16 +106,40 @@ const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 
 const char *fmi2GetVersion(void) { return fmi2Version; }
 
+/* Index of a log category by name, -1 when the model declares no such category. */
+static int log_category_index(const char *name) {
+    int i;
+    for (i = 0; i < LOG_CATEGORY_COUNT; i++) {
+        if (strcmp(name, kLogCategories[i]) == 0) return i;
+    }
+    return -1;
+}
+
+/* Enables or disables the named categories (all of them when nCategories is 0). Errors stay
+ * logged whatever is chosen here. */
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
     ModelInstance *inst = (ModelInstance *)c;
-    (void)categories;
+    unsigned mask = 0;
+    size_t i;
     if (!allowed(inst, "fmi2SetDebugLogging", ALL_STATES)) return fmi2Error;
     if (nCategories > 0 && categories == NULL) {
         slave_log_error(inst, "fmi2SetDebugLogging: categories is NULL");
         return fmi2Error;
     }
-    inst->logging_on = loggingOn;
+    for (i = 0; i < nCategories; i++) {
+        int index = categories[i] ? log_category_index(categories[i]) : -1;
+        if (index < 0) {
+            slave_log_error(inst, "fmi2SetDebugLogging: unknown log category \"%s\" (expected "
+                            "one of the LogCategories of modelDescription.xml)",
+                            categories[i] ? categories[i] : "(null)");
+            return fmi2Error;
+        }
+        mask |= 1u << index;
+    }
+    if (nCategories == 0) mask = (1u << LOG_CATEGORY_COUNT) - 1u;
+    inst->log_categories = loggingOn ? inst->log_categories | mask : inst->log_categories & ~mask;
+    inst->log_categories |= 1u << LOG_STATUS_ERROR;
     return fmi2OK;
 }
 
@@ -135,7 +174,8 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     }
     strcpy(inst->instance_name, name);
     inst->functions = *functions;
-    inst->logging_on = loggingOn;
+    inst->log_categories = 1u << LOG_STATUS_ERROR;
+    if (loggingOn) inst->log_categories = (1u << LOG_CATEGORY_COUNT) - 1u;
     inst->state = SLAVE_INSTANTIATED;
     set_start_values(inst);
     return inst;
@@ -216,7 +256,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         slave_log_error(inst, "fmi2GetReal: vr or value is NULL");
         return fail(inst);
     }
-    refresh_outputs(inst);
+    if (refresh_outputs(inst) != fmi2OK) return fail(inst);
     base = (const char *)&inst->v;
     for (i = 0; i < nvr; i++) {
         if (vr[i] >= kRealCount) {
@@ -361,6 +401,10 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 /* ---------------------------------------------------------------- stepping */
 
+/* Relative tolerance on currentCommunicationPoint against the model time, as in the FMI
+ * reference models: masters compute communication points as k * h or by summation. */
+#define TIME_TOLERANCE 1e-9
+
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     ModelInstance *inst = (ModelInstance *)c;
@@ -371,6 +415,13 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
         slave_log_error(inst, "fmi2DoStep: step from t = %g with h = %g is invalid (expected "
                         "finite values and h > 0)", currentCommunicationPoint,
                         communicationStepSize);
+        return fail(inst);
+    }
+    if (fabs(currentCommunicationPoint - inst->time) >
+        TIME_TOLERANCE * fmax(1.0, fabs(inst->time))) {
+        slave_log_error(inst, "fmi2DoStep: currentCommunicationPoint = %.17g s is not the model "
+                        "time %.17g s (expected equal within a relative %g)",
+                        currentCommunicationPoint, inst->time, TIME_TOLERANCE);
         return fail(inst);
     }
     if (model_do_step(inst, currentCommunicationPoint, communicationStepSize) != fmi2OK) {

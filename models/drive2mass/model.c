@@ -11,18 +11,20 @@
  *
  * Effect blocks, all off by default: Stribeck, asymmetric and position-dependent friction levels,
  * LuGre friction (state z), lead error, thermal drift, scale quantisation, torque ripple, current
- * lag (state i_a) and dead time of the current command. Each is skipped while its parameter is
- * zero, so that the default model computes exactly what it computes without them.
+ * lag (state i_a) and dead time of the current command (dead_time_steps sample periods, in
+ * seconds whatever the communication step). Each is skipped while its parameter is zero, so
+ * that the default model computes exactly what it computes without them.
  * See README.md in this folder for the equations and the conversions from Table 1 of the paper.
  */
 #include <math.h>
-#include <string.h>
 
+#include "command_delay.h"
 #include "rk4.h"
 #include "slave.h"
 
 #define PI 3.14159265358979323846
 #define RK4_STABILITY_MARGIN 2.0 /* omega * h below this keeps RK4 well inside its limit 2.8 */
+#define TIME_TOLERANCE 1e-9      /* relative, for comparing command times with step ends */
 
 enum {
     MOTOR_ANGLE, MOTOR_SPEED, LOAD_ANGLE, LOAD_SPEED,  /* always integrated */
@@ -142,15 +144,19 @@ static double driving_torque(const ModelVariables *v, const ModelState *s, const
            v->disturbance_torque;
 }
 
-/* Stick/slip transitions after a substep, then the hysteresis relay on the load speed. */
-static void update_friction_mode(const ModelVariables *v, ModelState *s, double x[],
-                                 double previous_load_speed) {
+/* Stick/slip transitions after a substep ending at time t (s), then the hysteresis relay on the
+ * load speed. Transitions are logged as events. */
+static void update_friction_mode(const ModelInstance *inst, ModelState *s, double x[],
+                                 double previous_load_speed, double t) {
+    const ModelVariables *v = &inst->v;
     double drive = driving_torque(v, s, x);
     if (s->stuck) {
         if (drive > static_friction(v, 1.0, x[LOAD_ANGLE]) ||
             -drive > static_friction(v, -1.0, x[LOAD_ANGLE])) {
             s->stuck = 0;
             s->direction = (int)sign_of(drive);
+            slave_log_event(inst, "drive2mass: t = %.9g s: the load breaks away (driving torque "
+                            "%g N.m)", t, drive);
         }
         return;
     }
@@ -160,6 +166,8 @@ static void update_friction_mode(const ModelVariables *v, ModelState *s, double 
         -drive <= static_friction(v, -1.0, x[LOAD_ANGLE])) {
         s->stuck = 1;
         x[LOAD_SPEED] = 0.0;
+        slave_log_event(inst, "drive2mass: t = %.9g s: the load sticks (driving torque %g N.m)",
+                        t, drive);
         return;
     }
     if (x[LOAD_SPEED] > 0.5 * v->friction_hysteresis) s->direction = 1;
@@ -176,22 +184,11 @@ static double friction_torque(const ModelVariables *v, const ModelState *s, cons
     return sliding_friction(v, s, x[LOAD_SPEED], x[LOAD_ANGLE]);
 }
 
-/* Queues current_cmd behind the dead time; returns the command (A) the drive acts on in this
- * step: current_cmd of dead_time_steps doSteps ago (0 A before), current_cmd itself without. */
-static double release_command(const ModelVariables *v, ModelState *s) {
-    double released;
-    if (v->dead_time_steps == 0) return v->current_cmd;
-    released = s->command_history[s->command_index];
-    s->command_history[s->command_index] = v->current_cmd;
-    s->command_index = (s->command_index + 1) % v->dead_time_steps;
-    return released;
-}
-
 /* Current (A) that produces the motor torque: the current-loop state with a lag, else the
  * command of the last step after the dead time (current_cmd itself without dead time). */
 static double applied_current(const ModelVariables *v, const ModelState *s) {
     if (v->current_time_constant > 0.0) return s->current_applied;
-    return v->dead_time_steps > 0 ? s->command : v->current_cmd;
+    return s->dead_time > 0.0 ? s->command : v->current_cmd;
 }
 
 /* Lead-error harmonics (m) at a screw angle (rad): sum_k e_k sin(k theta_screw + phi_k). */
@@ -258,11 +255,6 @@ static fmi2Status check_effect_parameters(ModelInstance *inst) {
                         v->lugre_stiffness, lowest_coulomb);
         return fmi2Error;
     }
-    if (v->dead_time_steps > DEAD_TIME_MAX_STEPS) {
-        slave_log_error(inst, "drive2mass: dead_time_steps = %d exceeds the buffer of %d steps",
-                        v->dead_time_steps, DEAD_TIME_MAX_STEPS);
-        return fmi2Error;
-    }
     return fmi2OK;
 }
 
@@ -280,17 +272,12 @@ static void derive_step_limits(const ModelVariables *v, ModelState *s, double om
 
 /* Lead-error harmonics and the flag that switches the transmission error on. */
 static void derive_transmission(const ModelVariables *v, ModelState *s) {
-    const double amplitude[PITCH_HARMONICS] = {v->pitch_error_amplitude_1,
-                                               v->pitch_error_amplitude_2,
-                                               v->pitch_error_amplitude_3};
-    const double phase[PITCH_HARMONICS] = {v->pitch_error_phase_1, v->pitch_error_phase_2,
-                                           v->pitch_error_phase_3};
     int k;
     s->transmission_error = v->pitch_error_linear != 0.0 || v->thermal_expansion_rate != 0.0;
     for (k = 0; k < PITCH_HARMONICS; k++) {
-        s->pitch_amplitude[k] = amplitude[k];
-        s->pitch_phase[k] = phase[k];
-        if (amplitude[k] != 0.0) s->transmission_error = 1;
+        s->pitch_amplitude[k] = MODEL_FAMILY_VALUE(v, kPitchErrorAmplitude, k);
+        s->pitch_phase[k] = MODEL_FAMILY_VALUE(v, kPitchErrorPhase, k);
+        if (s->pitch_amplitude[k] != 0.0) s->transmission_error = 1;
     }
     s->start_load_angle = s->load_angle;
     s->pitch_error_start = pitch_harmonics(s, s->load_angle / v->gear_ratio);
@@ -300,12 +287,6 @@ fmi2Status model_initialize(ModelInstance *inst) {
     const ModelVariables *v = &inst->v;
     ModelState *s = &inst->s;
     double omega_01 = 2.0 * PI * v->resonance_frequency;
-    const double amplitude[NOISE_HARMONICS] = {v->noise_amplitude_1, v->noise_amplitude_2,
-                                               v->noise_amplitude_3, v->noise_amplitude_4};
-    const double frequency[NOISE_HARMONICS] = {v->noise_frequency_1, v->noise_frequency_2,
-                                               v->noise_frequency_3, v->noise_frequency_4};
-    const double phase[NOISE_HARMONICS] = {v->noise_phase_1, v->noise_phase_2, v->noise_phase_3,
-                                           v->noise_phase_4};
     int k;
 
     if (check_effect_parameters(inst) != fmi2OK) return fmi2Error;
@@ -316,9 +297,9 @@ fmi2Status model_initialize(ModelInstance *inst) {
     /* omega_02 = omega_01 sqrt(1 + J_L/J_M), eq. (1); the damped pair's modulus is the same. */
     derive_step_limits(v, s, omega_01 * sqrt(1.0 + v->load_inertia / v->motor_inertia));
     for (k = 0; k < NOISE_HARMONICS; k++) {
-        s->noise_amplitude[k] = amplitude[k];
-        s->noise_omega[k] = 2.0 * PI * frequency[k];
-        s->noise_phase[k] = phase[k];
+        s->noise_amplitude[k] = MODEL_FAMILY_VALUE(v, kNoiseAmplitude, k);
+        s->noise_omega[k] = 2.0 * PI * MODEL_FAMILY_VALUE(v, kNoiseFrequency, k);
+        s->noise_phase[k] = MODEL_FAMILY_VALUE(v, kNoisePhase, k);
     }
     s->load_angle = v->load_position_start / s->travel_per_rad;
     s->motor_angle = s->load_angle;
@@ -329,8 +310,8 @@ fmi2Status model_initialize(ModelInstance *inst) {
     s->stuck = v->coulomb_friction + v->stribeck_friction > 0.0 && v->lugre_stiffness == 0.0;
     s->direction = 0;
     s->command = 0.0;
-    memset(s->command_history, 0, sizeof(s->command_history));
-    s->command_index = 0;
+    s->dead_time = v->dead_time_steps * v->sample_period;
+    command_delay_reset(&s->delay);
     derive_transmission(v, s);
     s->state_count = v->current_time_constant > 0.0 || v->lugre_stiffness > 0.0
                          ? STATE_COUNT : MECHANICAL_STATE_COUNT;
@@ -339,6 +320,10 @@ fmi2Status model_initialize(ModelInstance *inst) {
         slave_log_error(inst, "drive2mass: parameters give a non-finite initial state");
         return fmi2Error;
     }
+    slave_log_event(inst, "drive2mass: substep limit %g s (RK4 margin %g over the %g rad/s mode "
+                    "and the %g 1/s decay); dead time %g s", RK4_STABILITY_MARGIN /
+                    fmax(s->max_frequency, s->max_decay_rate), RK4_STABILITY_MARGIN,
+                    s->max_frequency, s->max_decay_rate, s->dead_time);
     return fmi2OK;
 }
 
@@ -347,13 +332,48 @@ static double bristle_relaxation_rate(const ModelVariables *v, const ModelState 
     return v->lugre_stiffness * fabs(s->load_speed) / s->lugre_level_min;
 }
 
-fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
+/* Integrates the state in `substeps` RK4 substeps over [start, start + length] (s) with the
+ * current command `command` (A) acting; a CommandSegment. */
+static int integrate_segment(void *context, double command, double start, double length,
+                             int substeps, int split) {
+    ModelInstance *inst = (ModelInstance *)context;
     const ModelVariables *v = &inst->v;
     ModelState *s = &inst->s;
     double x[STATE_COUNT] = {s->motor_angle, s->motor_speed, s->load_angle, s->load_speed,
                              s->current_applied, s->bristle};
-    double substep = h / v->substeps;
+    double substep = length / substeps;
     int k;
+    if (split) {
+        slave_log_event(inst, "drive2mass: t = %.9g s: the delayed current command changes to "
+                        "%g A inside the step", start, command);
+    }
+    s->command = command;
+    for (k = 0; k < substeps; k++) {
+        double previous_load_speed = x[LOAD_SPEED];
+        rk4_step(derivatives, inst, x, s->state_count, substep);
+        if (v->lugre_stiffness == 0.0) {
+            update_friction_mode(inst, s, x, previous_load_speed, start + (k + 1) * substep);
+        }
+    }
+    if (!isfinite(x[MOTOR_ANGLE] + x[MOTOR_SPEED] + x[LOAD_ANGLE] + x[LOAD_SPEED] +
+                  x[CURRENT_APPLIED] + x[BRISTLE])) {
+        slave_log_error(inst, "drive2mass: state became non-finite at t = %g s", start + length);
+        return 0;
+    }
+    s->motor_angle = x[MOTOR_ANGLE];
+    s->motor_speed = x[MOTOR_SPEED];
+    s->load_angle = x[LOAD_ANGLE];
+    s->load_speed = x[LOAD_SPEED];
+    s->current_applied = x[CURRENT_APPLIED];
+    s->bristle = x[BRISTLE];
+    return 1;
+}
+
+fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
+    const ModelVariables *v = &inst->v;
+    ModelState *s = &inst->s;
+    double substep = h / v->substeps;
+    double tolerance = TIME_TOLERANCE * (h + fabs(t));   /* s */
     if (s->max_frequency * substep > RK4_STABILITY_MARGIN ||
         s->max_decay_rate * substep > RK4_STABILITY_MARGIN) {
         slave_log_error(inst, "drive2mass: substep %g s is too long for the %g rad/s mode or the "
@@ -368,23 +388,16 @@ fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
                         bristle_relaxation_rate(v, s));
         return fmi2Error;
     }
-    s->command = release_command(v, s);
-    for (k = 0; k < v->substeps; k++) {
-        double previous_load_speed = x[LOAD_SPEED];
-        rk4_step(derivatives, inst, x, s->state_count, substep);
-        if (v->lugre_stiffness == 0.0) update_friction_mode(v, s, x, previous_load_speed);
-    }
-    if (!isfinite(x[MOTOR_ANGLE] + x[MOTOR_SPEED] + x[LOAD_ANGLE] + x[LOAD_SPEED] +
-                  x[CURRENT_APPLIED] + x[BRISTLE])) {
-        slave_log_error(inst, "drive2mass: state became non-finite at t = %g s", t + h);
+    if (!command_delay_push(&s->delay, t, v->current_cmd, s->dead_time, tolerance)) {
+        slave_log_error(inst, "drive2mass: more than %d communication steps within the dead time "
+                        "of %g s (use longer steps or a shorter dead time)",
+                        COMMAND_DELAY_CAPACITY, s->dead_time);
         return fmi2Error;
     }
-    s->motor_angle = x[MOTOR_ANGLE];
-    s->motor_speed = x[MOTOR_SPEED];
-    s->load_angle = x[LOAD_ANGLE];
-    s->load_speed = x[LOAD_SPEED];
-    s->current_applied = x[CURRENT_APPLIED];
-    s->bristle = x[BRISTLE];
+    if (!command_delay_advance(&s->delay, t, h, s->dead_time, v->substeps, tolerance,
+                               integrate_segment, inst)) {
+        return fmi2Error;
+    }
     return fmi2OK;
 }
 

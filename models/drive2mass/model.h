@@ -2,11 +2,19 @@
 #ifndef MODEL_H
 #define MODEL_H
 
+#include "command_delay.h"
 #include "model_variables.h"
 
-#define NOISE_HARMONICS 4
-#define PITCH_HARMONICS 3
-#define DEAD_TIME_MAX_STEPS 64  /* the max of dead_time_steps in variables.yaml */
+/* The noise harmonics are the noise_amplitude_k / noise_frequency_k / noise_phase_k families
+ * of variables.yaml: their count is the table's. */
+#define NOISE_HARMONICS NOISE_AMPLITUDE_COUNT
+#if NOISE_FREQUENCY_COUNT != NOISE_HARMONICS || NOISE_PHASE_COUNT != NOISE_HARMONICS
+#error "variables.yaml: noise_amplitude_k, noise_frequency_k and noise_phase_k differ in number"
+#endif
+#define PITCH_HARMONICS PITCH_ERROR_AMPLITUDE_COUNT
+#if PITCH_ERROR_PHASE_COUNT != PITCH_HARMONICS
+#error "variables.yaml: pitch_error_amplitude_k and pitch_error_phase_k differ in number"
+#endif
 
 typedef struct {
     /* states, referred to the motor shaft */
@@ -18,9 +26,8 @@ typedef struct {
     double bristle;             /* rad, LuGre bristle deflection z, a state while lugre_stiffness > 0 */
     int stuck;                  /* 1 while static friction holds the load at rest */
     int direction;              /* hysteretic sign of the load speed seen by Coulomb friction */
-    double command;             /* A, current command the drive acts on in this step (after the dead time) */
-    double command_history[DEAD_TIME_MAX_STEPS];  /* A, commands waiting out the dead time */
-    int command_index;          /* slot of the oldest command in command_history */
+    double command;             /* A, current command the drive acts on (after the dead time) */
+    CommandDelay delay;         /* A, current commands waiting out the dead time */
 
     /* constants derived from the parameters by model_initialize */
     double stiffness;           /* N.m/rad, K = J_L omega_01^2 */
@@ -32,6 +39,7 @@ typedef struct {
     double lugre_level_min;     /* N.m, lowest LuGre friction level g, for the bristle-rate check */
     double start_load_angle;    /* rad, load angle at the start, where the transmission error is 0 */
     double pitch_error_start;   /* m, lead-error harmonics at the start screw angle */
+    double dead_time;           /* s, dead_time_steps * sample_period */
     int state_count;            /* RK4 states in use: 4, or 6 with current lag or LuGre friction */
     int transmission_error;     /* 1 when a lead error or thermal drift is set */
     double noise_amplitude[NOISE_HARMONICS];    /* m */

@@ -5,18 +5,24 @@
  *   F_f = (F_c + a s + F_x exp(-(v/v_s)^2)) s + (F_v + b s) v,   s = direction of sliding
  *
  * A force ripple A sin(order * motor_angle + phase) (cogging, eccentricity) adds to the drive
- * force when ripple_amplitude > 0. The driven mass sticks when its speed crosses zero and the force driving it stays within the
- * breakaway level F_c + a s + F_x. The drive command acts n = dead_time_steps steps late. The
- * encoder quantises the driven mass' position; the controller's velocity estimate (difference
- * of two-sample averages over one step) is an output. Fixed-step RK4 with `substeps` substeps.
+ * force when ripple_amplitude > 0. The driven mass sticks when its speed crosses zero and the
+ * force driving it stays within the breakaway level F_c + a s + F_x. The drive command acts a
+ * dead time T = dead_time_steps * sample_period late (in seconds, whatever the communication
+ * step). The encoder quantises the driven mass' position; the controller's velocity estimate is
+ * an output: the difference of the two-sample averages of the encoder position at the last three
+ * communication points t0 > t1 > t2, over the time between the averages,
+ *   v = ((q0 + q1)/2 - (q1 + q2)/2) / ((t0 + t1)/2 - (t1 + t2)/2) = (q0 - q2) / (t0 - t2),
+ * which is (q0 - q2) / (2 h) at a constant step h. Fixed-step RK4 with `substeps` substeps.
  */
 #include <math.h>
 
+#include "command_delay.h"
 #include "rk4.h"
 #include "slave.h"
 
 #define PI 3.14159265358979323846
 #define RK4_STABILITY_MARGIN 2.0
+#define TIME_TOLERANCE 1e-9      /* relative, for comparing command times with step ends */
 
 enum { POSITION, SPEED, CARRIAGE, CARRIAGE_SPEED, STATE_COUNT };
 
@@ -74,13 +80,17 @@ static void derivatives(const ModelInstance *inst, const double x[], double dx[]
 }
 
 
-/* Stick/slip transitions after a substep. */
-static void update_friction_mode(const ModelVariables *v, ModelState *s, double x[], double previous) {
+/* Stick/slip transitions after a substep ending at time t (s); logged as events. */
+static void update_friction_mode(const ModelInstance *inst, ModelState *s, double x[],
+                                 double previous, double t) {
+    const ModelVariables *v = &inst->v;
     double drive = driving_force(v, s, x);
     if (s->stuck) {
         if (fabs(drive) > breakaway(v, sign_of(drive))) {
             s->stuck = 0;
             s->direction = (int)sign_of(drive);
+            slave_log_event(inst, "emps: t = %.9g s: the axis breaks away (driving force %g N)",
+                            t, drive);
         }
         return;
     }
@@ -89,9 +99,16 @@ static void update_friction_mode(const ModelVariables *v, ModelState *s, double 
         s->stuck = 1;
         x[SPEED] = 0.0;
         if (!compliant(v)) x[CARRIAGE_SPEED] = 0.0;
+        slave_log_event(inst, "emps: t = %.9g s: the axis sticks (driving force %g N)", t, drive);
         return;
     }
     if (x[SPEED] != 0.0) s->direction = (int)sign_of(x[SPEED]);
+}
+
+/* Natural frequency (rad/s) of the compliant coupling's mode, 0 for a rigid axis. */
+static double coupling_mode(const ModelVariables *v, const ModelState *s) {
+    if (!compliant(v)) return 0.0;
+    return sqrt(s->stiffness / s->driven_mass + s->stiffness / v->second_mass);
 }
 
 static double quantise(const ModelVariables *v, double position) {
@@ -123,46 +140,86 @@ fmi2Status model_initialize(ModelInstance *inst) {
     s->speed = s->carriage_speed = 0.0;
     s->stuck = breakaway(v, 1.0) > 0.0 && breakaway(v, -1.0) > 0.0;
     s->direction = 0;
-    for (i = 0; i < COMMAND_BUFFER; i++) s->commands[i] = 0.0;
-    s->newest = 0;
+    s->dead_time = v->dead_time_steps * v->sample_period;
+    command_delay_reset(&s->delay);
     s->applied = 0.0;
-    for (i = 0; i < 3; i++) s->encoder[i] = quantise(v, s->position);
+    for (i = 0; i < 3; i++) {
+        s->encoder[i] = quantise(v, s->position);
+        s->encoder_time[i] = i == 0 ? inst->start_time : NAN;   /* at rest before the start */
+    }
     s->estimate = 0.0;
+    slave_log_event(inst, "emps: substep limit %g s (RK4 margin %g over the %g rad/s coupling "
+                    "mode); dead time %g s", RK4_STABILITY_MARGIN / coupling_mode(v, s),
+                    RK4_STABILITY_MARGIN, coupling_mode(v, s), s->dead_time);
     return fmi2OK;
 }
 
-fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
-    const ModelVariables *v = &inst->v;
+/* Integrates the state in `substeps` RK4 substeps over [start, start + length] (s) with the
+ * drive command `command` (V) acting; a CommandSegment. */
+static int integrate_segment(void *context, double command, double start, double length,
+                             int substeps, int split) {
+    ModelInstance *inst = (ModelInstance *)context;
     ModelState *s = &inst->s;
     double x[STATE_COUNT] = {s->position, s->speed, s->carriage, s->carriage_speed};
-    double substep = h / v->substeps;
-    double omega = compliant(v) ? sqrt(s->stiffness / s->driven_mass + s->stiffness / v->second_mass) : 0.0;
+    double substep = length / substeps;
     int k;
-    if (omega * substep > RK4_STABILITY_MARGIN) {
-        slave_log_error(inst, "emps: substep %g s is too long for the %g rad/s coupling mode "
-                        "(increase substeps)", substep, omega);
-        return fmi2Error;
+    if (split) {
+        slave_log_event(inst, "emps: t = %.9g s: the delayed drive command changes to %g V "
+                        "inside the step", start, command);
     }
-    s->newest = (s->newest + 1) % COMMAND_BUFFER;
-    s->commands[s->newest] = v->current_cmd;
-    s->applied = s->commands[(s->newest - v->dead_time_steps + COMMAND_BUFFER) % COMMAND_BUFFER];
-    for (k = 0; k < v->substeps; k++) {
+    s->applied = command;
+    for (k = 0; k < substeps; k++) {
         double previous = x[SPEED];
         rk4_step(derivatives, inst, x, STATE_COUNT, substep);
-        update_friction_mode(v, s, x, previous);
+        update_friction_mode(inst, s, x, previous, start + (k + 1) * substep);
     }
     if (!isfinite(x[POSITION] + x[SPEED] + x[CARRIAGE] + x[CARRIAGE_SPEED])) {
-        slave_log_error(inst, "emps: state became non-finite at t = %g s", t + h);
-        return fmi2Error;
+        slave_log_error(inst, "emps: state became non-finite at t = %g s", start + length);
+        return 0;
     }
     s->position = x[POSITION];
     s->speed = x[SPEED];
     s->carriage = x[CARRIAGE];
     s->carriage_speed = x[CARRIAGE_SPEED];
+    return 1;
+}
+
+/* Samples the encoder at time t (s) and updates the velocity estimate (q0 - q2) / (t0 - t2). */
+static void sample_encoder(const ModelVariables *v, ModelState *s, double t) {
     s->encoder[2] = s->encoder[1];
     s->encoder[1] = s->encoder[0];
     s->encoder[0] = quantise(v, s->position);
-    s->estimate = (s->encoder[0] - s->encoder[2]) / (2.0 * h);
+    s->encoder_time[2] = s->encoder_time[1];
+    s->encoder_time[1] = s->encoder_time[0];
+    s->encoder_time[0] = t;
+    if (isnan(s->encoder_time[2])) {   /* first step: at rest one step before the start */
+        s->encoder_time[2] = s->encoder_time[1] - (s->encoder_time[0] - s->encoder_time[1]);
+    }
+    s->estimate = (s->encoder[0] - s->encoder[2]) / (s->encoder_time[0] - s->encoder_time[2]);
+}
+
+fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
+    const ModelVariables *v = &inst->v;
+    ModelState *s = &inst->s;
+    double substep = h / v->substeps;
+    double omega = coupling_mode(v, s);   /* rad/s */
+    double tolerance = TIME_TOLERANCE * (h + fabs(t));   /* s */
+    if (omega * substep > RK4_STABILITY_MARGIN) {
+        slave_log_error(inst, "emps: substep %g s is too long for the %g rad/s coupling mode "
+                        "(increase substeps)", substep, omega);
+        return fmi2Error;
+    }
+    if (!command_delay_push(&s->delay, t, v->current_cmd, s->dead_time, tolerance)) {
+        slave_log_error(inst, "emps: more than %d communication steps within the dead time of "
+                        "%g s (use longer steps or a shorter dead time)", COMMAND_DELAY_CAPACITY,
+                        s->dead_time);
+        return fmi2Error;
+    }
+    if (!command_delay_advance(&s->delay, t, h, s->dead_time, v->substeps, tolerance,
+                               integrate_segment, inst)) {
+        return fmi2Error;
+    }
+    sample_encoder(v, s, t + h);
     return fmi2OK;
 }
 

@@ -2,9 +2,8 @@
 #ifndef MODEL_H
 #define MODEL_H
 
+#include "command_delay.h"
 #include "model_variables.h"
-
-#define COMMAND_BUFFER 65 /* dead_time_steps <= 64, plus the present command */
 
 typedef struct {
     /* states */
@@ -16,16 +15,17 @@ typedef struct {
     int direction;              /* sign of the sliding speed seen by Coulomb friction */
 
     /* discrete states of the drive and the velocity estimate */
-    double commands[COMMAND_BUFFER];    /* V, ring buffer of drive commands */
-    int newest;                         /* index of the newest command */
-    double applied;                     /* V, command acting in the last step */
+    CommandDelay delay;                 /* V, drive commands waiting out the dead time */
+    double applied;                     /* V, command acting at the end of the last step */
     double encoder[3];                  /* m, encoder positions at the last three points */
+    double encoder_time[3];             /* s, times of those points */
     double estimate;                    /* m/s, velocity estimate at the last point */
 
     /* constants derived from the parameters by model_initialize */
     double driven_mass;         /* kg, mass minus second_mass */
     double stiffness;           /* N/m, coupling */
     double damping;             /* N.s/m, coupling */
+    double dead_time;           /* s, dead_time_steps * sample_period */
 } ModelState;
 
 #endif

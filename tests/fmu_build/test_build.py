@@ -1,4 +1,5 @@
-"""Building drive2mass: layout, rebuild rules, validators, other importers, recompilable sources."""
+"""Building the FMUs: layout, rebuild rules, validators, other importers, recompilable sources,
+the generated model description (dependencies, log categories, default experiment)."""
 
 from __future__ import annotations
 
@@ -7,21 +8,24 @@ import subprocess
 import sys
 import zipfile
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from fmu_build import build
+from fmu_build import build, generate
+from fmu_build.variable_table import VariableTable
 from twin_cosim.plant import Plant
 
 
-def test_fmu_layout(fmu_path):
+def test_fmu_layout(model_fmu):
+    model, fmu_path = model_fmu
     names = set(zipfile.ZipFile(fmu_path).namelist())
     assert {
         "modelDescription.xml",
-        "binaries/linux64/drive2mass.so",
+        f"binaries/linux64/{model}.so",
         "documentation/index.html",
         "sources/fmi2_slave.c",
         "sources/model.c",
@@ -31,11 +35,12 @@ def test_fmu_layout(fmu_path):
     assert not any(name.startswith("sources/fmi2") and name.endswith(".h") for name in names)
 
 
-def test_fmpy_validate_reports_no_problem(fmu_path):
-    assert validate_fmu(str(fmu_path)) == []
+def test_fmpy_validate_reports_no_problem(model_fmu):
+    assert validate_fmu(str(model_fmu[1])) == []
 
 
-def test_fmutool_check_reports_no_problem(fmu_path):
+def test_fmutool_check_reports_no_problem(model_fmu):
+    fmu_path = model_fmu[1]
     result = subprocess.run(
         [str(Path(sys.executable).with_name("fmutool")), "-input", str(fmu_path), "-check"],
         capture_output=True,
@@ -48,10 +53,15 @@ def test_fmutool_check_reports_no_problem(fmu_path):
     assert "ERROR" not in output.replace("logStatusError", "")
 
 
-def test_model_description_follows_the_variable_table(fmu_path):
-    table = build.load_variable_table(
-        build.MODELS_DIR / "drive2mass" / "variables.yaml", build.COMMON_DIR / "units.yaml"
+def load_table(model: str) -> VariableTable:
+    return build.load_variable_table(
+        build.MODELS_DIR / model / "variables.yaml", build.COMMON_DIR / "units.yaml"
     )
+
+
+def test_model_description_follows_the_variable_table(model_fmu):
+    model, fmu_path = model_fmu
+    table = load_table(model)
     description = read_model_description(str(fmu_path))
     by_name = {v.name: v for v in description.modelVariables}
     assert set(by_name) == {v.name for v in table.variables}
@@ -66,7 +76,42 @@ def test_model_description_follows_the_variable_table(fmu_path):
             assert (xml.unit or "1") == v.unit
     outputs = [u.variable.name for u in description.outputs]
     assert outputs == [v.name for v in table.variables if v.causality == "output"]
-    assert {"N.m", "kg.m2", "rad/s"} <= {u.name for u in description.unitDefinitions}
+    units = {u.name: u.baseUnit for u in description.unitDefinitions}
+    for name, unit in units.items():
+        for base in ("kg", "m", "s", "A", "rad"):
+            assert getattr(unit, base) == table.units[name].get(base, 0), (name, base)
+
+
+def test_outputs_declare_their_direct_inputs(model_fmu):
+    model, fmu_path = model_fmu
+    table = load_table(model)
+    description = read_model_description(str(fmu_path))
+    assert description.outputs, "no ModelStructure outputs"
+    for unknown in description.outputs:
+        declared = table.by_name(unknown.variable.name).depends_on
+        # fmpy reads dependencies="" as an empty list: the output depends on no input
+        assert unknown.dependencies is not None, unknown.variable.name
+        assert [d.name for d in unknown.dependencies] == list(declared)
+        assert all(d.causality == "input" for d in unknown.dependencies)
+    state_outputs = [u for u in description.outputs if not u.dependencies]
+    assert {"motor_angle", "motor_speed", "load_position", "load_speed"} <= {
+        u.variable.name for u in state_outputs
+    }
+
+
+def test_default_experiment_step_is_the_sample_period(model_fmu):
+    model, fmu_path = model_fmu
+    description = read_model_description(str(fmu_path))
+    sample_period = next(v for v in description.modelVariables if v.name == "sample_period")
+    assert float(description.defaultExperiment.stepSize) == float(sample_period.start)
+    assert float(sample_period.start) == {"drive2mass": 62.5e-6, "emps": 1e-3}[model]
+
+
+def test_log_categories_are_declared(model_fmu):
+    root = ElementTree.parse(zipfile.ZipFile(model_fmu[1]).open("modelDescription.xml")).getroot()
+    names = [c.get("name") for c in root.iter("Category")]
+    assert names == [name for name, _ in generate.LOG_CATEGORIES]
+    assert {"logEvents", "logStatusError"} <= set(names)
 
 
 def test_simulates_in_fmpy_simulate_fmu(fmu_path):
@@ -83,6 +128,17 @@ def test_simulates_in_fmpy_simulate_fmu(fmu_path):
     late = result["time"] >= 0.2
     slope = np.polyfit(result["time"][late], speed[late], 1)[0]
     assert slope == pytest.approx((0.74 * current - 0.625) / (2.9e-4 + 4.2e-4), rel=0.01)
+
+
+def test_emps_simulates_in_fmpy_at_its_default_step():
+    """simulate_fmu without a step size uses DefaultExperiment's (the 1 ms sample period); 3 V
+    drives the axis to the speed where viscous friction takes the rest of the force."""
+    result = simulate_fmu(
+        str(build.build_fmu("emps")), stop_time=4.0, start_values={"current_cmd": 3.0}
+    )
+    gain, coulomb, offset, viscous = 35.15065188, 20.3935, -3.1648, 203.5034  # N/V, N, N, N.s/m
+    terminal = (gain * 3.0 - coulomb - offset) / viscous  # m/s
+    assert result["load_speed"][-1] == pytest.approx(terminal, rel=1e-3)
 
 
 def step_motor_speed(plant: Plant, current: float, k: int, h: float = 62.5e-6) -> float:
@@ -106,8 +162,8 @@ def test_two_instances_are_independent(fmu_path):
         assert interleaved_b[-1] < 0 < interleaved_a[-1]
 
 
-def test_sources_in_the_fmu_recompile(fmu_path, tmp_path):
-    with zipfile.ZipFile(fmu_path) as archive:
+def test_sources_in_the_fmu_recompile(model_fmu, tmp_path):
+    with zipfile.ZipFile(model_fmu[1]) as archive:
         archive.extractall(tmp_path)
     sources = sorted((tmp_path / "sources").glob("*.c"))
     subprocess.run(
@@ -156,3 +212,32 @@ def test_compiler_errors_are_reported(model_copy, tmp_path):
 def test_unknown_model_is_an_error():
     with pytest.raises(build.BuildError, match="unknown model 'nope'"):
         build.build_fmu("nope")
+
+
+@pytest.mark.parametrize("debug_logging", [True, False])
+def test_events_reach_fmpys_logger_only_with_debug_logging(model_fmu, debug_logging):
+    """fmpy instantiates with loggingOn = debug_logging and passes our logger callback; a push
+    then a release of the axis logs its breakaway and its sticking only when logging is on."""
+    messages = []
+
+    def logger(_environment, _instance, _status, category, message):
+        messages.append((category.decode(), message.decode()))
+
+    signal = np.array(
+        [(0.0, 3.0), (0.02, 3.0), (0.02, 0.0), (0.4, 0.0)],
+        dtype=[("time", float), ("current_cmd", float)],
+    )
+    simulate_fmu(
+        str(model_fmu[1]),
+        stop_time=0.4,
+        step_size=1e-4,
+        input=signal,
+        debug_logging=debug_logging,
+        logger=logger,
+    )
+    events = [m for c, m in messages if c == "logEvents"]
+    if debug_logging:
+        assert any("breaks away" in m for m in events), messages
+        assert any("sticks" in m for m in events), messages
+    else:
+        assert events == []

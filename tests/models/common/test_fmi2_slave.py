@@ -100,3 +100,113 @@ def test_reset_restores_start_values(plant):
     assert plant.fmu.getReal([position])[0] == pytest.approx(0.5)
     plant.start_run({})
     assert plant.fmu.getReal([position])[0] == 0.0
+
+
+# ---------------------------------------------------------------- both models
+
+
+def test_step_from_another_time_is_refused(any_plant):
+    any_plant.start_run({})
+    any_plant.fmu.doStep(0.0, 1e-3)
+    expect_error(
+        any_plant,
+        any_plant.fmu.doStep,
+        2e-3,
+        1e-3,
+        message="currentCommunicationPoint = 0.002 s is not the model time 0.001 s",
+    )
+
+
+def test_communication_points_within_the_tolerance_are_accepted(any_plant):
+    any_plant.start_run({}, start_time=10.0)
+    t = 10.0
+    for _ in range(100):
+        any_plant.fmu.doStep(t, 1e-3)
+        t = t + 1e-3  # summed, as some masters do: a few ulp from the model's time
+    any_plant.fmu.doStep(10.0 + 100 * 1e-3, 1e-3)
+
+
+def test_parameters_set_in_initialization_mode_show_at_once(any_plant):
+    fmu = any_plant.fmu
+    position = any_plant.value_reference("load_position")
+    start = any_plant.value_reference("load_position_start")
+    fmu.reset()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    assert fmu.getReal([position]) == [0.0]
+    fmu.setReal([start], [0.25])
+    assert fmu.getReal([position])[0] == pytest.approx(0.25, abs=1e-7)
+    fmu.exitInitializationMode()
+    assert fmu.getReal([position])[0] == pytest.approx(0.25, abs=1e-7)
+
+
+def test_inconsistent_parameters_read_in_initialization_mode_are_an_error(plant):
+    fmu = plant.fmu
+    fmu.reset()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.setReal([plant.value_reference("coulomb_asymmetry")], [5.0])  # > coulomb_friction
+    expect_error(plant, fmu.getReal, [0], message="coulomb_asymmetry = 5 is invalid")
+
+
+def test_unknown_log_category_is_refused(any_plant):
+    expect_error(
+        any_plant,
+        any_plant.fmu.setDebugLogging,
+        True,
+        ["logEvents", "logEverything"],
+        message='unknown log category "logEverything"',
+    )
+
+
+def events_of_a_stick_slip_run(plant: Plant, categories: list[str] | None) -> list[str]:
+    """Log messages of category logEvents over a push and a release of the axis."""
+    plant.start_run({})
+    if categories is not None:
+        plant.fmu.setDebugLogging(True, categories)
+    plant.messages.clear()
+    current = plant.value_reference("current_cmd")
+    h = 1e-4
+    for k in range(3000):
+        plant.fmu.setReal([current], [3.0 if k < 200 else 0.0])
+        plant.fmu.doStep(k * h, h)
+    return [m for m in plant.messages if m.startswith("[logEvents]")]
+
+
+def test_stick_slip_events_are_logged_when_asked_and_only_then(any_plant):
+    assert events_of_a_stick_slip_run(any_plant, None) == []
+    events = events_of_a_stick_slip_run(any_plant, ["logEvents"])
+    assert any("breaks away" in m for m in events), events
+    assert any("sticks" in m for m in events), events
+    assert events_of_a_stick_slip_run(any_plant, ["logStatusError"]) == events  # still on
+    any_plant.fmu.setDebugLogging(False, ["logEvents"])
+    assert events_of_a_stick_slip_run(any_plant, None) == []
+
+
+def test_step_limits_are_logged_as_events(any_plant):
+    any_plant.fmu.setDebugLogging(True, [])
+    any_plant.start_run({})
+    assert any(m.startswith("[logEvents]") and "substep limit" in m for m in any_plant.messages)
+
+
+def test_errors_are_logged_with_logging_off(any_plant):
+    any_plant.fmu.setDebugLogging(False, [])
+    any_plant.start_run({})
+    expect_error(any_plant, any_plant.fmu.doStep, 0.0, -1.0, message="[logStatusError]")
+
+
+def test_outputs_change_with_an_input_only_when_they_declare_it(any_plant):
+    """After a step from rest (the axis stuck), set each input anew and read every output: those
+    that change are exactly those whose ModelStructure dependencies list the input."""
+    description = any_plant.description
+    outputs = [u.variable for u in description.outputs]
+    declared = {u.variable.name: {d.name for d in u.dependencies} for u in description.outputs}
+    vr_out = [v.valueReference for v in outputs]
+    for name, value in (("current_cmd", 0.1), ("disturbance_torque", 0.05)):
+        any_plant.start_run({})
+        any_plant.fmu.doStep(0.0, 1e-4)
+        before = any_plant.fmu.getReal(vr_out)
+        any_plant.fmu.setReal([any_plant.value_reference(name)], [value])
+        after = any_plant.fmu.getReal(vr_out)
+        changed = {v.name for v, a, b in zip(outputs, after, before, strict=True) if a != b}
+        assert changed == {v.name for v in outputs if name in declared[v.name]}, name

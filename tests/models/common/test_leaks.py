@@ -11,18 +11,20 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from fmu_build.build import fmi_headers_dir
+from fmu_build.build import build_fmu, fmi_headers_dir
 
 HERE = Path(__file__).parent
 
 
 @pytest.mark.slow
-def test_no_leak_over_1000_cycles(fmu_path, tmp_path):
+@pytest.mark.parametrize("model", ["drive2mass", "emps"])
+def test_no_leak_over_1000_cycles(model, tmp_path):
     if shutil.which("valgrind") is None:
         pytest.fail("valgrind is not installed (.ci/run installs it with apt-get)")
+    fmu_path = build_fmu(model)
     with zipfile.ZipFile(fmu_path) as archive:
-        archive.extract("binaries/linux64/drive2mass.so", tmp_path)
-    binary = tmp_path / "binaries" / "linux64" / "drive2mass.so"
+        archive.extract(f"binaries/linux64/{model}.so", tmp_path)
+    binary = tmp_path / "binaries" / "linux64" / f"{model}.so"
     driver = tmp_path / "leak_check"
     subprocess.run(
         [

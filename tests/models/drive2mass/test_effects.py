@@ -453,3 +453,35 @@ def test_explicit_defaults_change_nothing_in_closed_loop(plant):
     default = run_scenario(plant, scenario)
     explicit = run_scenario(plant, scenario, plant_overrides=EFFECT_DEFAULTS)
     assert default.equals(explicit)
+
+
+@pytest.mark.parametrize("steps", [[H], [H, 0.3 * H, 1.7 * H, 0.55 * H]], ids=["H", "variable"])
+def test_dead_time_is_in_seconds_at_any_step(plant, steps):
+    """Lossless axis: total momentum J_M w_M + J_L w_L = K_t * integral of the delayed current,
+    which RK4 keeps exactly; the current acts dead_time_steps * sample_period late whatever the
+    communication steps, also when a delayed change falls inside a step."""
+    delay, switch_at = 7, 40 * H  # sample periods, s
+    pattern = np.resize(steps, 400)
+    times = np.concatenate([[0.0], np.cumsum(pattern)])
+    switch = times[np.searchsorted(times, switch_at)]
+    plant.start_run({**LOSSLESS, "dead_time_steps": delay})
+    vr_in = plant.value_reference("current_cmd")
+    vr_out = [plant.value_reference(n) for n in ("motor_speed", "load_speed", "current_applied")]
+    values = []
+    for t, t_next in zip(times[:-1], times[1:], strict=True):
+        plant.fmu.setReal([vr_in], [2.0 if t < switch else -1.0])
+        plant.fmu.doStep(t, t_next - t)
+        values.append(plant.fmu.getReal(vr_out))
+    motor_speed, load_speed, current = np.array(values).T
+    t = times[1:]
+    dead_time = delay * H
+    impulse = K_T * (
+        2.0 * np.clip(np.minimum(t, switch + dead_time) - dead_time, 0.0, None)
+        - 1.0 * np.clip(t - switch - dead_time, 0.0, None)
+    )  # N.m.s
+    momentum = J_M * motor_speed + J_L * load_speed / TRAVEL
+    np.testing.assert_allclose(momentum, impulse, rtol=1e-9, atol=1e-12)
+    # the command acting at the end of each step; a change exactly at the end acts in the next
+    late = dead_time + 1e-12
+    expected = np.where(t <= late, 0.0, np.where(t <= switch + late, 2.0, -1.0))
+    np.testing.assert_array_equal(current, expected)
