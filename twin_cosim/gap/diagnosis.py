@@ -22,14 +22,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from twin_cosim.cosim import run_scenario
-from twin_cosim.gap.effects import CALIBRATED, estimate_resolution, library_for
+from twin_cosim.gap.context import DiagnosisContext, build_context, training_residuals
+from twin_cosim.gap.effects import estimate_resolution
 from twin_cosim.gap.floors import (
     Floors,
     MetricComparison,
@@ -39,7 +39,6 @@ from twin_cosim.gap.floors import (
     noise_floors,
 )
 from twin_cosim.gap.location import Location, locate
-from twin_cosim.gap.outliers import screen_outliers
 from twin_cosim.gap.regimes import REGIMES
 from twin_cosim.gap.replay import Replays, ReplaySpec, TrainingData
 from twin_cosim.gap.residuals import (
@@ -50,175 +49,15 @@ from twin_cosim.gap.residuals import (
     residuals_of,
     validation_figures,
 )
-from twin_cosim.gap.selection import Judging, Round, Selector
+from twin_cosim.gap.selection import Judging, Round, Selection, Selector
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
-from twin_cosim.measured import MeasuredRun, check_against_reference, current_warnings
+from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
-from twin_cosim.scenario import Scenario, for_measured_run
+from twin_cosim.scenario import Scenario
 from twin_cosim.workers import make_pool
 
 ProgressFactory = Callable[[int, str], Callable[[int], None]]
-# Parameters every scenario sets for its own run (twin_cosim.scenario.for_measured_run); the
-# replays leave them to the scenario, never override them with the training run's values.
-PER_RUN_PARAMETERS = ("load_position_start",)
-
-
-@dataclass(frozen=True)
-class DiagnosisContext:
-    """What a diagnosis works on.
-
-    Attributes
-    ----------
-    scenario : Scenario
-        The training scenario.
-    fmu : Path
-        The plant FMU.
-    model : str
-        Its model identifier (selects the hypothesis library).
-    nominal : dict
-        Nominal FMU parameters: start values and the scenario's, less those each run sets for
-        itself (:data:`PER_RUN_PARAMETERS`: a held-out run starts where it was measured).
-    ranges : dict
-        (min, max) of every FMU parameter, from the variable table.
-    gear_ratio : float
-        Motor revolutions per screw revolution (1 for a model without gear).
-    dt : float
-        Sample period of the measured runs, s.
-    measured, holdout : list of str
-        The files given.
-    train : list of MeasuredRun
-        Training data.
-    training_scenarios : list of Scenario
-        Distinct scenarios the training runs follow (their own reference and disturbance when
-        the scenario's reference comes from a measured file).
-    train_scenario_of_run : list of int
-        Per training run, the index of its scenario.
-    judged : list of MeasuredRun
-        Held-out data.
-    judging_scenarios : list of Scenario
-        Distinct scenarios the held-out runs follow.
-    scenario_of_run : list of int
-        Per held-out run, the index of its scenario.
-    train_end : float
-        End of the training window (time split), or of the training runs, s.
-    split : str
-        How the data were split, in words.
-    warnings : list of str
-        Problems that did not stop the diagnosis.
-    """
-
-    scenario: Scenario
-    fmu: Path
-    model: str
-    nominal: dict[str, float]
-    ranges: dict[str, tuple[float, float]]
-    gear_ratio: float
-    dt: float
-    measured: list[str]
-    holdout: list[str]
-    train: list[MeasuredRun]
-    training_scenarios: list[Scenario]
-    train_scenario_of_run: list[int]
-    judged: list[MeasuredRun]
-    judging_scenarios: list[Scenario]
-    scenario_of_run: list[int]
-    train_end: float
-    split: str
-    warnings: list[str]
-
-
-def variable_ranges(plant: Plant) -> dict[str, tuple[float, float]]:
-    """(min, max) of every real variable of the FMU (unbounded sides as infinities)."""
-    ranges = {}
-    for variable in plant.description.modelVariables:
-        low = float(variable.min) if variable.min is not None else -np.inf
-        high = float(variable.max) if variable.max is not None else np.inf
-        ranges[variable.name] = (low, high)
-    return ranges
-
-
-def _checked(runs: list[MeasuredRun], scenarios: list[Scenario], settings, limit) -> tuple:
-    """Runs checked against their reference, outliers repaired; and the warnings."""
-    checked, warnings = [], []
-    for run, applies in zip(runs, scenarios, strict=True):
-        check_against_reference(run, applies.reference)
-        run, found = screen_outliers(run, settings.outlier_share)
-        checked.append(run)
-        warnings += run.warnings + found + current_warnings(run, limit)
-    return checked, warnings
-
-
-def _distinct(scenarios: list[Scenario]) -> tuple[list[Scenario], list[int]]:
-    """The distinct scenarios of a list (by identity) and each item's index among them."""
-    distinct: list[Scenario] = []
-    index_of = []
-    for applies in scenarios:
-        index = next((i for i, s in enumerate(distinct) if s is applies), None)
-        if index is None:
-            distinct.append(applies)
-            index = len(distinct) - 1
-        index_of.append(index)
-    return distinct, index_of
-
-
-def build_context(
-    scenario: Scenario,
-    measured: list[MeasuredRun],
-    holdout: list[MeasuredRun],
-    fmu: str | None,
-    settings: DiagnosisSettings,
-) -> DiagnosisContext:
-    """Stage 1: the runs checked and split, the plant model and its ranges."""
-    with Plant(Path(fmu) if fmu else scenario.fmu) as plant:
-        fmu_path = plant.fmu_path
-        model = plant.description.coSimulation.modelIdentifier
-        library_for(model)  # an unknown model is refused here, before any work
-        nominal = {
-            k: v
-            for k, v in {**plant.start_values(), **scenario.plant_parameters}.items()
-            if k not in PER_RUN_PARAMETERS
-        }
-        ranges = variable_ranges(plant)
-    following = [for_measured_run(scenario, run) for run in measured]
-    judging_of_holdout = [for_measured_run(scenario, run) for run in holdout]
-    limit = scenario.settings.current_limit
-    train_runs, warnings = _checked(measured, following, settings, limit)
-    held_runs, held_warnings = _checked(holdout, judging_of_holdout, settings, limit)
-    warnings += held_warnings
-    training, train_scenario_of_run = _distinct(following)
-    if held_runs:
-        judging, scenario_of_run = _distinct(judging_of_holdout)
-        train, judged = train_runs, held_runs
-        train_end = max(float(r.t[-1]) for r in train_runs)
-        split = f"held-out runs {[r.source for r in held_runs]}"
-    else:
-        starts = [r.t[0] + settings.split * (r.t[-1] - r.t[0]) for r in train_runs]
-        train_end = float(min(starts))
-        train = [r.select(r.t < train_end) for r in train_runs]
-        judged = [r.select(r.t >= train_end) for r in train_runs]
-        judging, scenario_of_run = training, train_scenario_of_run
-        split = f"time split at t = {train_end:.4g} s"
-    return DiagnosisContext(
-        scenario,
-        fmu_path,
-        model,
-        nominal,
-        ranges,
-        float(nominal.get("gear_ratio", 1.0)),
-        measured[0].period,
-        [r.source for r in measured],
-        [r.source for r in holdout],
-        train,
-        training,
-        train_scenario_of_run,
-        judged,
-        judging,
-        scenario_of_run,
-        train_end,
-        split,
-        warnings,
-    )
 
 
 @dataclass(frozen=True)
@@ -446,16 +285,6 @@ def _unexplained(before: Residuals, after: Residuals) -> dict[str, float]:
     return shares
 
 
-def _training_residuals(context: DiagnosisContext, records: list[pd.DataFrame]) -> Residuals:
-    """Training residuals, each run against the replay of the scenario it follows."""
-    k = context.train_scenario_of_run
-    return residuals_of(
-        context.train,
-        [records[i] for i in k],
-        [context.training_scenarios[i].reference for i in k],
-    )
-
-
 def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float], Replays]:
     """Stage 2a: the noise harmonics from the replay of the nominal twin, and the replays of
     the twin with them (in this process: a few replays do not pay for a pool)."""
@@ -466,7 +295,7 @@ def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float
 
         first = replay(context.training_scenarios, context.nominal)
         noise = identify_noise(
-            _training_residuals(context, first), context.dt, context.ranges, context.nominal
+            training_residuals(context, first), context.dt, context.ranges, context.nominal
         )
         nominal = {**context.nominal, **noise.plant_parameters}
         if noise.plant_parameters:
@@ -516,27 +345,9 @@ def diagnose(
     context = build_context(scenario, measured, holdout or [], fmu, settings)
     noise, nominal, start = _noise_stage(context)
     resolution = estimate_resolution(np.concatenate([r.x for r in context.train]))
-    train0 = _training_residuals(context, start.training)
+    train0 = training_residuals(context, start.training)
     floors = noise_floors(train0, context.dt, resolution)
-    training = TrainingData(
-        [r.t for r in context.train],
-        [r.x for r in context.train],
-        [r.current for r in context.train],
-        context.train_scenario_of_run,
-        floors.sigma_position_m,
-        floors.sigma_current,
-        context.train_end,
-    )
-    spec = ReplaySpec(
-        context.training_scenarios,
-        context.judging_scenarios,
-        str(context.fmu),
-        nominal,
-        training,
-        context.model,
-        context.ranges,
-    )
-    pool = make_pool(spec, workers)
+    pool = make_pool(_replay_spec(context, nominal, floors), workers)
     try:
         judging = Judging(
             context.judged,
@@ -553,65 +364,28 @@ def diagnose(
             context.dt,
             settings,
         )
-        library = settings.hypotheses or [h.name for h in library_for(context.model)]
-        calibrated = len([n for n in CALIBRATED.get(context.model, ()) if n in nominal])
-        total = (
-            (2 * calibrated + 2) * (settings.max_effects + 2)
-            + 2 * len(library)
-            + 2 * (settings.later_round_candidates + 2) * settings.max_effects
-        )
-        tick = progress(total, "diagnose") if progress else None
         selector = Selector(
             pool,
-            context.model,
+            context,
             nominal,
             judging,
-            lambda records: _training_residuals(context, records),
-            context.gear_ratio,
-            sum(float(r.t[-1] - r.t[0]) for r in context.train),
             settings,
             {
                 "position_resolution": resolution,
                 "dead_time_steps": nominal.get("dead_time_steps", 0.0),
             },
-            tick,
         )
+        if progress:
+            selector.progress = progress(selector.expected_tasks(), "diagnose")
         selection = selector.run(start)
-        final = selection.replays
-        hold_final = judging.residuals(final)
-        floor, calibrated_final = selection.floor, selection.calibrated
     finally:
         pool.close()
-    metrics_before = judging.metrics(start, settings)
-    metrics_after = judging.metrics(final, settings)
+    final = selection.replays
+    hold_final = judging.residuals(final)
     significant = selection.rounds[0].significant
-    left_significant = is_significant(
-        judging.metrics(calibrated_final, settings), floor.left, settings
+    remaining, remaining_where, verdict = _verdict_stage(
+        context, settings, judging, selection, hold_final
     )
-    remaining_where = locate(
-        hold_final,
-        floors.sigma_position_m,
-        floors.sigma_current,
-        context.gear_ratio,
-        context.dt,
-        settings,
-    )
-    remaining = remaining_of(
-        selection.rounds[0].holdout_rms,
-        floor,
-        left_significant and significant,
-        remaining_where,
-        hold_final.position_rms_um(),
-        hold_final.current_rms(),
-    )
-    below = [
-        c.name
-        for c in (selection.rounds[0].candidates if not selection.rounds[0].accepted else [])
-        if c.reduction >= settings.accept_reduction and c.consistent and not c.passes
-    ]
-    groups = [r.accepted for r in selection.rounds if r.accepted]
-    verdict = verdict_text(significant, groups, below, remaining)
-    held_runs = _held_out_runs(judging, context.judging_scenarios, start, final)
     return Diagnosis(
         context,
         settings,
@@ -620,12 +394,12 @@ def diagnose(
         where,
         selection.rounds,
         significant,
-        metrics_before,
-        metrics_after,
+        judging.metrics(start, settings),
+        judging.metrics(final, settings),
         remaining,
         remaining_where,
         verdict,
-        held_runs,
+        _held_out_runs(judging, context.judging_scenarios, start, final),
         selection.plant_parameters,
         validation_figures(joined([train0, hold0])),
         start.training[0],
@@ -634,6 +408,68 @@ def diagnose(
         hold0,
         hold_final,
     )
+
+
+def _replay_spec(
+    context: DiagnosisContext, nominal: dict[str, float], floors: Floors
+) -> ReplaySpec:
+    """The recipe of the replay workers: scenarios, nominal plant, training data at the floors."""
+    training = TrainingData(
+        [r.t for r in context.train],
+        [r.x for r in context.train],
+        [r.current for r in context.train],
+        context.train_scenario_of_run,
+        floors.sigma_position_m,
+        floors.sigma_current,
+        context.train_end,
+    )
+    return ReplaySpec(
+        context.training_scenarios,
+        context.judging_scenarios,
+        str(context.fmu),
+        nominal,
+        training,
+        context.model,
+        context.ranges,
+    )
+
+
+def _verdict_stage(
+    context: DiagnosisContext,
+    settings: DiagnosisSettings,
+    judging: Judging,
+    selection: Selection,
+    hold_final: Residuals,
+) -> tuple[Remaining, Location, str]:
+    """Stage 5: what is left of the held-out gap, where, and the verdict in words."""
+    floors = judging.floors
+    first = selection.rounds[0]
+    left_significant = is_significant(
+        judging.metrics(selection.calibrated, settings), selection.floor.left, settings
+    )
+    where = locate(
+        hold_final,
+        floors.sigma_position_m,
+        floors.sigma_current,
+        context.gear_ratio,
+        context.dt,
+        settings,
+    )
+    remaining = remaining_of(
+        first.holdout_rms,
+        selection.floor,
+        left_significant and first.significant,
+        where,
+        hold_final.position_rms_um(),
+        hold_final.current_rms(),
+    )
+    below = [
+        c.name
+        for c in (first.candidates if not first.accepted else [])
+        if c.reduction >= settings.accept_reduction and c.consistent and not c.passes
+    ]
+    groups = [r.accepted for r in selection.rounds if r.accepted]
+    return remaining, where, verdict_text(first.significant, groups, below, remaining)
 
 
 def _held_out_runs(

@@ -41,6 +41,7 @@ from twin_cosim.gap.calibration import (
     floor_of,
     normalised_vector,
 )
+from twin_cosim.gap.context import DiagnosisContext, training_residuals
 from twin_cosim.gap.effects import CALIBRATED, DEFAULT_CONTEXT, Hypothesis, library_for
 from twin_cosim.gap.floors import Floors, MetricComparison, compare_metrics, is_significant
 from twin_cosim.gap.location import dominant_order
@@ -206,19 +207,16 @@ class Selector:
     ----------
     pool
         Pool of :class:`~twin_cosim.gap.replay.Replayer` workers.
-    model : str
-        Plant model (selects the hypothesis library and the calibrated parameters).
+    context : DiagnosisContext
+        The runs, the plant model (hypothesis library and calibrated parameters), the gear ratio.
     nominal : dict
         Nominal FMU parameters of the twin (noise model included).
     judging : Judging
         The held-out runs.
-    training_residuals : callable
-        Training residuals from the training scenarios' replays.
-    gear_ratio : float
-        Motor revolutions per screw revolution.
-    train_seconds : float
-        Length of the training data, s (for the BIC).
     settings : DiagnosisSettings
+    hypothesis_context : dict
+        Data-derived settings of the hypotheses besides the orders (encoder resolution, nominal
+        dead time).
     progress : callable or None
         Called with the number of tasks done.
     """
@@ -226,31 +224,33 @@ class Selector:
     def __init__(
         self,
         pool,
-        model: str,
+        context: DiagnosisContext,
         nominal: dict[str, float],
         judging: Judging,
-        training_residuals: Callable[[list], Residuals],
-        gear_ratio: float,
-        train_seconds: float,
         settings: DiagnosisSettings,
-        context: dict[str, float],
+        hypothesis_context: dict[str, float],
         progress: Progress | None = None,
     ) -> None:
         self.pool = pool
-        self.library: dict[str, Hypothesis] = {h.name: h for h in library_for(model)}
-        self.calibrated = [n for n in CALIBRATED.get(model, ()) if n in nominal]
+        self.run_context = context
+        self.library: dict[str, Hypothesis] = {h.name: h for h in library_for(context.model)}
+        self.calibrated = [n for n in CALIBRATED.get(context.model, ()) if n in nominal]
         self.nominal = nominal
         self.judging = judging
-        self.training_residuals = training_residuals
-        self.gear_ratio = gear_ratio
-        self.train_seconds = train_seconds
+        self.gear_ratio = context.gear_ratio
+        self.train_seconds = sum(float(r.t[-1] - r.t[0]) for r in context.train)
         self.settings = settings
-        self.base_context = context
+        self.base_context = hypothesis_context
         self.progress = progress
 
-    def tasks_per_round(self, fits: int) -> int:
-        """Pool tasks of a round with ``fits`` fits (for progress bars)."""
-        return 2 * len(self.calibrated) + 1 + 2 * fits
+    def expected_tasks(self) -> int:
+        """Pool tasks of a selection that accepts the most effects (for progress bars)."""
+        per_round = 2 * len(self.calibrated) + 2
+        first = len(self.settings.hypotheses or self.library)
+        periodic = sum(1 for h in self.library.values() if h.periodic_in)
+        later = periodic + self.settings.later_round_candidates
+        rounds = self.settings.max_effects
+        return per_round * (rounds + 1) + 2 * first + 2 * later * (rounds - 1)
 
     def basis(self, base: dict[str, float]) -> CalibrationBasis:
         """Calibration directions around the parameter set ``nominal + base``."""
@@ -305,7 +305,7 @@ class Selector:
             last = (floor, calibrated)
             metrics = self.judging.metrics(calibrated, settings)
             significant = is_significant(metrics, floor.left, settings)
-            context = self.context(self.training_residuals(replays.training))
+            context = self.context(training_residuals(self.run_context, replays.training))
             current = Round(
                 len(rounds) + 1,
                 context,

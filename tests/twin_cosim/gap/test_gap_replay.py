@@ -14,7 +14,7 @@ BY_NAME = {h.name: h for h in LIBRARY}
 
 def test_position_friction_at_its_fit_bounds_is_clipped_to_the_fmu_range(plant):
     """cos and sin parts at 0.9 each give an amplitude of 1.27 > the FMU's 0.99."""
-    from twin_cosim.gap.diagnosis import variable_ranges
+    from twin_cosim.gap.context import variable_ranges
 
     ranges = variable_ranges(plant)
     hypothesis = BY_NAME["position_friction"]
