@@ -55,6 +55,7 @@ import yaml
 from fmu_build.build import DEFAULT_MODEL, BuildError, build_fmu
 from twin_cosim import paper
 from twin_cosim.controller import TUNED_NAMES, ControllerSettings, TunedParameters
+from twin_cosim.environment import DATA_ENV
 from twin_cosim.measured import MeasuredDataError, MeasuredRun, read_measured
 from twin_cosim.plant_facts import DRIVE_FACTS, drive_facts, fmu_identity, model_start_values
 from twin_cosim.reference import (
@@ -69,7 +70,6 @@ from twin_cosim.reference import (
     sample_segments,
 )
 
-DATA_ENV = "TWIN_COSIM_DATA"
 TOP_KEYS = {
     "name",
     "description",
@@ -262,7 +262,7 @@ def _measured_path(check: _Checker, data: dict[str, Any]) -> Path:
     about = data.get("data_source")
     raise ScenarioError(
         f"{check.source}: reference.measured: {relative.name} not found (looked in "
-        f"{', '.join(str(p.parent) for p in candidates)}). "
+        f"{', '.join(os.path.normpath(p.parent) for p in candidates)}). "
         + (f"{about} " if about else "")
         + f"Give the folder that holds {relative.name} with --data DIR or the environment "
         f"variable {DATA_ENV}=DIR."
@@ -521,8 +521,8 @@ def plant_mismatch(scenario: Scenario, fmu: Path) -> str | None:
     if names != expected_names:
         missing, extra = sorted(expected_names - names), sorted(names - expected_names)
         differences.append(
-            f"variables missing: {missing[:8]}{' ...' if len(missing) > 8 else ''}, "
-            f"variables added: {extra[:8]}{' ...' if len(extra) > 8 else ''}"
+            f"variables missing: {missing[:5]}{' ...' if len(missing) > 5 else ''}, "
+            f"variables added: {extra[:5]}{' ...' if len(extra) > 5 else ''}"
         )
     return (
         f"{scenario.source} was made for the plant model {expected!r}, but {fmu} is model "
