@@ -15,11 +15,14 @@ import platform
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fmu_build.build import CACHE_ENV, DEFAULT_MODEL, available_models
 from twin_cosim.environment import DATA_ENV
 from twin_cosim.optimize.methods import METHOD_NAMES, method_list
+
+if TYPE_CHECKING:
+    from twin_cosim.scenario import Scenario
 
 
 def user_errors() -> tuple[type[Exception], ...]:
@@ -33,7 +36,7 @@ def user_errors() -> tuple[type[Exception], ...]:
     return (BuildError, VariableTableError, PlantError, ScenarioError, ReferenceError, ValueError)
 
 
-def warn_plant_mismatch(scenario, fmu: Path | None) -> list[str]:
+def warn_plant_mismatch(scenario: Scenario, fmu: Path | None) -> list[str]:
     """Warn on stderr when ``--plant`` is another model than the scenario's; the warnings."""
     from twin_cosim.scenario import plant_mismatch
 
@@ -195,6 +198,10 @@ def _optimize(args: argparse.Namespace) -> int:
     else:
         if args.method is None:
             raise ValueError(f"--method is required ({method_list()}) unless --resume is given")
+        if args.plant:
+            from twin_cosim.scenario import load_scenario
+
+            warn_plant_mismatch(load_scenario(args.scenario), Path(args.plant))
         spec = CampaignSpec(
             scenario=args.scenario,
             method=args.method,
@@ -265,6 +272,7 @@ def _synth(args: argparse.Namespace) -> int:
     from twin_cosim.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
+    warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
     effects = [parse_effect(text) for text in args.effect]
     synthesis = synthesize(
         scenario,
