@@ -28,9 +28,10 @@ import sys
 import tempfile
 import zipfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from fmu_build import generate
-from fmu_build.variable_table import VariableTable, load_variable_table
+if TYPE_CHECKING:
+    from fmu_build.variable_table import VariableTable
 
 
 def _models_dir() -> Path:
@@ -186,6 +187,9 @@ def build_fmu(
 
 def _pack(model: str, model_dir: Path) -> bytes:
     """Generate, compile and zip the FMU of ``model``; the archive's bytes."""
+    from fmu_build import generate
+    from fmu_build.variable_table import load_variable_table
+
     table = load_variable_table(model_dir / "variables.yaml", COMMON_DIR / "units.yaml")
     readme = model_dir / "README.md"
     with tempfile.TemporaryDirectory(prefix=f"{model}-fmu-") as tmp:

@@ -15,6 +15,7 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
 from fmu_build import build
+from fmu_build.variable_table import load_variable_table
 from twin_cosim.plant import Plant
 
 
@@ -50,7 +51,7 @@ def test_fmutool_check_reports_no_problem(fmu_path):
 
 
 def test_model_description_follows_the_variable_table(fmu_path):
-    table = build.load_variable_table(
+    table = load_variable_table(
         build.MODELS_DIR / "drive2mass" / "variables.yaml", build.COMMON_DIR / "units.yaml"
     )
     description = read_model_description(str(fmu_path))
