@@ -1,30 +1,49 @@
-"""The ``twin`` command line: build, simulate, optimize, compare."""
+"""The ``twin`` command line: build, simulate, optimize, compare.
+
+Only the standard library and the light registries are imported at start, so that ``twin
+--help`` answers at once; each command imports what it needs (numpy, pandas, fmpy, numba,
+matplotlib) when it runs.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from fmu_build.build import DEFAULT_MODEL, BuildError, available_models, build_fmu
-from fmu_build.variable_table import VariableTableError
-from twin_cosim.metrics import compute_metrics
-from twin_cosim.plant import Plant, PlantError
-from twin_cosim.reference import ReferenceError
-from twin_cosim.scenario import ScenarioError, load_scenario, load_tuned_parameters
+from fmu_build.build import CACHE_ENV, DEFAULT_MODEL, available_models
+from twin_cosim.environment import DATA_ENV
+from twin_cosim.optimize.methods import METHOD_NAMES, method_list
 
-USER_ERRORS = (
-    BuildError,
-    VariableTableError,
-    PlantError,
-    ScenarioError,
-    ReferenceError,
-    ValueError,
-)
+if TYPE_CHECKING:
+    from twin_cosim.scenario import Scenario
+
+
+def user_errors() -> tuple[type[Exception], ...]:
+    """The exceptions that are the user's mistakes: a message and exit status 2."""
+    from fmu_build.build import BuildError
+    from fmu_build.variable_table import VariableTableError
+    from twin_cosim.plant import PlantError
+    from twin_cosim.reference import ReferenceError
+    from twin_cosim.scenario import ScenarioError
+
+    return (BuildError, VariableTableError, PlantError, ScenarioError, ReferenceError, ValueError)
+
+
+def warn_plant_mismatch(scenario: Scenario, fmu: Path | None) -> list[str]:
+    """Warn on stderr when ``--plant`` is another model than the scenario's; the warnings."""
+    from twin_cosim.scenario import plant_mismatch
+
+    warning = None if fmu is None else plant_mismatch(scenario, fmu)
+    if warning is None:
+        return []
+    print(f"twin: warning: {warning}", file=sys.stderr)
+    return [warning]
 
 
 def versions() -> dict[str, str]:
@@ -46,6 +65,8 @@ def write_json(path: Path, data: dict[str, Any]) -> None:
 
 
 def _build(args: argparse.Namespace) -> int:
+    from fmu_build.build import build_fmu
+
     path = build_fmu(args.model, Path(args.out) if args.out else None, force=args.force)
     print(path)
     return 0
@@ -53,11 +74,15 @@ def _build(args: argparse.Namespace) -> int:
 
 def _simulate(args: argparse.Namespace) -> int:
     from twin_cosim.cosim import run_scenario
+    from twin_cosim.metrics import compute_metrics
+    from twin_cosim.plant import Plant
     from twin_cosim.plots import plot_run
+    from twin_cosim.scenario import load_scenario, load_tuned_parameters
 
     scenario = load_scenario(args.scenario)
     tuned = load_tuned_parameters(args.params) if args.params else scenario.tuned
     fmu = Path(args.plant) if args.plant else scenario.fmu
+    warnings = warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
     out = Path(args.out) if args.out else Path("out") / scenario.name
     out.mkdir(parents=True, exist_ok=True)
     with Plant(fmu) as plant:
@@ -90,6 +115,7 @@ def _simulate(args: argparse.Namespace) -> int:
         "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
         "wall_s": wall,
         "outputs": {"record": str(out / "record.csv"), "plot": str(out / "run.png")},
+        "warnings": warnings,
         "versions": versions(),
     }
     write_json(out / "summary.json", summary)
@@ -116,10 +142,15 @@ def _simulate(args: argparse.Namespace) -> int:
 
 def _table3(args: argparse.Namespace) -> int:
     from twin_cosim import paper
+    from twin_cosim.metrics import compute_metrics
+    from twin_cosim.plant import Plant
     from twin_cosim.plots import plot_error_comparison
     from twin_cosim.report import evaluate_sets, markdown_table
+    from twin_cosim.scenario import load_scenario
 
     scenarios = {str(path): load_scenario(path) for path in args.scenarios}
+    for scenario in scenarios.values():
+        warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
     out = Path(args.out) if args.out else Path("out") / "table3"
     out.mkdir(parents=True, exist_ok=True)
     sets = {name.upper(): tuned for name, tuned in paper.TABLE3.items()}
@@ -165,9 +196,11 @@ def _optimize(args: argparse.Namespace) -> int:
         out = Path(args.resume)
     else:
         if args.method is None:
-            raise ValueError(
-                "--method is required (ce, ga, sa, cmaes or de) unless --resume is given"
-            )
+            raise ValueError(f"--method is required ({method_list()}) unless --resume is given")
+        if args.plant:
+            from twin_cosim.scenario import load_scenario
+
+            warn_plant_mismatch(load_scenario(args.scenario), Path(args.plant))
         spec = CampaignSpec(
             scenario=args.scenario,
             method=args.method,
@@ -236,6 +269,7 @@ def _compare(args: argparse.Namespace) -> int:
 def _emps_gains(scenario, follow, fmu) -> dict[str, float]:
     """kp, kv, gtau of an EMPS-format run: the followed run's, else the scenario's."""
     from twin_cosim.measured import read_measured
+    from twin_cosim.plant import Plant
 
     measured = read_measured(follow) if follow else None
     scalars = measured.extra if measured else {}
@@ -257,9 +291,10 @@ def _synth(args: argparse.Namespace) -> int:
     from twin_cosim.emps_runs import write_emps_mat
     from twin_cosim.gap.synth import parse_effect, synthesize
     from twin_cosim.measured import read_measured
-    from twin_cosim.scenario import for_measured_run
+    from twin_cosim.scenario import for_measured_run, load_scenario
 
     scenario = load_scenario(args.scenario)
+    warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
     if args.follow:
         scenario = for_measured_run(scenario, read_measured(args.follow))
     effects = [parse_effect(text) for text in args.effect]
@@ -316,8 +351,10 @@ def _diagnose(args: argparse.Namespace) -> int:
     from twin_cosim.gap.report import write_report
     from twin_cosim.gap.settings import settings_from
     from twin_cosim.measured import read_measured
+    from twin_cosim.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
+    mismatch = warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
     measured = [read_measured(path) for path in args.measured]
     holdout = [read_measured(path) for path in args.holdout or []]
     settings = settings_from(scenario, args.split, args.max_effects)
@@ -334,7 +371,11 @@ def _diagnose(args: argparse.Namespace) -> int:
         workers=args.workers,
         progress=_progress_bar(show),
     )
-    extra = {"wall_s": time.perf_counter() - start, "versions": versions()}
+    extra = {
+        "wall_s": time.perf_counter() - start,
+        "versions": versions(),
+        "warnings": mismatch + result.summary()["warnings"],
+    }
     out = Path(args.out) if args.out else Path("out") / f"diagnosis-{scenario.name}"
     files = write_report(result, out, extra)
     summary = {**result.summary(), **extra}
@@ -355,24 +396,68 @@ def _diagnose(args: argparse.Namespace) -> int:
     return 0
 
 
+class HelpFormatter(argparse.HelpFormatter):
+    """Help that shows every option's default: the value, or what the help text says it is."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if "default" in text or action.default in (None, argparse.SUPPRESS):
+            return text
+        if action.default is False:
+            return f"{text} (default: off)"
+        return f"{text} (default: %(default)s)"
+
+
+def _data_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--data",
+        metavar="DIR",
+        help=f"folder of measured data files, e.g. the EMPS benchmark's DATA_EMPS.mat "
+        f"(default: ${DATA_ENV}, else the path in the scenario)",
+    )
+
+
+def _plant_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--plant",
+        metavar="FMU",
+        help="another FMU offering the plant contract (default: the scenario's plant)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``twin``."""
-    parser = argparse.ArgumentParser(prog="twin", description="Digital twin of a CNC feed axis")
+    parser = argparse.ArgumentParser(
+        prog="twin", description="Digital twin of a CNC feed axis", formatter_class=HelpFormatter
+    )
     commands = parser.add_subparsers(dest="command", required=True)
 
-    build = commands.add_parser("build", help="build a plant FMU from models/<MODEL>")
+    def command(name: str, help: str) -> argparse.ArgumentParser:
+        return commands.add_parser(name, help=help, formatter_class=HelpFormatter)
+
+    build = command("build", "build a plant FMU from models/<MODEL>")
     build.add_argument(
         "model", nargs="?", default=DEFAULT_MODEL, help=f"one of {available_models()}"
     )
-    build.add_argument("--out", help="output folder (default: build/)")
+    build.add_argument(
+        "--out",
+        metavar="DIR",
+        help=f"output folder (default: the per-user cache, ${CACHE_ENV} or "
+        "$XDG_CACHE_HOME/twin-cosim, one folder per source version)",
+    )
     build.add_argument("--force", action="store_true", help="rebuild even if up to date")
     build.set_defaults(handler=_build)
 
-    simulate = commands.add_parser("simulate", help="run a scenario in closed loop")
-    simulate.add_argument("scenario", help="scenario YAML file")
-    simulate.add_argument("--params", help="ft|ga|ce|sa (paper Table 3) or a YAML/JSON file")
-    simulate.add_argument("--plant", help="another FMU offering the plant contract")
-    simulate.add_argument("--out", help="output folder (default: out/<scenario name>)")
+    simulate = command("simulate", "run a scenario in closed loop")
+    simulate.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
+    simulate.add_argument(
+        "--params",
+        help="ft|ga|ce|sa (paper Table 3) or a YAML/JSON file (default: the scenario's)",
+    )
+    _plant_option(simulate)
+    simulate.add_argument(
+        "--out", metavar="DIR", help="output folder (default: out/<scenario name>)"
+    )
     simulate.add_argument(
         "--json", action="store_true", help="print the summary as one JSON object"
     )
@@ -381,99 +466,132 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="step through fmpy in plain Python instead of the compiled loop",
     )
+    _data_option(simulate)
     simulate.set_defaults(handler=_simulate)
 
-    optimize = commands.add_parser(
-        "optimize", help="tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H]"
+    optimize = command("optimize", "tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H]")
+    optimize.add_argument(
+        "scenario", help="scenario YAML file or shipped name (its optimize section)"
     )
-    optimize.add_argument("scenario", help="scenario YAML file (its optimize section)")
-    optimize.add_argument("--method", choices=["ce", "ga", "sa", "cmaes", "de"])
-    optimize.add_argument("--seed", type=int, help="seed (default 0)")
+    optimize.add_argument(
+        "--method", choices=METHOD_NAMES, help="optimizer (default: none; required unless --resume)"
+    )
+    optimize.add_argument("--seed", type=int, help="seed (default: 0)")
     optimize.add_argument("--budget", type=int, help="maximum evaluations (default: the method's)")
     optimize.add_argument(
         "--workers", type=int, help="local processes (default: all cores; 1: serial)"
     )
-    optimize.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://host:8786")
-    optimize.add_argument("--plant", help="another FMU offering the plant contract")
-    optimize.add_argument("--out", help="campaign folder (default: out/optimize-<method>-seed<N>)")
-    optimize.add_argument("--resume", help="campaign folder to resume")
+    optimize.add_argument(
+        "--scheduler",
+        metavar="ADDR",
+        help="Dask scheduler address, e.g. tcp://host:8786 (default: none, a local pool)",
+    )
+    _plant_option(optimize)
+    optimize.add_argument(
+        "--out", metavar="DIR", help="campaign folder (default: out/optimize-<method>-seed<N>)"
+    )
+    optimize.add_argument(
+        "--resume", metavar="DIR", help="campaign folder to resume (default: a new campaign)"
+    )
     optimize.add_argument("--json", action="store_true", help="print the result as one JSON object")
     optimize.add_argument("--quiet", action="store_true", help="no progress bar")
+    _data_option(optimize)
     optimize.set_defaults(handler=_optimize)
 
-    compare = commands.add_parser(
-        "compare", help="several methods on one campaign file: Tables 3-5"
-    )
+    compare = command("compare", "several methods on one campaign file: Tables 3-5")
     compare.add_argument("campaign", help="campaign YAML file (see scenarios/paper_campaign.yaml)")
-    compare.add_argument("--methods", help="comma-separated subset of the campaign's methods")
+    compare.add_argument(
+        "--methods",
+        help="comma-separated subset of the campaign's methods (default: all of them)",
+    )
     compare.add_argument("--workers", type=int, help="local processes (default: all cores)")
-    compare.add_argument("--scheduler", help="Dask scheduler address")
-    compare.add_argument("--out", help="output folder (default: out/<campaign name>)")
+    compare.add_argument(
+        "--scheduler", metavar="ADDR", help="Dask scheduler address (default: none, a local pool)"
+    )
+    compare.add_argument(
+        "--out", metavar="DIR", help="output folder (default: out/<campaign name>)"
+    )
     compare.add_argument("--quiet", action="store_true", help="no progress bars")
+    _data_option(compare)
     compare.set_defaults(handler=_compare)
 
-    synth = commands.add_parser(
-        "synth", help="the virtual machine: a measured run with known effects"
-    )
-    synth.add_argument("scenario", help="scenario YAML file")
+    synth = command("synth", "the virtual machine: a measured run with known effects")
+    synth.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     synth.add_argument(
         "--effect",
         action="append",
         default=[],
         metavar="NAME:param=value,...",
-        help="effect to switch on (repeatable); NAME from the library or 'plant'",
+        help="effect to switch on (repeatable); NAME from the library or 'plant' (default: none)",
     )
     synth.add_argument(
         "--perturb", type=float, default=0.0, help="calibration error, relative (e.g. 0.03)"
     )
-    synth.add_argument("--seed", type=int, default=0)
+    synth.add_argument("--seed", type=int, default=0, help="seed of the noise and perturbation")
     synth.add_argument(
-        "--noise-position", type=float, default=20e-9, help="white noise on x, m (20e-9)"
+        "--noise-position", type=float, default=20e-9, help="white noise on x, m (RMS)"
     )
     synth.add_argument(
-        "--noise-current", type=float, default=5e-3, help="white noise on the current, A"
+        "--noise-current", type=float, default=5e-3, help="white noise on the current, A (RMS)"
     )
-    synth.add_argument("--plant", help="another FMU offering the plant contract")
+    _plant_option(synth)
     synth.add_argument(
         "--follow",
         metavar="RUN",
         help="follow this measured run's reference and disturbance (a scenario whose reference "
-        "comes from a measured file), e.g. a pulse template for an EMPS validation run",
+        "comes from a measured file), e.g. a pulse template for an EMPS validation run "
+        "(default: the scenario's own reference)",
     )
     synth.add_argument(
-        "--out", required=True, help="measured run to write: .csv, or .mat in the EMPS format"
+        "--out",
+        required=True,
+        metavar="RUN",
+        help="measured run to write: .csv, or .mat in the EMPS format (required)",
     )
+    _data_option(synth)
     synth.set_defaults(handler=_synth)
 
-    diag = commands.add_parser("diagnose", help="where the twin is wrong, why, and by how much")
-    diag.add_argument("scenario", help="scenario YAML file the measured runs followed")
+    diag = command("diagnose", "where the twin is wrong, why, and by how much")
+    diag.add_argument("scenario", help="scenario YAML file (or shipped name) the runs followed")
     diag.add_argument(
-        "--measured", action="append", required=True, help="measured run (CSV or EMPS .mat)"
+        "--measured",
+        action="append",
+        required=True,
+        help="measured run, CSV or EMPS .mat (repeatable; required, no default)",
     )
-    diag.add_argument("--holdout", action="append", help="held-out run(s); default: a time split")
+    diag.add_argument("--holdout", action="append", help="held-out run(s) (default: a time split)")
     diag.add_argument(
-        "--split", type=float, help="training fraction of the time split (default 0.5)"
+        "--split",
+        type=float,
+        help="training fraction of the time split "
+        "(default: the scenario's diagnose.split, else 0.5)",
     )
-    diag.add_argument("--max-effects", type=int, help="effects to accept at most (default 3)")
-    diag.add_argument("--plant", help="another FMU offering the plant contract")
+    diag.add_argument(
+        "--max-effects",
+        type=int,
+        help="effects to accept at most (default: the scenario's diagnose.max_effects, else 3)",
+    )
+    _plant_option(diag)
     diag.add_argument(
         "--workers", type=int, help="local processes for the fits (default: all cores)"
     )
-    diag.add_argument("--out", help="report folder (default: out/diagnosis-<scenario name>)")
+    diag.add_argument(
+        "--out", metavar="DIR", help="report folder (default: out/diagnosis-<scenario name>)"
+    )
     diag.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     diag.add_argument(
         "--quiet",
         action="store_true",
         help="no progress bar (there is none either with --json when stdout is not a terminal)",
     )
+    _data_option(diag)
     diag.set_defaults(handler=_diagnose)
 
-    table3 = commands.add_parser(
-        "table3", help="run the paper's Table 3 parameter sets on scenarios"
-    )
-    table3.add_argument("scenarios", nargs="+", help="scenario YAML files")
-    table3.add_argument("--plant", help="another FMU offering the plant contract")
-    table3.add_argument("--out", help="output folder (default: out/table3)")
+    table3 = command("table3", "run the paper's Table 3 parameter sets on scenarios")
+    table3.add_argument("scenarios", nargs="+", help="scenario YAML files or shipped names")
+    _plant_option(table3)
+    table3.add_argument("--out", metavar="DIR", help="output folder (default: out/table3)")
+    _data_option(table3)
     table3.set_defaults(handler=_table3)
     return parser
 
@@ -481,9 +599,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``twin`` console script."""
     args = build_parser().parse_args(argv)
+    if getattr(args, "data", None):
+        os.environ[DATA_ENV] = args.data  # also seen by worker processes
     try:
         return args.handler(args)
-    except USER_ERRORS as exc:
+    except user_errors() as exc:
         print(f"twin {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

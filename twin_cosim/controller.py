@@ -33,8 +33,14 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from fmu_build.build import DEFAULT_MODEL
+from twin_cosim.plant_facts import drive_facts, model_start_values
+
 TUNED_NAMES = ("Kp_pos", "Kp_vel", "Ki_vel", "PP2", "PP3", "f_H")
 TUNED_UNITS = ("1/s", "A/(rad/s)", "A/(rad/s)", "rad/s", "s", "rad/s")
+
+# The plant facts of the default settings: the default plant model's start values.
+_DEFAULT_FACTS = drive_facts(model_start_values(DEFAULT_MODEL))
 
 # Indices into the parameter vector built by ControllerConfig.vector().
 KP_POS, KP_VEL, KI_VEL, PP2, PP3, F_H = range(6)
@@ -108,6 +114,10 @@ class TunedParameters:
 class ControllerSettings:
     """Fixed (not tuned) settings of the controller.
 
+    The plant facts (travel_per_rad, inertia, torque_constant, friction_torque) default to those
+    of the drive2mass model's start values (:mod:`twin_cosim.plant_facts`); a scenario takes
+    them from its own plant model and parameters.
+
     Attributes
     ----------
     travel_per_rad : float
@@ -130,12 +140,12 @@ class ControllerSettings:
         Speed-loop period, s; must divide position_period.
     """
 
-    travel_per_rad: float = 0.010 / (2 * math.pi) / 1.5
+    travel_per_rad: float = _DEFAULT_FACTS["travel_per_rad"]
     ff_velocity: float = 1.0
     ff_acceleration: float = 1.0
-    inertia: float = 2.9e-4 + 4.2e-4
-    torque_constant: float = 0.74
-    friction_torque: float = 0.625
+    inertia: float = _DEFAULT_FACTS["inertia"]
+    torque_constant: float = _DEFAULT_FACTS["torque_constant"]
+    friction_torque: float = _DEFAULT_FACTS["friction_torque"]
     current_limit: float = 20.0
     position_period: float = 250e-6
     speed_period: float = 62.5e-6

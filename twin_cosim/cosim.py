@@ -27,7 +27,7 @@ import pandas as pd
 
 from twin_cosim import controller
 from twin_cosim.controller import ControllerSettings, TunedParameters
-from twin_cosim.plant import Plant, PlantError
+from twin_cosim.plant import CONTRACT_INPUTS, CONTRACT_OUTPUTS, Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.scenario import Scenario
 
@@ -42,8 +42,13 @@ RECORD_COLUMNS = (
     "speed_cmd",  # rad/s, speed command of the position loop (without reversal pulse)
     "current",  # A, mean current command over the following position period
 )
-OUTPUT_NAMES = ("motor_speed", "load_position", "motor_angle")
-INPUT_NAMES = ("current_cmd", "disturbance_torque")
+INPUT_NAMES = CONTRACT_INPUTS
+OUTPUT_NAMES = CONTRACT_OUTPUTS
+# Positions of the inputs and outputs in the vectors of fmi2SetReal and fmi2GetReal.
+_IN_CURRENT, _IN_DISTURBANCE = (INPUT_NAMES.index(n) for n in ("current_cmd", "disturbance_torque"))
+_OUT_ANGLE, _OUT_SPEED, _OUT_POSITION = (
+    OUTPUT_NAMES.index(n) for n in ("motor_angle", "motor_speed", "load_position")
+)
 _T, _X_REF, _V_REF, _X, _ERROR, _ANGLE, _SPEED, _SPEED_CMD, _CURRENT = range(len(RECORD_COLUMNS))
 _FMI2_OK_OR_WARNING = 1
 _ABORTED = -2
@@ -130,7 +135,12 @@ def run_reference_path(
     vr_out = [int(v) for v in _value_references(plant, OUTPUT_NAMES)]
     plant.start_run(plant_parameters)
     fmu = plant.fmu
-    speed, position, angle = plant.call("fmi2GetReal", fmu.getReal, vr_out)
+
+    def read_outputs() -> tuple[float, float, float]:
+        values = plant.call("fmi2GetReal", fmu.getReal, vr_out)
+        return values[_OUT_SPEED], values[_OUT_POSITION], values[_OUT_ANGLE]
+
+    speed, position, angle = read_outputs()
     record = np.empty((len(grid.position), len(RECORD_COLUMNS)))
     for i in range(len(grid.position)):
         t = i * grid.period
@@ -154,10 +164,12 @@ def run_reference_path(
             k = i * ratio + j
             current = controller.speed_loop(p, s, k * h, speed)
             current_sum += current
-            inputs = [current + command_offset[i], disturbance[i]]
+            inputs = [0.0] * len(vr_in)
+            inputs[_IN_CURRENT] = current + command_offset[i]
+            inputs[_IN_DISTURBANCE] = disturbance[i]
             plant.call("fmi2SetReal", fmu.setReal, vr_in, inputs)
             plant.call("fmi2DoStep", fmu.doStep, k * h, h)
-            speed, position, angle = plant.call("fmi2GetReal", fmu.getReal, vr_out)
+            speed, position, angle = read_outputs()
         record[i, _CURRENT] = current_sum / ratio
     return _to_frame(record)
 
@@ -186,39 +198,39 @@ def _closed_loop(
     abort_error,
     record,
 ):  # pragma: no cover - compiled
-    inputs = np.zeros(2)
-    outputs = np.zeros(3)
+    inputs = np.zeros(vr_in.shape[0])
+    outputs = np.zeros(vr_out.shape[0])
     h = period / ratio
-    status = get_real(component, vr_out.ctypes, 3, outputs.ctypes)
+    status = get_real(component, vr_out.ctypes, vr_out.shape[0], outputs.ctypes)
     if status > _FMI2_OK_OR_WARNING:
         return status, -1
     for i in range(x_ref.shape[0]):
         t = i * period
-        _position_loop(p, s, t, x_ref[i], v_ref[i], a_ref[i], outputs[1])
+        _position_loop(p, s, t, x_ref[i], v_ref[i], a_ref[i], outputs[_OUT_POSITION])
         record[i, 0] = t
         record[i, 1] = x_ref[i]
         record[i, 2] = v_ref[i]
-        record[i, 3] = outputs[1]
-        record[i, 4] = x_ref[i] - outputs[1]
-        record[i, 5] = outputs[2]
-        record[i, 6] = outputs[0]
+        record[i, 3] = outputs[_OUT_POSITION]
+        record[i, 4] = x_ref[i] - outputs[_OUT_POSITION]
+        record[i, 5] = outputs[_OUT_ANGLE]
+        record[i, 6] = outputs[_OUT_SPEED]
         record[i, 7] = s[0]
         if abs(record[i, 4]) > abort_error:
             return _ABORTED, i * ratio
         current_sum = 0.0
         for j in range(ratio):
             k = i * ratio + j
-            current = _speed_loop(p, s, k * h, outputs[0])
-            inputs[0] = current + command_offset[i]
-            inputs[1] = disturbance[i]
+            current = _speed_loop(p, s, k * h, outputs[_OUT_SPEED])
+            inputs[_IN_CURRENT] = current + command_offset[i]
+            inputs[_IN_DISTURBANCE] = disturbance[i]
             current_sum += current
-            status = set_real(component, vr_in.ctypes, 2, inputs.ctypes)
+            status = set_real(component, vr_in.ctypes, vr_in.shape[0], inputs.ctypes)
             if status > _FMI2_OK_OR_WARNING:
                 return status, k
             status = do_step(component, k * h, h, 1)
             if status > _FMI2_OK_OR_WARNING:
                 return status, k
-            status = get_real(component, vr_out.ctypes, 3, outputs.ctypes)
+            status = get_real(component, vr_out.ctypes, vr_out.shape[0], outputs.ctypes)
             if status > _FMI2_OK_OR_WARNING:
                 return status, k
         record[i, 8] = current_sum / ratio

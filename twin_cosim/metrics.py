@@ -1,12 +1,16 @@
-"""Performance indices of a run record (paper section III.A, eqs. (10)-(11)).
+"""Performance indices of a run (paper section III.A, eqs. (10)-(11)): their one definition.
 
-Over a window [t0, tF] of the position-loop samples (spacing dt):
+Over samples t_0 < ... < t_n of a window (the twin's position-loop samples, or a measured run's):
 
 - ``E_pk_um``: max |e|, um (eq. (11));
-- ``ITAE``: sum (t - t0) |e| dt, in um.s^2 (t from the window start);
+- ``ITAE``: sum (t - t_0) |e| dt, in um.s^2 (t from the window start);
 - ``IAU``: sum |i| dt, in A.s (i: mean current command of each position period);
 - ``rms_um`` and ``mean_abs_um``: RMS and mean of |e|, um;
 - ``t_E_pk``: time of the peak, s; ``max_current_A``: max |i|, A.
+
+The dt rule: dt is the median spacing of the samples, median(diff(t)) in s (the sample period of
+a uniform grid; robust to a jittered or gapped time column of a measured run). The sums are
+rectangle rules over the samples with that dt.
 """
 
 from __future__ import annotations
@@ -36,6 +40,43 @@ class Metrics:
         return asdict(self)
 
 
+def sample_period(t: np.ndarray) -> float:
+    """The dt rule of the indices: the median spacing of the sample times ``t`` (s)."""
+    return float(np.median(np.diff(t)))
+
+
+def indices(t: np.ndarray, error: np.ndarray, current: np.ndarray) -> Metrics:
+    """The indices of samples at times ``t`` (s) of the position error (m) and current (A).
+
+    Raises
+    ------
+    ValueError
+        When there are fewer than two samples, the arrays differ in length, or hold non-finite
+        values.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    error = np.abs(np.asarray(error, dtype=np.float64)) * UM_PER_M
+    current = np.abs(np.asarray(current, dtype=np.float64))
+    if len(t) < 2 or not len(t) == len(error) == len(current):
+        raise ValueError(
+            f"metrics need two or more samples of t, error and current of one length, got "
+            f"{len(t)}, {len(error)}, {len(current)}"
+        )
+    if not (np.all(np.isfinite(error)) and np.all(np.isfinite(current))):
+        raise ValueError("the record holds non-finite errors or currents")
+    dt = sample_period(t)
+    peak = int(np.argmax(error))
+    return Metrics(
+        E_pk_um=float(error[peak]),
+        ITAE=float(np.sum((t - t[0]) * error) * dt),
+        IAU=float(np.sum(current) * dt),
+        rms_um=float(np.sqrt(np.mean(error**2))),
+        mean_abs_um=float(np.mean(error)),
+        t_E_pk=float(t[peak]),
+        max_current_A=float(current.max()),
+    )
+
+
 def compute_metrics(
     record: pd.DataFrame, window: tuple[float, float | None] = (0.0, None)
 ) -> Metrics:
@@ -52,21 +93,8 @@ def compute_metrics(
     inside = (t >= t0 - 1e-12) & (t <= t_end + 1e-12)
     if inside.sum() < 2:
         raise ValueError(f"metrics window [{t0}, {t_end}] s holds fewer than two samples")
-    t = t[inside]
-    error = np.abs(record["error"].to_numpy()[inside]) * UM_PER_M
-    current = np.abs(record["current"].to_numpy()[inside])
-    if not (np.all(np.isfinite(error)) and np.all(np.isfinite(current))):
-        raise ValueError("the record holds non-finite errors or currents")
-    dt = t[1] - t[0]
-    peak = int(np.argmax(error))
-    return Metrics(
-        E_pk_um=float(error[peak]),
-        ITAE=float(np.sum((t - t[0]) * error) * dt),
-        IAU=float(np.sum(current) * dt),
-        rms_um=float(np.sqrt(np.mean(error**2))),
-        mean_abs_um=float(np.mean(error)),
-        t_E_pk=float(t[peak]),
-        max_current_A=float(current.max()),
+    return indices(
+        t[inside], record["error"].to_numpy()[inside], record["current"].to_numpy()[inside]
     )
 
 

@@ -29,6 +29,8 @@ from fmpy.logging import addLoggerProxy
 
 from fmu_build.build import DEFAULT_MODEL, build_fmu
 
+# The plant contract, the one place of its names: the co-simulation master sets the inputs and
+# reads the outputs in these orders.
 CONTRACT_INPUTS = ("current_cmd", "disturbance_torque")
 CONTRACT_OUTPUTS = ("motor_angle", "motor_speed", "load_position", "load_speed")
 
@@ -38,8 +40,8 @@ class PlantError(RuntimeError):
 
 
 def default_fmu(model: str = DEFAULT_MODEL) -> Path:
-    """The project's FMU of ``model``, built from ``models/<model>`` when missing or stale."""
-    return build_fmu(model)
+    """The project's FMU of ``model``, built from ``models/<model>`` (saying so) when missing."""
+    return build_fmu(model, announce=True)
 
 
 class Plant:

@@ -5,10 +5,12 @@ Layout (every section but ``reference`` is optional)::
     name: reference1
     description: free text
     plant:
-      fmu: other.fmu            # relative to the scenario file; default: the project's drive2mass
+      model: drive2mass         # a folder of models/ (the default), built on first use; or
+      fmu: other.fmu            # an FMU file, relative to the scenario file
       parameters: {backlash: 12.2e-6}        # FMU parameters by name
     controller:
-      parameters: {Kp_pos: 66.667, ...}      # the six tuned parameters (default: Fine-Tune, eq. 8)
+      parameters: {Kp_pos: 66.667, ...}      # the six tuned parameters, or the name of a set of
+                                             # the paper's Table 3 (ft, ga, ce, sa); default: ft
       settings: {current_limit: 20.0, ...}   # see twin_cosim.controller.ControllerSettings
     reference:
       sample_period: 0.004                   # s
@@ -23,6 +25,17 @@ Layout (every section but ``reference`` is optional)::
     optimize: {...}                          # see twin_cosim.optimize.config
     diagnose: {...}                          # see twin_cosim.gap.diagnosis.settings_from
 
+The controller's plant facts (travel per radian, inertia, torque constant, friction) come from
+the plant model's start values and ``plant.parameters`` (:mod:`twin_cosim.plant_facts`) unless
+``controller.settings`` sets them.
+
+A measured reference (``reference.measured``, a file relative to the scenario) is looked up first
+by its file name in the data folder given by ``--data DIR`` or the environment variable
+``TWIN_COSIM_DATA``; ``reference.data_source`` says what the data is and where to get it, for the
+error when it is missing.
+
+Scenarios shipped with the package are found by name (``reference1``) as well as by path.
+
 Every error names the file and the key path, and says what was expected.
 """
 
@@ -30,6 +43,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -38,10 +52,12 @@ from typing import Any
 import numpy as np
 import yaml
 
-from fmu_build.build import BuildError, build_fmu
+from fmu_build.build import DEFAULT_MODEL, BuildError, build_fmu
 from twin_cosim import paper
 from twin_cosim.controller import TUNED_NAMES, ControllerSettings, TunedParameters
+from twin_cosim.environment import DATA_ENV
 from twin_cosim.measured import MeasuredDataError, MeasuredRun, read_measured
+from twin_cosim.plant_facts import DRIVE_FACTS, drive_facts, fmu_identity, model_start_values
 from twin_cosim.reference import (
     Dwell,
     Move,
@@ -110,6 +126,8 @@ class Scenario:
     measured : Path or None
         The measured run the reference was taken from (``reference.measured``); ``twin
         simulate`` compares the replay with it.
+    model : str or None
+        The plant model (folder of models/) the scenario was made for; None for an FMU file.
     disturbance : numpy.ndarray or None
         Disturbance input (N.m, or N on a linear axis) per position-loop sample.
     command_disturbance : numpy.ndarray or None
@@ -136,6 +154,7 @@ class Scenario:
     disturbance_spec: dict[str, Any] = field(default_factory=dict)
     command_disturbance: np.ndarray | None = None
     disturbance_in_record: bool = False
+    model: str | None = None
 
 
 class _Checker:
@@ -272,9 +291,33 @@ def _disturbance_spec(check: _Checker, data: Any) -> dict[str, Any]:
     }
 
 
+def data_dir() -> Path | None:
+    """The data folder given by ``--data`` or the environment variable ``TWIN_COSIM_DATA``."""
+    value = os.environ.get(DATA_ENV)
+    return Path(value) if value else None
+
+
+def _measured_path(check: _Checker, data: dict[str, Any]) -> Path:
+    """The measured run file: by name in the data folder, else relative to the scenario."""
+    relative = check.source.parent / str(data["measured"])
+    folder = data_dir()
+    candidates = ([folder / relative.name] if folder is not None else []) + [relative]
+    for path in candidates:
+        if path.is_file():
+            return path
+    about = data.get("data_source")
+    raise ScenarioError(
+        f"{check.source}: reference.measured: {relative.name} not found (looked in "
+        f"{', '.join(os.path.normpath(p.parent) for p in candidates)}). "
+        + (f"{about} " if about else "")
+        + f"Give the folder that holds {relative.name} with --data DIR or the environment "
+        f"variable {DATA_ENV}=DIR."
+    )
+
+
 def _from_measured(check: _Checker, data: dict[str, Any], position_period: float) -> _Reference:
     """The reference (and disturbance) of a measured run file (.csv or EMPS .mat)."""
-    path = check.source.parent / str(data["measured"])
+    path = _measured_path(check, data)
     try:
         run = read_measured(path)
     except MeasuredDataError as exc:
@@ -294,15 +337,24 @@ def _reference(check: _Checker, data: Any, position_period: float) -> _Reference
     data = check.mapping(
         data,
         "reference",
-        {"sample_period", "start_position", "segments", "csv", "measured", "disturbance"},
+        {
+            "sample_period",
+            "start_position",
+            "segments",
+            "csv",
+            "measured",
+            "disturbance",
+            "data_source",
+        },
     )
     sources = [key for key in ("segments", "csv", "measured") if key in data]
     if len(sources) != 1:
         raise check.fail("reference", "exactly one of 'segments', 'csv' or 'measured'")
     if "measured" in data:
         return _from_measured(check, data, position_period)
-    if "disturbance" in data:
-        raise check.fail("reference.disturbance", "a 'measured' reference to take it from")
+    for key in ("disturbance", "data_source"):
+        if key in data:
+            raise check.fail(f"reference.{key}", "a 'measured' reference to go with it")
     sample_period = check.number(
         data.get("sample_period", 0.004), "reference.sample_period", positive=True
     )
@@ -322,6 +374,18 @@ def _reference(check: _Checker, data: Any, position_period: float) -> _Reference
         return _Reference(interpolate(samples, sample_period, position_period), start)
     except ReferenceError as exc:
         raise ScenarioError(f"{check.source}: reference: {exc}") from exc
+
+
+def _tuned(data: Any, where: str) -> TunedParameters:
+    """Tuned parameters from a mapping, or the name of a set of the paper's Table 3."""
+    if isinstance(data, str):
+        if data.lower() not in paper.TABLE3:
+            raise ScenarioError(
+                f"{where}: expected the six parameters or a set of Table 3 {sorted(paper.TABLE3)}"
+                f", got {data!r}"
+            )
+        return paper.TABLE3[data.lower()]
+    return tuned_from_mapping(data, where)
 
 
 def tuned_from_mapping(data: Any, where: str) -> TunedParameters:
@@ -352,15 +416,57 @@ def tuned_from_mapping(data: Any, where: str) -> TunedParameters:
         raise ScenarioError(f"{where}: {exc}") from exc
 
 
+def packaged_scenarios_dir() -> Path:
+    """The shipped scenarios: ``twin_cosim/scenarios`` of a wheel, else ``scenarios/``."""
+    packaged = Path(__file__).resolve().parent / "scenarios"
+    return packaged if packaged.is_dir() else Path(__file__).resolve().parents[1] / "scenarios"
+
+
+def find_scenario(spec: Path | str) -> Path:
+    """A scenario file from a path, or from the name of a shipped scenario (``reference1``).
+
+    Raises
+    ------
+    ScenarioError
+        When ``spec`` is neither an existing file nor the name of a shipped scenario.
+    """
+    path = Path(spec)
+    if path.is_file() or path.suffix or len(path.parts) > 1:
+        return path
+    shipped = packaged_scenarios_dir() / f"{path.name}.yaml"
+    if shipped.is_file():
+        return shipped
+    names = sorted(p.stem for p in packaged_scenarios_dir().glob("*.yaml"))
+    raise ScenarioError(f"{spec}: neither a scenario file nor a shipped scenario {names}")
+
+
+def _plant_facts(
+    check: _Checker, model: str | None, fmu: Path | None, parameters: dict[str, float]
+) -> dict[str, float]:
+    """The drive's plant facts from the plant's start values and the scenario's parameters."""
+    try:
+        if model is not None:
+            starts = model_start_values(model)
+        elif fmu is not None and fmu.is_file():
+            starts = fmu_identity(fmu)[2]
+        else:
+            starts = {}
+    except Exception as exc:  # a broken FMU is reported when it is loaded to run
+        raise ScenarioError(f"{check.source}: plant: cannot read its parameters: {exc}") from exc
+    return drive_facts({**starts, **parameters})
+
+
 def load_scenario(path: Path | str) -> Scenario:
-    """Load and check a scenario file.
+    """Load and check a scenario file (a path or the name of a shipped scenario).
+
+    A plant ``model`` whose FMU is not built yet is built here, with a note on stderr.
 
     Raises
     ------
     ScenarioError
         On malformed YAML, unknown keys, wrong types, non-finite or out-of-range values.
     """
-    source = Path(path)
+    source = find_scenario(path)
     check = _Checker(source)
     data = check.mapping(load_yaml(source), "(top level)", TOP_KEYS)
     if "reference" not in data:
@@ -376,22 +482,21 @@ def load_scenario(path: Path | str) -> Scenario:
         )
     fmu = plant.get("fmu")
     fmu_path = None if fmu is None else (source.parent / str(fmu))
+    model = None if fmu is not None else str(plant.get("model", DEFAULT_MODEL))
     if "model" in plant:
         try:
-            fmu_path = build_fmu(str(plant["model"]))
+            fmu_path = build_fmu(model, announce=True)
         except BuildError as exc:
             raise ScenarioError(f"{source}: plant.model: {exc}") from exc
     control = check.mapping(data.get("controller"), "controller", {"parameters", "settings"})
-    tuned = (
-        tuned_from_mapping(control["parameters"], f"{source}: controller.parameters")
-        if "parameters" in control
-        else paper.FINE_TUNE
-    )
+    tuned = _tuned(control.get("parameters", "ft"), f"{source}: controller.parameters")
     setting_names = {f.name for f in fields(ControllerSettings)}
     raw_settings = check.mapping(control.get("settings"), "controller.settings", setting_names)
+    facts = _plant_facts(check, model, fmu_path, plant_parameters)
     try:
         settings = ControllerSettings(
-            **{k: check.number(v, f"controller.settings.{k}") for k, v in raw_settings.items()}
+            **{name: facts[name] for name in DRIVE_FACTS if name in facts}
+            | {k: check.number(v, f"controller.settings.{k}") for k, v in raw_settings.items()}
         )
     except ValueError as exc:
         raise ScenarioError(f"{source}: controller.settings: {exc}") from exc
@@ -425,6 +530,43 @@ def load_scenario(path: Path | str) -> Scenario:
         disturbance_spec=chosen.disturbance_spec,
         command_disturbance=chosen.command_disturbance,
         disturbance_in_record=bool(chosen.disturbance_spec.get("in_recorded_command", False)),
+        model=model,
+    )
+
+
+def plant_mismatch(scenario: Scenario, fmu: Path) -> str | None:
+    """A warning when ``fmu`` is not the plant model the scenario was made for, else None.
+
+    The scenario names its model (``plant.model``, drive2mass by default) or its FMU
+    (``plant.fmu``); another model identifier or another set of variables in ``fmu`` is a
+    mismatch: the scenario's controller settings and plant parameters were chosen for another
+    plant.
+    """
+    from twin_cosim.plant_facts import model_variable_names
+
+    if scenario.model is not None:
+        expected, expected_names = scenario.model, model_variable_names(scenario.model)
+    elif scenario.fmu is not None and scenario.fmu.is_file():
+        expected, expected_names, _ = fmu_identity(scenario.fmu)
+    else:
+        return None
+    try:
+        identifier, names, _ = fmu_identity(Path(fmu))
+    except Exception:  # not readable: Plant reports it when the FMU is loaded
+        return None
+    if identifier == expected and names == expected_names:
+        return None
+    differences = []
+    if names != expected_names:
+        missing, extra = sorted(expected_names - names), sorted(names - expected_names)
+        differences.append(
+            f"variables missing: {missing[:5]}{' ...' if len(missing) > 5 else ''}, "
+            f"variables added: {extra[:5]}{' ...' if len(extra) > 5 else ''}"
+        )
+    return (
+        f"{scenario.source} was made for the plant model {expected!r}, but {fmu} is model "
+        f"{identifier!r}" + (f" ({differences[0]})" if differences else "") + ": its controller "
+        "settings and plant parameters were chosen for another plant"
     )
 
 

@@ -3,6 +3,7 @@ the generated model description (dependencies, log categories, default experimen
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -16,7 +17,7 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
 from fmu_build import build, generate
-from fmu_build.variable_table import VariableTable
+from fmu_build.variable_table import VariableTable, load_variable_table
 from twin_cosim.plant import Plant
 
 
@@ -54,7 +55,7 @@ def test_fmutool_check_reports_no_problem(model_fmu):
 
 
 def load_table(model: str) -> VariableTable:
-    return build.load_variable_table(
+    return load_variable_table(
         build.MODELS_DIR / model / "variables.yaml", build.COMMON_DIR / "units.yaml"
     )
 
@@ -241,3 +242,45 @@ def test_events_reach_fmpys_logger_only_with_debug_logging(model_fmu, debug_logg
         assert any("sticks" in m for m in events), messages
     else:
         assert events == []
+
+
+def test_default_builds_go_to_a_cache_keyed_by_the_sources(model_copy, tmp_path, monkeypatch):
+    monkeypatch.setenv(build.CACHE_ENV, str(tmp_path / "cache"))
+    first = build.build_fmu("drive2mass")
+    assert first.parent.parent == tmp_path / "cache" / "fmu"
+    assert first.parent.name == f"drive2mass-{build.fingerprint('drive2mass')[:16]}"
+    model_c = model_copy / "drive2mass" / "model.c"
+    model_c.write_text(model_c.read_text() + "\n/* edited */\n")
+    second = build.build_fmu("drive2mass")
+    assert second != first and first.is_file() and second.is_file()
+    assert not list((tmp_path / "cache").rglob(".*"))  # no temporary file left behind
+
+
+def test_cache_follows_xdg_when_no_override(monkeypatch, tmp_path):
+    monkeypatch.delenv(build.CACHE_ENV, raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert build.cache_dir() == tmp_path / "twin-cosim"
+
+
+def test_a_build_says_so_only_when_it_compiles(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv(build.CACHE_ENV, str(tmp_path))
+    path = build.build_fmu("drive2mass", announce=True)
+    assert "building the drive2mass FMU" in capsys.readouterr().err
+    assert build.build_fmu("drive2mass", announce=True) == path
+    assert capsys.readouterr().err == ""
+
+
+def test_concurrent_builds_share_the_cache(tmp_path):
+    """Four processes build the same model into one empty cache at once: all get a valid FMU."""
+    script = "from fmu_build.build import build_fmu; print(build_fmu('drive2mass'))"
+    env = {**os.environ, build.CACHE_ENV: str(tmp_path)}
+    processes = [
+        subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, env=env, text=True)
+        for _ in range(4)
+    ]
+    paths = {process.communicate(timeout=300)[0].strip() for process in processes}
+    assert all(process.returncode == 0 for process in processes)
+    assert len(paths) == 1
+    (path,) = paths
+    assert validate_fmu(path) == []
+    assert [p.name for p in Path(path).parent.iterdir()] == ["drive2mass.fmu"]

@@ -2,8 +2,16 @@
 
 from __future__ import annotations
 
+import argparse
 import json
+import re
+import subprocess
+import sys
 from pathlib import Path
+
+from fmu_build.build import build_fmu
+from twin_cosim.cli import build_parser
+from twin_cosim.optimize.algorithms import ALGORITHMS
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -66,3 +74,69 @@ def test_optimize_json(tmp_path, twin_cli):
         "best_run.png",
     ):
         assert (tmp_path / "c" / name).stat().st_size > 0
+
+
+def subcommands() -> dict[str, argparse.ArgumentParser]:
+    parser = build_parser()
+    (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    return dict(commands.choices)
+
+
+def options(parser: argparse.ArgumentParser) -> list[argparse.Action]:
+    return [a for a in parser._actions if a.option_strings and a.dest != "help"]
+
+
+def test_every_option_shows_its_default():
+    for name, parser in subcommands().items():
+        formatter = parser._get_formatter()
+        for action in options(parser):
+            text = formatter._get_help_string(action) % {"default": action.default}
+            assert "default" in text or "required" in text, (name, action.option_strings)
+
+
+def test_readme_synopsis_lists_every_option():
+    """Each `twin X` line of the README's command synopsis names all options of X."""
+    readme = (ROOT / "README.md").read_text()
+    synopsis = readme.split("## Commands", 1)[1].split("```bash", 1)[1].split("```", 1)[0]
+    blocks = re.split(r"\n(?=twin )", synopsis.strip())
+    documented = {block.split()[1]: block for block in blocks}
+    assert set(documented) == set(subcommands())
+    for name, parser in subcommands().items():
+        for action in options(parser):
+            option = re.escape(action.option_strings[0]) + r"(?![\w-])"
+            assert re.search(option, documented[name]), (name, action.option_strings)
+
+
+def test_diagnose_help_defaults_are_the_settings_defaults():
+    from twin_cosim.gap.diagnosis import DiagnosisSettings
+
+    help_text = {a.dest: a.help for a in options(subcommands()["diagnose"])}
+    assert f"else {DiagnosisSettings().split})" in help_text["split"]
+    assert f"else {DiagnosisSettings().max_effects})" in help_text["max_effects"]
+
+
+def test_method_choices_are_the_registry():
+    (method,) = [a for a in options(subcommands()["optimize"]) if a.dest == "method"]
+    assert tuple(method.choices) == tuple(ALGORITHMS)
+
+
+def test_shipped_scenario_by_name_from_any_folder(tmp_path):
+    command = [sys.executable, "-m", "twin_cosim", "simulate", "reference1", "--json"]
+    result = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert Path(summary["scenario"]).name == "reference1.yaml"
+    assert (tmp_path / "out" / "reference1" / "record.csv").is_file()
+    assert summary["warnings"] == []
+
+
+def test_a_plant_of_another_model_is_warned_about(tmp_path, twin_cli):
+    emps = build_fmu("emps")
+    result = twin_cli(
+        "simulate", "reference1", "--plant", str(emps), "--out", str(tmp_path), "--json"
+    )
+    assert result.returncode == 0, result.stderr
+    assert "twin: warning: " in result.stderr
+    assert "made for the plant model 'drive2mass'" in result.stderr
+    (warning,) = json.loads(result.stdout)["warnings"]
+    assert "is model 'emps'" in warning

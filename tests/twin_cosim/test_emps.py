@@ -1,11 +1,15 @@
 """The EMPS benchmark with the project's machinery: loader, replay of the estimation run, diagnosis.
 
-Tests that need the benchmark's data skip where ../shared/data/emps is absent.
+Tests that need the benchmark's data skip where it is absent (the folder given by
+TWIN_COSIM_DATA, else ../shared/data/emps beside the repository).
 """
 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,13 +17,16 @@ import pytest
 from scipy.io import savemat
 
 from twin_cosim.cosim import run_scenario
+from twin_cosim.environment import DATA_ENV
 from twin_cosim.measured import MeasuredDataError, read_measured
 from twin_cosim.metrics import compare_with_measured
 from twin_cosim.plant import Plant
 from twin_cosim.scenario import ScenarioError, load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
-DATA = ROOT.parent / "shared" / "data" / "emps" / "DATA_EMPS.mat"
+DATA = (
+    Path(os.environ[DATA_ENV]) if os.environ.get(DATA_ENV) else ROOT.parent / "shared/data/emps"
+) / "DATA_EMPS.mat"
 needs_data = pytest.mark.skipif(not DATA.exists(), reason=f"EMPS data not found at {DATA}")
 
 
@@ -233,3 +240,37 @@ def test_synthetic_validation_run_with_pulses_leaves_only_noise(twin_cli, tmp_pa
     assert set(errors) == {"position", "velocity", "acceleration", "force"}
     assert errors["force"] < 1.0 and errors["position"] < 0.01
     assert summary["accepted"] == []
+
+
+def simulate_copy(tmp_path: Path, *options: str) -> subprocess.CompletedProcess:
+    """``twin simulate`` on a copy of emps.yaml away from the data, without TWIN_COSIM_DATA."""
+    copy = tmp_path / "emps.yaml"
+    copy.write_text((ROOT / "scenarios" / "emps.yaml").read_text())
+    env = {k: v for k, v in os.environ.items() if k != DATA_ENV}
+    command = [sys.executable, "-m", "twin_cosim", "simulate", str(copy), *options]
+    command += ["--out", str(tmp_path / "out")]
+    return subprocess.run(command, capture_output=True, text=True, cwd=tmp_path, env=env)
+
+
+def test_missing_data_says_what_it_is_and_where_to_get_it(tmp_path):
+    result = simulate_copy(tmp_path)
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    for words in (
+        "DATA_EMPS.mat not found",
+        "EMPS benchmark",
+        "Janot, M. Gautier, M. Brunot",
+        "nonlinearbenchmark.org",
+        "--data DIR",
+        f"{DATA_ENV}=DIR",
+    ):
+        assert words in result.stderr
+
+
+@needs_data
+def test_data_option_points_at_the_data(tmp_path):
+    result = simulate_copy(tmp_path, "--data", str(DATA.parent), "--json")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["validation"]["measured"] == str(DATA)
+    assert summary["validation"]["position_rms_gap_um"] == pytest.approx(2.58, rel=0.05)

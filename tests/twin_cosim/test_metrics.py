@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from twin_cosim.metrics import compute_metrics
+from twin_cosim.metrics import compute_metrics, indices, sample_period
 
 
 def record(error: np.ndarray, current: np.ndarray, dt: float = 250e-6) -> pd.DataFrame:
@@ -37,3 +37,25 @@ def test_bad_records_are_refused():
         compute_metrics(record(np.zeros(10), np.zeros(10)), window=(5.0, 6.0))
     with pytest.raises(ValueError, match="non-finite"):
         compute_metrics(record(np.array([0.0, np.nan, 0.0]), np.zeros(3)))
+
+
+def test_indices_of_arrays_use_the_median_spacing():
+    # 1 kHz samples with one dropped sample: dt stays 1 ms (median spacing), not the gap.
+    t = np.delete(np.arange(1001) * 1e-3, 500)
+    m = indices(t, np.full(len(t), 3e-6), np.full(len(t), -2.0))
+    assert sample_period(t) == pytest.approx(1e-3)
+    assert m.IAU == pytest.approx(2.0 * 1e-3 * len(t))
+    assert m.ITAE == pytest.approx(3.0 * 1e-3 * np.sum(t))
+    assert m.E_pk_um == pytest.approx(3.0)
+
+
+def test_indices_agree_with_the_record_form():
+    t = np.arange(2000) * 250e-6
+    error = 1e-6 * np.sin(2 * np.pi * 3 * t)
+    current = np.cos(2 * np.pi * 2 * t)
+    assert indices(t, error, current) == compute_metrics(record(error, current))
+
+
+def test_indices_refuse_arrays_of_different_lengths():
+    with pytest.raises(ValueError, match="one length"):
+        indices(np.arange(3.0), np.zeros(3), np.zeros(2))

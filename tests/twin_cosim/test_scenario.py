@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from twin_cosim import paper
-from twin_cosim.scenario import ScenarioError, load_scenario, load_tuned_parameters
+from twin_cosim.environment import DATA_ENV
+from twin_cosim.scenario import (
+    ScenarioError,
+    find_scenario,
+    load_scenario,
+    load_tuned_parameters,
+    plant_mismatch,
+)
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 BASE = """
@@ -59,6 +69,8 @@ def test_scientific_notation_without_dot_is_a_number(tmp_path):
         ),
         ("controller:\n  settings: {current_limit: -5}\n", "current_limit must be finite and >= 0"),
         ("controller:\n  parameters: {Kp_pos: 1}\n", "missing"),
+        ("controller:\n  parameters: xx\n", r"controller.parameters: expected the six"),
+        ("plant:\n  model: nope\n", "plant.model: unknown model 'nope'"),
         ("run:\n  metrics_window: [0.0, 99.0]\n", "run.metrics_window: expected 0 <= t0 < tF"),
     ],
 )
@@ -102,3 +114,68 @@ def test_params_from_table3_or_file(tmp_path):
     assert load_tuned_parameters(str(path)) == paper.TABLE3["ce"]
     with pytest.raises(ScenarioError, match="neither a set of Table 3"):
         load_tuned_parameters("xx")
+
+
+def test_shipped_scenarios_are_found_by_name():
+    assert find_scenario("reference1") == SCENARIOS / "reference1.yaml"
+    assert load_scenario("reference2").name == "reference2"
+    with pytest.raises(ScenarioError, match=r"nope: neither a scenario file nor a shipped"):
+        load_scenario("nope")
+
+
+def test_fine_tune_is_taken_by_name_from_the_paper(tmp_path):
+    scenario = load_scenario(write(tmp_path, BASE + "controller:\n  parameters: ga\n"))
+    assert scenario.tuned == paper.TABLE3["ga"]
+
+
+def test_controller_plant_facts_follow_the_scenario_plant(tmp_path):
+    """The drive's travel, inertia, K_t and friction follow the plant parameters (no copies)."""
+    scenario = load_scenario(
+        write(
+            tmp_path,
+            BASE + "plant:\n  parameters: {gear_ratio: 2.0, motor_inertia: 1.0e-3, "
+            "torque_constant: 0.5, coulomb_friction: 0.3}\n",
+        )
+    )
+    settings = scenario.settings
+    assert settings.travel_per_rad == pytest.approx(0.010 / (2 * math.pi) / 2.0)
+    assert settings.inertia == pytest.approx(1.0e-3 + 4.2e-4)
+    assert (settings.torque_constant, settings.friction_torque) == (0.5, 0.3)
+    chosen = load_scenario(
+        write(tmp_path, BASE + "controller:\n  settings: {friction_torque: 0.0}\n")
+    )
+    assert chosen.settings.friction_torque == 0.0
+
+
+def test_measured_data_is_looked_up_in_the_data_folder(tmp_path, monkeypatch):
+    scenario_file = write(
+        tmp_path,
+        "reference:\n  measured: far/away/run.csv\n"
+        "  data_source: The run comes from the test's own axis.\n",
+    )
+    monkeypatch.delenv(DATA_ENV, raising=False)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(scenario_file)
+    message = str(info.value)
+    assert "reference.measured: run.csv not found" in message
+    assert "The run comes from the test's own axis." in message
+    assert f"--data DIR or the environment variable {DATA_ENV}=DIR" in message
+    data = tmp_path / "data"
+    data.mkdir()
+    t = np.arange(400) * 1e-3
+    x = 1e-3 * (1 - np.cos(np.pi * t / t[-1]))
+    pd.DataFrame({"t": t, "x_ref": x, "x": x, "current": 0 * t}).to_csv(
+        data / "run.csv", index=False
+    )
+    monkeypatch.setenv(DATA_ENV, str(data))
+    assert load_scenario(scenario_file).measured == data / "run.csv"
+
+
+def test_a_plant_of_another_model_is_a_mismatch(fmu_path, tmp_path):
+    from fmu_build.build import build_fmu
+
+    scenario = load_scenario(SCENARIOS / "reference1.yaml")
+    assert plant_mismatch(scenario, fmu_path) is None
+    warning = plant_mismatch(scenario, build_fmu("emps"))
+    assert "made for the plant model 'drive2mass'" in warning
+    assert "is model 'emps'" in warning

@@ -17,7 +17,7 @@ import pandas as pd
 
 from twin_cosim.gap import regimes as regime_model
 from twin_cosim.measured import MeasuredRun
-from twin_cosim.metrics import UM_PER_M, compute_metrics
+from twin_cosim.metrics import UM_PER_M, indices
 from twin_cosim.reference import ReferenceGrid
 
 FIELDS = ("t", "position", "current", "regimes", "motor_angle", "x", "direction")
@@ -116,9 +116,8 @@ def residuals_of(
 
 
 def run_metrics(t: np.ndarray, error: np.ndarray, current: np.ndarray) -> dict[str, float]:
-    """E_pk (um), ITAE (um.s^2) and IAU (A.s) of one window, by :func:`compute_metrics`."""
-    frame = pd.DataFrame({"t": t - t[0], "error": error, "current": current})
-    metrics = compute_metrics(frame)
+    """E_pk (um), ITAE (um.s^2) and IAU (A.s) of one window, by :func:`indices`."""
+    metrics = indices(t, error, current)
     return {"E_pk_um": metrics.E_pk_um, "ITAE": metrics.ITAE, "IAU": metrics.IAU}
 
 

@@ -52,7 +52,7 @@ class CampaignSpec:
     scenario : str
         Scenario file (its ``optimize`` section configures the objective).
     method : str
-        ce, ga, sa, cmaes or de.
+        A name of :data:`twin_cosim.optimize.methods.METHODS`.
     seed : int
         Seed of the optimizer.
     budget : int or None

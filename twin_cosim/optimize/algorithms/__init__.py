@@ -18,14 +18,11 @@ from twin_cosim.optimize.algorithms.differential_evolution import (
     DifferentialEvolutionSettings,
 )
 from twin_cosim.optimize.algorithms.genetic import GeneticAlgorithm, GeneticSettings
+from twin_cosim.optimize.methods import METHOD_NAMES
 
-ALGORITHMS: dict[str, type[Optimizer]] = {
-    "ce": CrossEntropy,
-    "ga": GeneticAlgorithm,
-    "sa": SimulatedAnnealing,
-    "cmaes": CMAES,
-    "de": DifferentialEvolution,
-}
+_CLASSES = (CrossEntropy, GeneticAlgorithm, SimulatedAnnealing, CMAES, DifferentialEvolution)
+_BY_NAME = {cls.name: cls for cls in _CLASSES}
+ALGORITHMS: dict[str, type[Optimizer]] = {name: _BY_NAME[name] for name in METHOD_NAMES}
 
 
 def make_optimizer(

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from twin_cosim.optimize.algorithms import ALGORITHMS, Optimizer, make_optimizer
+from twin_cosim.optimize.methods import METHOD_NAMES
 
 DIM = 6
 SHIFT = np.array([0.3, 0.7, 0.45, 0.62, 0.2, 0.81])
@@ -35,6 +36,7 @@ def minimise(opt: Optimizer, objective, asks: list | None = None) -> Optimizer:
 
 def test_registry_names_match_classes():
     assert set(ALGORITHMS) == {"ce", "ga", "sa", "cmaes", "de"}
+    assert tuple(ALGORITHMS) == METHOD_NAMES
     for name, cls in ALGORITHMS.items():
         assert cls.name == name
         assert isinstance(make_optimizer(name, DIM, 0), cls)
