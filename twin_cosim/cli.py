@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import json
 import platform
+import signal
 import sys
 import time
 from pathlib import Path
@@ -17,6 +18,7 @@ from twin_cosim.metrics import compute_metrics
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceError
 from twin_cosim.scenario import ScenarioError, load_scenario, load_tuned_parameters
+from twin_cosim.workers import Terminated, terminate_as_interrupt
 
 USER_ERRORS = (
     BuildError,
@@ -179,14 +181,19 @@ def _optimize(args: argparse.Namespace) -> int:
         out = (
             Path(args.out) if args.out else Path("out") / f"optimize-{spec.method}-seed{spec.seed}"
         )
-    result = run_campaign(
-        spec,
-        out,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        resume=bool(args.resume),
-        progress=not args.quiet,
-    )
+    try:
+        result = run_campaign(
+            spec,
+            out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            resume=bool(args.resume),
+            progress=not args.quiet,
+        )
+    except KeyboardInterrupt as exc:
+        if (out / "campaign.json").exists():
+            exc.hint = f"; the log is intact: twin optimize {args.scenario} --resume {out}"
+        raise
     write_campaign_plots(out)
     summary = {
         "best_params": result.best_params,
@@ -405,13 +412,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``twin`` console script."""
+    """Entry point of the ``twin`` console script.
+
+    Exit status: 0 done; 1 done, but the result needs attention (``simulate``: the loop
+    diverged); 2 a user error (bad file, key or option), with a message naming it; 128 + N ended
+    by signal N (130 Ctrl-C, 143 SIGTERM), after a clean shutdown.
+    """
     args = build_parser().parse_args(argv)
+    terminate_as_interrupt()
     try:
         return args.handler(args)
     except USER_ERRORS as exc:
         print(f"twin {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as exc:
+        hint = getattr(exc, "hint", "")
+        print(f"twin {args.command}: interrupted{hint}", file=sys.stderr)
+        return 128 + (signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT)
 
 
 if __name__ == "__main__":
