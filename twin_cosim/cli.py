@@ -48,6 +48,66 @@ def write_json(path: Path, data: dict[str, Any]) -> None:
     path.write_text(json.dumps(data, indent=2) + "\n")
 
 
+def whole_number(low: int):
+    """An argparse type: a whole number >= ``low`` (the message names the option)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low:
+            raise argparse.ArgumentTypeError(f"expected a whole number >= {low}, got {text!r}")
+        return value
+
+    return parse
+
+
+def fraction(low: float, high: float):
+    """An argparse type: a number in [low, high]."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"expected a number in [{low}, {high}], got {text!r}")
+        return value
+
+    return parse
+
+
+def out_folder(option: str | None, default: Path) -> Path:
+    """The output folder of ``--out`` (or ``default``); an existing file is refused."""
+    out = Path(option) if option else default
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a folder; give a folder")
+    return out
+
+
+def loop_warnings(record, scenario) -> list[str]:
+    """Warnings about a run that diverged or saturated (the objective's abort band applies).
+
+    The first, when present, says the loop diverged: |error| beyond ``optimize.abort_error_um``.
+    """
+    from twin_cosim.optimize.config import load_config
+
+    band_um = load_config(scenario).abort_error_um
+    peak_um = float(abs(record["error"]).max()) * 1e6
+    limit = scenario.settings.current_limit
+    saturated = float((abs(record["current"]) >= 0.999 * limit).mean())
+    found = []
+    if not peak_um <= band_um:
+        found.append(
+            f"the loop diverged: |error| reached {peak_um:.4g} um, beyond the band of "
+            f"{band_um:g} um (optimize.abort_error_um) in which the optimizer keeps a run"
+        )
+    if saturated > 0.1:
+        found.append(f"the current is at its limit ({limit:g} A) {saturated:.0%} of the time")
+    return found
+
+
 def _build(args: argparse.Namespace) -> int:
     path = build_fmu(args.model, Path(args.out) if args.out else None, force=args.force)
     print(path)
@@ -61,7 +121,7 @@ def _simulate(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
     tuned = load_tuned_parameters(args.params) if args.params else scenario.tuned
     fmu = Path(args.plant) if args.plant else scenario.fmu
-    out = Path(args.out) if args.out else Path("out") / scenario.name
+    out = out_folder(args.out, Path("out") / scenario.name)
     out.mkdir(parents=True, exist_ok=True)
     with Plant(fmu) as plant:
         start = time.perf_counter()
@@ -69,6 +129,7 @@ def _simulate(args: argparse.Namespace) -> int:
         wall = time.perf_counter() - start
         fmu_path = str(plant.fmu_path)
     metrics = compute_metrics(record, scenario.metrics_window)
+    warnings = loop_warnings(record, scenario)
     validation = None
     if scenario.measured is not None:
         from twin_cosim.measured import read_measured
@@ -92,6 +153,7 @@ def _simulate(args: argparse.Namespace) -> int:
         "metrics_window_s": list(scenario.metrics_window),
         "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
         "wall_s": wall,
+        "warnings": warnings,
         "outputs": {"record": str(out / "record.csv"), "plot": str(out / "run.png")},
         "versions": versions(),
     }
@@ -114,7 +176,10 @@ def _simulate(args: argparse.Namespace) -> int:
                 f"{v['current_relative_error_pct']:.3f} %"
             )
         print(f"wrote {out}/record.csv, run.png, summary.json")
-    return 0
+    for warning in warnings:
+        print(f"twin simulate: warning: {warning}", file=sys.stderr)
+    diverged = bool(warnings) and warnings[0].startswith("the loop diverged")
+    return 1 if diverged else 0
 
 
 def _table3(args: argparse.Namespace) -> int:
@@ -123,7 +188,7 @@ def _table3(args: argparse.Namespace) -> int:
     from twin_cosim.report import evaluate_sets, markdown_table
 
     scenarios = {str(path): load_scenario(path) for path in args.scenarios}
-    out = Path(args.out) if args.out else Path("out") / "table3"
+    out = out_folder(args.out, Path("out") / "table3")
     out.mkdir(parents=True, exist_ok=True)
     sets = {name.upper(): tuned for name, tuned in paper.TABLE3.items()}
     first = next(iter(scenarios.values()))
@@ -155,8 +220,9 @@ def _optimize(args: argparse.Namespace) -> int:
     from twin_cosim.optimize.outputs import write_campaign_plots
 
     if args.resume:
-        spec = load_spec(Path(args.resume))
+        stored = load_spec(Path(args.resume))
         given = {"method": args.method, "seed": args.seed, "budget": args.budget}
+        spec = dataclasses.replace(stored, scenario=args.scenario, fmu=args.plant or stored.fmu)
         stored = {"method": spec.method, "seed": spec.seed, "budget": spec.budget}
         conflicts = {
             k: (v, stored[k]) for k, v in given.items() if v is not None and v != stored[k]
@@ -178,9 +244,7 @@ def _optimize(args: argparse.Namespace) -> int:
             budget=args.budget,
             fmu=args.plant,
         )
-        out = (
-            Path(args.out) if args.out else Path("out") / f"optimize-{spec.method}-seed{spec.seed}"
-        )
+        out = out_folder(args.out, Path("out") / f"optimize-{spec.method}-seed{spec.seed}")
     try:
         result = run_campaign(
             spec,
@@ -227,7 +291,7 @@ def _compare(args: argparse.Namespace) -> int:
 
     comparison = load_comparison(Path(args.campaign))
     methods = args.methods.split(",") if args.methods else None
-    out = Path(args.out) if args.out else Path("out") / comparison.name
+    out = out_folder(args.out, Path("out") / comparison.name)
     text = run_comparison(
         comparison,
         out,
@@ -244,6 +308,16 @@ def _compare(args: argparse.Namespace) -> int:
 def _synth(args: argparse.Namespace) -> int:
     from twin_cosim.gap.synth import parse_effect, synthesize
 
+    out = Path(args.out)
+    truth = out.with_name(out.name + ".truth.json")
+    if out.is_dir():
+        raise ValueError(f"--out {out}: is a folder; give the measured-run CSV file to write")
+    for path in (out, truth):
+        if path.exists() and not args.force:
+            raise ValueError(
+                f"--out {out}: {path} exists (it may be a real measured run); "
+                "give another --out, or --force to overwrite"
+            )
     scenario = load_scenario(args.scenario)
     effects = [parse_effect(text) for text in args.effect]
     synthesis = synthesize(
@@ -255,10 +329,8 @@ def _synth(args: argparse.Namespace) -> int:
         args.noise_position,
         args.noise_current,
     )
-    out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     synthesis.run.to_csv(out, index=False)
-    truth = out.with_name(out.name + ".truth.json")
     write_json(truth, synthesis.truth)
     print(f"wrote {out} ({len(synthesis.run)} samples) and the known answer in {truth}")
     return 0
@@ -270,6 +342,7 @@ def _diagnose(args: argparse.Namespace) -> int:
     from twin_cosim.measured import read_measured
 
     scenario = load_scenario(args.scenario)
+    out = out_folder(args.out, Path("out") / f"diagnosis-{scenario.name}")
     measured = [read_measured(path) for path in args.measured]
     holdout = [read_measured(path) for path in args.holdout or []]
     settings = settings_from(scenario, args.split)
@@ -279,7 +352,6 @@ def _diagnose(args: argparse.Namespace) -> int:
     result = diagnose(scenario, measured, holdout, args.plant, settings, workers=args.workers)
     result.summary["wall_s"] = time.perf_counter() - start
     result.summary["versions"] = versions()
-    out = Path(args.out) if args.out else Path("out") / f"diagnosis-{scenario.name}"
     with Plant(Path(args.plant) if args.plant else scenario.fmu) as plant:
         gear_ratio = plant.start_values().get("gear_ratio", 1.5)
     files = write_report(result, out, gear_ratio)
@@ -334,10 +406,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     optimize.add_argument("scenario", help="scenario YAML file (its optimize section)")
     optimize.add_argument("--method", choices=["ce", "ga", "sa", "cmaes", "de"])
-    optimize.add_argument("--seed", type=int, help="seed (default 0)")
-    optimize.add_argument("--budget", type=int, help="maximum evaluations (default: the method's)")
+    optimize.add_argument("--seed", type=whole_number(0), help="seed (default 0)")
     optimize.add_argument(
-        "--workers", type=int, help="local processes (default: all cores; 1: serial)"
+        "--budget", type=whole_number(1), help="maximum evaluations (default: the method's)"
+    )
+    optimize.add_argument(
+        "--workers", type=whole_number(1), help="local processes (default: all cores; 1: serial)"
     )
     optimize.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://host:8786")
     optimize.add_argument("--plant", help="another FMU offering the plant contract")
@@ -352,7 +426,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     compare.add_argument("campaign", help="campaign YAML file (see scenarios/paper_campaign.yaml)")
     compare.add_argument("--methods", help="comma-separated subset of the campaign's methods")
-    compare.add_argument("--workers", type=int, help="local processes (default: all cores)")
+    compare.add_argument(
+        "--workers", type=whole_number(1), help="local processes (default: all cores)"
+    )
     compare.add_argument("--scheduler", help="Dask scheduler address")
     compare.add_argument("--out", help="output folder (default: out/<campaign name>)")
     compare.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -372,7 +448,7 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument(
         "--perturb", type=float, default=0.0, help="calibration error, relative (e.g. 0.03)"
     )
-    synth.add_argument("--seed", type=int, default=0)
+    synth.add_argument("--seed", type=whole_number(0), default=0)
     synth.add_argument(
         "--noise-position", type=float, default=20e-9, help="white noise on x, m (20e-9)"
     )
@@ -380,7 +456,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--noise-current", type=float, default=5e-3, help="white noise on the current, A"
     )
     synth.add_argument("--plant", help="another FMU offering the plant contract")
-    synth.add_argument("--out", required=True, help="measured-run CSV to write")
+    synth.add_argument("--out", required=True, help="measured-run CSV to write (a new file)")
+    synth.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     synth.set_defaults(handler=_synth)
 
     diag = commands.add_parser("diagnose", help="where the twin is wrong, why, and by how much")
@@ -390,12 +467,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     diag.add_argument("--holdout", action="append", help="held-out run(s); default: a time split")
     diag.add_argument(
-        "--split", type=float, help="training fraction of the time split (default 0.5)"
+        "--split",
+        type=fraction(0.1, 0.9),
+        help="training fraction of the time split (default 0.5)",
     )
-    diag.add_argument("--max-effects", type=int, help="effects to accept at most (default 3)")
+    diag.add_argument(
+        "--max-effects", type=whole_number(0), help="effects to accept at most (default 3)"
+    )
     diag.add_argument("--plant", help="another FMU offering the plant contract")
     diag.add_argument(
-        "--workers", type=int, help="local processes for the fits (default: all cores)"
+        "--workers", type=whole_number(1), help="local processes for the fits (default: all cores)"
     )
     diag.add_argument("--out", help="report folder (default: out/diagnosis-<scenario name>)")
     diag.add_argument("--json", action="store_true", help="print the summary as one JSON object")
