@@ -18,7 +18,7 @@ from twin_cosim.metrics import compute_metrics
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceError
 from twin_cosim.scenario import ScenarioError, load_scenario, load_tuned_parameters
-from twin_cosim.workers import Terminated, terminate_as_interrupt
+from twin_cosim.workers import Terminated, command_temp_folder, terminate_as_interrupt
 
 USER_ERRORS = (
     BuildError,
@@ -502,7 +502,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     terminate_as_interrupt()
     try:
-        return args.handler(args)
+        with command_temp_folder():
+            return args.handler(args)
     except USER_ERRORS as exc:
         print(f"twin {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -9,8 +9,10 @@ Nothing outlives a pool. Every pool has a private temp folder (``twin-pool-<pare
 its workers extract FMUs into and that ``close()`` removes. A worker ignores Ctrl-C (its parent
 handles it and shuts the pool down), frees its plant when it exits, and dies with its parent: a
 watchdog thread polls the parent's pid, so after ``kill -9`` of the parent every worker removes
-the pool's folder and exits (the multiprocessing resource tracker then ends too). A folder left
-by a process that could not clean up (``kill -9`` of a serial run) is removed by the next pool.
+the pool's folder and exits (the multiprocessing resource tracker then ends too). A command of
+the ``twin`` CLI keeps all its temporary files in one such folder (:func:`command_temp_folder`);
+one left by a process that could not clean up (``kill -9`` of a serial run) is removed by the
+next pool or command.
 :func:`terminate_as_interrupt` makes SIGTERM end a process the way Ctrl-C does.
 """
 
@@ -97,6 +99,21 @@ def _temp_root(folder: str) -> Iterator[None]:
         tempfile.tempdir = before
 
 
+@contextmanager
+def command_temp_folder() -> Iterator[str]:
+    """All temporary files of this process go to a private folder, removed at the end.
+
+    Pools started meanwhile put theirs inside it. After ``kill -9`` the pool's workers remove it;
+    a folder left anyway is removed by the next pool or command (its process is dead).
+    """
+    folder = new_pool_folder()
+    try:
+        with _temp_root(folder):
+            yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 class SerialPool:
     """Runs the tasks one after the other in this process, on one worker."""
 
@@ -133,10 +150,17 @@ def _close_process_worker(folder: str) -> None:
 
 
 def _watch_parent(parent_pid: int, pool_folder: str) -> None:
-    """Exit this worker once its parent is gone (reparented), removing the pool's folder."""
+    """Exit this worker once its parent is gone (reparented), removing the pool's folder.
+
+    When the pool's folder lies in the parent's command folder (:func:`command_temp_folder`),
+    that goes too.
+    """
     while os.getppid() == parent_pid:
         time.sleep(PARENT_POLL_S)
     shutil.rmtree(pool_folder, ignore_errors=True)
+    outer = Path(pool_folder).parent
+    if re.fullmatch(rf"{POOL_PREFIX}{parent_pid}-.*", outer.name):
+        shutil.rmtree(outer, ignore_errors=True)
     os._exit(1)
 
 

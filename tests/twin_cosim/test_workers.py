@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from twin_cosim.optimize.objective import ObjectiveSpec
-from twin_cosim.workers import ProcessPool, make_pool
+from twin_cosim.workers import ProcessPool, command_temp_folder, make_pool
 
 ROOT = Path(__file__).resolve().parents[2]
 SHORT = """
@@ -97,8 +97,10 @@ def test_stale_pool_folder_of_a_dead_process_is_removed(short_scenario, private_
     (stale / "tmpx").mkdir(parents=True)
     mine = private_tmp / f"twin-pool-{os.getppid()}-abc"  # a live process: kept
     mine.mkdir()
-    pool = make_pool(ObjectiveSpec(short_scenario, None, None), 1)
-    pool.close()
+    with command_temp_folder() as folder:
+        assert tempfile.gettempdir() == folder
+        pool = make_pool(ObjectiveSpec(short_scenario, None, None), 1)
+        pool.close()
     assert sorted(p.name for p in private_tmp.iterdir()) == [mine.name]
 
 
