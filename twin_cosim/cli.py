@@ -86,10 +86,11 @@ def out_folder(option: str | None, default: Path) -> Path:
     return out
 
 
-def loop_warnings(record, scenario) -> list[str]:
-    """Warnings about a run that diverged or saturated (the objective's abort band applies).
+def loop_warnings(record, scenario) -> tuple[bool, list[str]]:
+    """Whether a run diverged (the objective's band applies), and warnings about it.
 
-    The first, when present, says the loop diverged: |error| beyond ``optimize.abort_error_um``.
+    Diverged: |error| beyond ``optimize.abort_error_um``; a current at its limit more than 10 %
+    of the time is a warning too.
     """
     from twin_cosim.optimize.config import load_config
 
@@ -98,14 +99,15 @@ def loop_warnings(record, scenario) -> list[str]:
     limit = scenario.settings.current_limit
     saturated = float((abs(record["current"]) >= 0.999 * limit).mean())
     found = []
-    if not peak_um <= band_um:
+    diverged = not peak_um <= band_um
+    if diverged:
         found.append(
             f"the loop diverged: |error| reached {peak_um:.4g} um, beyond the band of "
             f"{band_um:g} um (optimize.abort_error_um) in which the optimizer keeps a run"
         )
     if saturated > 0.1:
         found.append(f"the current is at its limit ({limit:g} A) {saturated:.0%} of the time")
-    return found
+    return diverged, found
 
 
 def _build(args: argparse.Namespace) -> int:
@@ -129,7 +131,7 @@ def _simulate(args: argparse.Namespace) -> int:
         wall = time.perf_counter() - start
         fmu_path = str(plant.fmu_path)
     metrics = compute_metrics(record, scenario.metrics_window)
-    warnings = loop_warnings(record, scenario)
+    diverged, warnings = loop_warnings(record, scenario)
     validation = None
     if scenario.measured is not None:
         from twin_cosim.measured import read_measured
@@ -178,7 +180,6 @@ def _simulate(args: argparse.Namespace) -> int:
         print(f"wrote {out}/record.csv, run.png, summary.json")
     for warning in warnings:
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
-    diverged = bool(warnings) and warnings[0].startswith("the loop diverged")
     return 1 if diverged else 0
 
 

@@ -125,6 +125,11 @@ def _read_header(out_dir: Path) -> dict[str, Any]:
         raise CampaignError(f"{path}: not a campaign record (JSON): {exc}") from exc
     if not isinstance(header, dict) or not isinstance(header.get("spec"), dict):
         raise CampaignError(f"{path}: not a campaign record: no 'spec' mapping")
+    missing = sorted({"iau_limit", "reference"} - set(header))
+    if missing or not isinstance(header["reference"], dict):
+        raise CampaignError(
+            f"{path}: not a campaign record: missing or bad {missing or 'reference'}"
+        )
     return header
 
 
@@ -209,7 +214,7 @@ def load_spec(out_dir: Path) -> CampaignSpec:
         raise CampaignError(f"{Path(out_dir) / 'campaign.json'}: bad 'spec': {exc}") from exc
 
 
-def _check_arguments(spec: CampaignSpec, out_dir: Path, workers: int | None) -> None:
+def _check_arguments(spec: CampaignSpec, out_dir: Path, workers: int | None, resume: bool) -> None:
     """Every argument, checked before anything is written."""
     for name, value, low in (("seed", spec.seed, 0), ("budget", spec.budget, 1)):
         if value is not None and (
@@ -222,6 +227,8 @@ def _check_arguments(spec: CampaignSpec, out_dir: Path, workers: int | None) -> 
         raise CampaignError(str(exc)) from None
     if out_dir.exists() and not out_dir.is_dir():
         raise CampaignError(f"{out_dir}: exists and is not a folder (campaign folder expected)")
+    if resume and not (out_dir / "campaign.json").is_file():
+        raise CampaignError(f"{out_dir}: no campaign.json to resume from")
 
 
 def run_campaign(
@@ -259,7 +266,7 @@ def run_campaign(
         a resume whose options or inputs differ from the stored campaign.
     """
     out_dir = Path(out_dir)
-    _check_arguments(spec, out_dir, workers)
+    _check_arguments(spec, out_dir, workers, resume)
     scenario = load_scenario(spec.scenario)
     config = load_config(scenario)
     settings = {**config.methods.get(spec.method, {}), **spec.settings}

@@ -148,10 +148,11 @@ def test_an_unreachable_scheduler_writes_nothing(scenario, tmp_path):
     assert not (tmp_path / "c").exists()
 
 
-def test_garbage_campaign_json_is_named(scenario, tmp_path, capsys):
+@pytest.mark.parametrize("text", ["garbage", "[1, 2]", '{"spec": {}}'])
+def test_garbage_campaign_json_is_named(scenario, tmp_path, capsys, text):
     out = tmp_path / "c"
     out.mkdir()
-    (out / "campaign.json").write_text("garbage")
+    (out / "campaign.json").write_text(text)
     assert main(["optimize", str(scenario), "--resume", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert f"{out / 'campaign.json'}: not a campaign record" in err

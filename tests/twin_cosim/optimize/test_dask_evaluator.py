@@ -90,7 +90,7 @@ def test_a_scheduler_without_workers_says_so(scenario, tmp_path):
 
 
 def test_a_scheduler_lost_mid_run_is_an_error_and_the_log_resumes(scenario, tmp_path):
-    spec = CampaignSpec(scenario, "ce", seed=2, budget=200)
+    spec = CampaignSpec(scenario, "ce", seed=2, budget=80)
     out = tmp_path / "c"
     cluster = local_cluster(1, 1)
     log = out / "evaluations.jsonl"
