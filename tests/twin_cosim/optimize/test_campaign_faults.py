@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -26,6 +27,14 @@ reference:
 optimize:
   abort_error_um: 50.0
 """
+
+
+@pytest.fixture(autouse=True)
+def keep_sigterm():
+    """``main`` turns SIGTERM into an interrupt: give the test process its handler back."""
+    before = signal.getsignal(signal.SIGTERM)
+    yield
+    signal.signal(signal.SIGTERM, before)
 
 
 @pytest.fixture()
