@@ -27,6 +27,7 @@ USER_ERRORS = (
     ScenarioError,
     ReferenceError,
     ValueError,
+    OSError,  # a file or folder that cannot be read or written; the message names it
 )
 
 

@@ -121,3 +121,12 @@ def test_bad_numbers_name_their_option(argv, expected, capsys):
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert f"argument {expected}: expected" in err
+
+
+def test_an_out_folder_that_cannot_be_made_is_named(scenario, tmp_path, capsys):
+    taken = tmp_path / "taken"
+    taken.write_text("keep me")
+    assert main(["simulate", str(scenario), "--out", str(taken / "sub")]) == 2
+    err = capsys.readouterr().err
+    assert str(taken / "sub") in err
+    assert "Traceback" not in err
