@@ -3,7 +3,9 @@
 A :class:`ObjectivePlugin` (it holds only paths and numbers, so it pickles) gives every thread of
 every Dask worker its own objective, built on the thread's first task (one plant instance per
 thread: an FMU instance is never shared between threads); each task resets that plant and runs one
-candidate. Any worker layout is correct (``--nthreads 1`` uses the least memory).
+candidate. Any worker layout is correct (``--nthreads 1`` uses the least memory). A closing worker
+tears its plugin down while tasks may still run: teardown waits for each plant's running task
+before freeing it, and a task that starts afterwards is rescheduled on another worker.
 
 Connecting is bounded: a scheduler that does not answer, or has no worker within the wait, is a
 :class:`SchedulerError` naming ``--scheduler``; so is a scheduler lost in the middle of a run.
@@ -17,7 +19,7 @@ from collections.abc import Iterator
 from concurrent.futures import CancelledError
 
 import numpy as np
-from distributed import Client, WorkerPlugin, get_worker
+from distributed import Client, Reschedule, WorkerPlugin, get_worker
 from distributed import as_completed as dask_completed
 from distributed.comm.core import CommClosedError
 
@@ -40,27 +42,36 @@ class ObjectivePlugin(WorkerPlugin):
     def setup(self, worker) -> None:
         self._local = threading.local()
         self._lock = threading.Lock()
-        self._built: list[Objective] = []
+        self._built: list[tuple[Objective, threading.Lock]] = []
+        self._closed = False
 
-    def objective(self) -> Objective:
-        """The calling thread's objective."""
-        objective = getattr(self._local, "objective", None)
-        if objective is None:
-            objective = self.spec.build()
-            self._local.objective = objective
+    def evaluate(self, x: np.ndarray) -> Result:
+        """Score ``x`` on the calling thread's objective (built on the thread's first task)."""
+        slot = getattr(self._local, "slot", None)
+        if slot is None:
             with self._lock:
-                self._built.append(objective)
-        return objective
+                if self._closed:
+                    raise Reschedule()
+                slot = (self.spec.build(), threading.Lock())
+                self._built.append(slot)
+            self._local.slot = slot
+        objective, busy = slot
+        with busy:
+            if self._closed:
+                raise Reschedule()
+            return objective(x)
 
     def teardown(self, worker) -> None:
         with self._lock:
-            for objective in self._built:
+            self._closed = True
+            built, self._built = self._built, []
+        for objective, busy in built:
+            with busy:  # a running task ends first
                 objective.close()
-            self._built.clear()
 
 
 def _evaluate_on_worker(x: np.ndarray) -> Result:
-    return get_worker().plugins[PLUGIN_NAME].objective()(x)
+    return get_worker().plugins[PLUGIN_NAME].evaluate(x)
 
 
 def connect(address: str, timeout: float | None = None) -> Client:

@@ -122,3 +122,35 @@ def test_a_scheduler_lost_mid_run_is_an_error_and_the_log_resumes(scenario, tmp_
     uninterrupted = run_campaign(spec, tmp_path / "u", workers=1, progress=False)
     assert resumed.best_params == uninterrupted.best_params
     assert set(before) <= set(statuses(out))
+
+
+LONG = """
+name: long
+reference:
+  segments:
+    - ramp: {velocity: 0.005, acceleration: 0.05, duration: 60.0}
+    - ramp: {velocity: 0.0, acceleration: 0.05, duration: 0.1}
+"""
+
+
+def test_teardown_waits_for_the_running_task(tmp_path):
+    from twin_cosim.optimize.dask_evaluator import ObjectivePlugin
+    from twin_cosim.optimize.objective import ObjectiveSpec
+
+    path = tmp_path / "long.yaml"
+    path.write_text(LONG)
+    plugin = ObjectivePlugin(ObjectiveSpec(str(path), None, None))
+    plugin.setup(worker=None)
+    results = []
+    fine_tune = [66.667, 0.5, 0.01, 1.0, 0.01, 0.1]
+    task = threading.Thread(target=lambda: results.append(plugin.evaluate(fine_tune)))
+    task.start()
+    deadline = time.monotonic() + 60
+    while not plugin._built and time.monotonic() < deadline:
+        time.sleep(0.01)
+    time.sleep(0.05)  # the run (about a second) is under way
+    plugin.teardown(worker=None)  # what a closing Dask worker does
+    task.join(timeout=60)
+    assert results and results[0]["status"] == "ok", results
+    with pytest.raises(distributed.Reschedule):
+        plugin.evaluate(fine_tune)
