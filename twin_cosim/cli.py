@@ -8,9 +8,11 @@ matplotlib) when it runs.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
+import signal
 import sys
 import time
 from pathlib import Path
@@ -32,7 +34,15 @@ def user_errors() -> tuple[type[Exception], ...]:
     from twin_cosim.reference import ReferenceError
     from twin_cosim.scenario import ScenarioError
 
-    return (BuildError, VariableTableError, PlantError, ScenarioError, ReferenceError, ValueError)
+    return (
+        BuildError,
+        VariableTableError,
+        PlantError,
+        ScenarioError,
+        ReferenceError,
+        ValueError,
+        OSError,  # a file or folder that cannot be read or written; the message names it
+    )
 
 
 def warn_plant_mismatch(scenario: Scenario, fmu: Path | None) -> list[str]:
@@ -64,6 +74,68 @@ def write_json(path: Path, data: dict[str, Any]) -> None:
     path.write_text(json.dumps(data, indent=2) + "\n")
 
 
+def whole_number(low: int):
+    """An argparse type: a whole number >= ``low`` (the message names the option)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low:
+            raise argparse.ArgumentTypeError(f"expected a whole number >= {low}, got {text!r}")
+        return value
+
+    return parse
+
+
+def fraction(low: float, high: float):
+    """An argparse type: a number in [low, high]."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"expected a number in [{low}, {high}], got {text!r}")
+        return value
+
+    return parse
+
+
+def out_folder(option: str | None, default: Path) -> Path:
+    """The output folder of ``--out`` (or ``default``); an existing file is refused."""
+    out = Path(option) if option else default
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a folder; give a folder")
+    return out
+
+
+def loop_warnings(record, scenario) -> tuple[bool, list[str]]:
+    """Whether a run diverged (the objective's band applies), and warnings about it.
+
+    Diverged: |error| beyond ``optimize.abort_error_um``; a current at its limit more than 10 %
+    of the time is a warning too.
+    """
+    from twin_cosim.optimize.config import load_config
+
+    band_um = load_config(scenario).abort_error_um
+    peak_um = float(abs(record["error"]).max()) * 1e6
+    limit = scenario.settings.current_limit
+    saturated = float((abs(record["current"]) >= 0.999 * limit).mean())
+    found = []
+    diverged = not peak_um <= band_um
+    if diverged:
+        found.append(
+            f"the loop diverged: |error| reached {peak_um:.4g} um, beyond the band of "
+            f"{band_um:g} um (optimize.abort_error_um) in which the optimizer keeps a run"
+        )
+    if saturated > 0.1:
+        found.append(f"the current is at its limit ({limit:g} A) {saturated:.0%} of the time")
+    return diverged, found
+
+
 def _build(args: argparse.Namespace) -> int:
     from fmu_build.build import build_fmu
 
@@ -82,8 +154,8 @@ def _simulate(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
     tuned = load_tuned_parameters(args.params) if args.params else scenario.tuned
     fmu = Path(args.plant) if args.plant else scenario.fmu
-    warnings = warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
-    out = Path(args.out) if args.out else Path("out") / scenario.name
+    mismatch = warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
+    out = out_folder(args.out, Path("out") / scenario.name)
     out.mkdir(parents=True, exist_ok=True)
     with Plant(fmu) as plant:
         start = time.perf_counter()
@@ -91,6 +163,8 @@ def _simulate(args: argparse.Namespace) -> int:
         wall = time.perf_counter() - start
         fmu_path = str(plant.fmu_path)
     metrics = compute_metrics(record, scenario.metrics_window)
+    diverged, loop = loop_warnings(record, scenario)
+    warnings = mismatch + loop
     validation = None
     if scenario.measured is not None:
         from twin_cosim.measured import read_measured
@@ -137,7 +211,9 @@ def _simulate(args: argparse.Namespace) -> int:
                 f"{v['current_relative_error_pct']:.3f} %"
             )
         print(f"wrote {out}/record.csv, run.png, summary.json")
-    return 0
+    for warning in warnings:
+        print(f"twin simulate: warning: {warning}", file=sys.stderr)
+    return 1 if diverged else 0
 
 
 def _table3(args: argparse.Namespace) -> int:
@@ -151,7 +227,7 @@ def _table3(args: argparse.Namespace) -> int:
     scenarios = {str(path): load_scenario(path) for path in args.scenarios}
     for scenario in scenarios.values():
         warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
-    out = Path(args.out) if args.out else Path("out") / "table3"
+    out = out_folder(args.out, Path("out") / "table3")
     out.mkdir(parents=True, exist_ok=True)
     sets = {name.upper(): tuned for name, tuned in paper.TABLE3.items()}
     first = next(iter(scenarios.values()))
@@ -183,8 +259,9 @@ def _optimize(args: argparse.Namespace) -> int:
     from twin_cosim.optimize.outputs import write_campaign_plots
 
     if args.resume:
-        spec = load_spec(Path(args.resume))
+        stored = load_spec(Path(args.resume))
         given = {"method": args.method, "seed": args.seed, "budget": args.budget}
+        spec = dataclasses.replace(stored, scenario=args.scenario, fmu=args.plant or stored.fmu)
         stored = {"method": spec.method, "seed": spec.seed, "budget": spec.budget}
         conflicts = {
             k: (v, stored[k]) for k, v in given.items() if v is not None and v != stored[k]
@@ -208,17 +285,20 @@ def _optimize(args: argparse.Namespace) -> int:
             budget=args.budget,
             fmu=args.plant,
         )
-        out = (
-            Path(args.out) if args.out else Path("out") / f"optimize-{spec.method}-seed{spec.seed}"
+        out = out_folder(args.out, Path("out") / f"optimize-{spec.method}-seed{spec.seed}")
+    try:
+        result = run_campaign(
+            spec,
+            out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            resume=bool(args.resume),
+            progress=not args.quiet,
         )
-    result = run_campaign(
-        spec,
-        out,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        resume=bool(args.resume),
-        progress=not args.quiet,
-    )
+    except KeyboardInterrupt as exc:
+        if (out / "campaign.json").exists():
+            exc.hint = f"; the log is intact: twin optimize {args.scenario} --resume {out}"
+        raise
     write_campaign_plots(out)
     summary = {
         "best_params": result.best_params,
@@ -252,7 +332,7 @@ def _compare(args: argparse.Namespace) -> int:
 
     comparison = load_comparison(Path(args.campaign))
     methods = args.methods.split(",") if args.methods else None
-    out = Path(args.out) if args.out else Path("out") / comparison.name
+    out = out_folder(args.out, Path("out") / comparison.name)
     text = run_comparison(
         comparison,
         out,
@@ -293,14 +373,23 @@ def _synth(args: argparse.Namespace) -> int:
     from twin_cosim.measured import read_measured
     from twin_cosim.scenario import for_measured_run, load_scenario
 
+    out = Path(args.out)
+    truth = out.with_name(out.name + ".truth.json")
+    if out.is_dir():
+        raise ValueError(f"--out {out}: is a folder; give the measured-run file to write")
+    if out.suffix.lower() not in (".csv", ".mat"):
+        raise ValueError(f"--out {out}: expected a .csv or an EMPS .mat file name")
+    for path in (out, truth):
+        if path.exists() and not args.force:
+            raise ValueError(
+                f"--out {out}: {path} exists (it may be a real measured run); "
+                "give another --out, or --force to overwrite"
+            )
     scenario = load_scenario(args.scenario)
     warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
     if args.follow:
         scenario = for_measured_run(scenario, read_measured(args.follow))
     effects = [parse_effect(text) for text in args.effect]
-    out = Path(args.out)
-    if out.suffix.lower() not in (".csv", ".mat"):
-        raise ValueError(f"--out {out}: expected a .csv or an EMPS .mat file name")
     synthesis = synthesize(
         scenario,
         effects,
@@ -323,7 +412,6 @@ def _synth(args: argparse.Namespace) -> int:
         write_emps_mat(out, run["t"], run["x_ref"], run["x"], run["current"], gains, pulses)
     else:
         run.to_csv(out, index=False)
-    truth = out.with_name(out.name + ".truth.json")
     write_json(truth, {**synthesis.truth, "followed": args.follow})
     print(f"wrote {out} ({len(run)} samples) and the known answer in {truth}")
     return 0
@@ -355,11 +443,10 @@ def _diagnose(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args.scenario)
     mismatch = warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
+    out = out_folder(args.out, Path("out") / f"diagnosis-{scenario.name}")
     measured = [read_measured(path) for path in args.measured]
     holdout = [read_measured(path) for path in args.holdout or []]
     settings = settings_from(scenario, args.split, args.max_effects)
-    if args.workers is not None and args.workers < 1:
-        raise ValueError(f"--workers: expected a whole number >= 1, got {args.workers}")
     start = time.perf_counter()
     show = not args.quiet and not (args.json and not sys.stdout.isatty())
     result = diagnose(
@@ -376,7 +463,6 @@ def _diagnose(args: argparse.Namespace) -> int:
         "versions": versions(),
         "warnings": mismatch + result.summary()["warnings"],
     }
-    out = Path(args.out) if args.out else Path("out") / f"diagnosis-{scenario.name}"
     files = write_report(result, out, extra)
     summary = {**result.summary(), **extra}
     if args.json:
@@ -476,10 +562,12 @@ def build_parser() -> argparse.ArgumentParser:
     optimize.add_argument(
         "--method", choices=METHOD_NAMES, help="optimizer (default: none; required unless --resume)"
     )
-    optimize.add_argument("--seed", type=int, help="seed (default: 0)")
-    optimize.add_argument("--budget", type=int, help="maximum evaluations (default: the method's)")
+    optimize.add_argument("--seed", type=whole_number(0), help="seed (default: 0)")
     optimize.add_argument(
-        "--workers", type=int, help="local processes (default: all cores; 1: serial)"
+        "--budget", type=whole_number(1), help="maximum evaluations (default: the method's)"
+    )
+    optimize.add_argument(
+        "--workers", type=whole_number(1), help="local processes (default: all cores; 1: serial)"
     )
     optimize.add_argument(
         "--scheduler",
@@ -504,7 +592,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--methods",
         help="comma-separated subset of the campaign's methods (default: all of them)",
     )
-    compare.add_argument("--workers", type=int, help="local processes (default: all cores)")
+    compare.add_argument(
+        "--workers", type=whole_number(1), help="local processes (default: all cores)"
+    )
     compare.add_argument(
         "--scheduler", metavar="ADDR", help="Dask scheduler address (default: none, a local pool)"
     )
@@ -527,7 +617,9 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument(
         "--perturb", type=float, default=0.0, help="calibration error, relative (e.g. 0.03)"
     )
-    synth.add_argument("--seed", type=int, default=0, help="seed of the noise and perturbation")
+    synth.add_argument(
+        "--seed", type=whole_number(0), default=0, help="seed of the noise and perturbation"
+    )
     synth.add_argument(
         "--noise-position", type=float, default=20e-9, help="white noise on x, m (RMS)"
     )
@@ -546,8 +638,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--out",
         required=True,
         metavar="RUN",
-        help="measured run to write: .csv, or .mat in the EMPS format (required)",
+        help="measured run to write, a new file: .csv, or .mat in the EMPS format (required)",
     )
+    synth.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     _data_option(synth)
     synth.set_defaults(handler=_synth)
 
@@ -562,18 +655,18 @@ def build_parser() -> argparse.ArgumentParser:
     diag.add_argument("--holdout", action="append", help="held-out run(s) (default: a time split)")
     diag.add_argument(
         "--split",
-        type=float,
+        type=fraction(0.1, 0.9),
         help="training fraction of the time split "
         "(default: the scenario's diagnose.split, else 0.5)",
     )
     diag.add_argument(
         "--max-effects",
-        type=int,
+        type=whole_number(1),
         help="effects to accept at most (default: the scenario's diagnose.max_effects, else 3)",
     )
     _plant_option(diag)
     diag.add_argument(
-        "--workers", type=int, help="local processes for the fits (default: all cores)"
+        "--workers", type=whole_number(1), help="local processes for the fits (default: all cores)"
     )
     diag.add_argument(
         "--out", metavar="DIR", help="report folder (default: out/diagnosis-<scenario name>)"
@@ -597,15 +690,30 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``twin`` console script."""
+    """Entry point of the ``twin`` console script.
+
+    Exit status: 0 done; 1 done, but the result needs attention (``simulate``: the loop
+    diverged); 2 a user error (bad file, key or option), with a message naming it; 128 + N ended
+    by signal N (130 Ctrl-C, 143 SIGTERM), after a clean shutdown.
+    """
     args = build_parser().parse_args(argv)
     if getattr(args, "data", None):
         os.environ[DATA_ENV] = args.data  # also seen by worker processes
+    from twin_cosim.workers import command_temp_folder, terminate_as_interrupt
+
+    terminate_as_interrupt()
     try:
-        return args.handler(args)
+        with command_temp_folder():
+            return args.handler(args)
     except user_errors() as exc:
         print(f"twin {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as exc:
+        hint = getattr(exc, "hint", "")
+        print(f"twin {args.command}: interrupted{hint}", file=sys.stderr)
+        from twin_cosim.workers import Terminated
+
+        return 128 + (signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT)
 
 
 if __name__ == "__main__":

@@ -138,6 +138,20 @@ EMPS_SIGNALS = {"t": "t", "qg": "x_ref", "qm": "x", "vir": "current"}
 EMPS_SCALARS = ("gtau", "kp", "kv")
 
 
+def _numeric(path: Path, name: str, value: object) -> np.ndarray:
+    """A .mat variable as a flat float64 array; MeasuredDataError naming it otherwise."""
+    try:
+        values = np.asarray(value, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        values = np.empty(0)
+    if values.size == 0:
+        raise MeasuredDataError(
+            f"{path}: variable {name!r} is not numeric (got {np.asarray(value).dtype} data); "
+            "expected numbers"
+        )
+    return values
+
+
 def read_emps_mat(path: Path | str) -> MeasuredRun:
     """Read an EMPS benchmark .mat file as it is published (with or without ``pulses_N``).
 
@@ -161,17 +175,17 @@ def read_emps_mat(path: Path | str) -> MeasuredRun:
         )
     signals = {}
     for name, role in EMPS_SIGNALS.items():
-        values = np.asarray(data[name], dtype=np.float64).ravel()
+        values = _numeric(path, name, data[name])
         if not np.all(np.isfinite(values)):
             raise MeasuredDataError(f"{path}: variable {name!r} has non-finite values")
         signals[role] = values
     if len({len(v) for v in signals.values()}) != 1:
         raise MeasuredDataError(f"{path}: t, qg, qm and vir must have the same length")
     extra: dict[str, np.ndarray | float] = {
-        name: float(np.asarray(data[name]).ravel()[0]) for name in EMPS_SCALARS if name in data
+        name: float(_numeric(path, name, data[name])[0]) for name in EMPS_SCALARS if name in data
     }
     if "pulses_N" in data:
-        pulses = np.asarray(data["pulses_N"], dtype=np.float64).ravel()
+        pulses = _numeric(path, "pulses_N", data["pulses_N"])
         if pulses.shape != signals["t"].shape or not np.all(np.isfinite(pulses)):
             raise MeasuredDataError(f"{path}: pulses_N must be finite and as long as t")
         extra["pulses_N"] = pulses

@@ -140,6 +140,22 @@ def _profile(segment: Segment, x0: float, v0: float, where: str) -> tuple[float,
     return duration, shape, 0.0
 
 
+def segments_duration(segments: list[Segment], start_position: float = 0.0) -> float:
+    """Duration (s) of segments starting at rest at ``start_position`` (m), without sampling.
+
+    Raises
+    ------
+    ReferenceError
+        As :func:`sample_segments` does for segments that cannot follow one another.
+    """
+    total, x0, v0 = 0.0, start_position, 0.0
+    for index, segment in enumerate(segments):
+        duration, shape, v0 = _profile(segment, x0, v0, f"segment {index}")
+        x0 += float(shape(np.array([duration]))[0])
+        total += duration
+    return total
+
+
 def sample_segments(
     segments: list[Segment], sample_period: float, start_position: float = 0.0
 ) -> np.ndarray:
@@ -232,6 +248,23 @@ class ReferenceGrid:
         return (len(self.position) - 1) * self.period
 
 
+def check_periods(sample_period: float, loop_period: float) -> int:
+    """Samples of the position loop (period ``loop_period``, s) per reference sample.
+
+    Raises
+    ------
+    ReferenceError
+        Unless ``sample_period`` (s) is a whole multiple (>= 1) of ``loop_period``.
+    """
+    ratio = sample_period / loop_period
+    if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-9:
+        raise ReferenceError(
+            f"reference sample_period {sample_period} s must be a whole multiple of the "
+            f"position-loop period {loop_period} s"
+        )
+    return round(ratio)
+
+
 def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -> ReferenceGrid:
     """Cubic-spline interpolation of 4-ms samples onto the position-loop grid.
 
@@ -244,12 +277,7 @@ def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -
     loop_period
         Position-loop period, s (250 us); must divide sample_period.
     """
-    ratio = sample_period / loop_period
-    if abs(ratio - round(ratio)) > 1e-9:
-        raise ReferenceError(
-            f"reference sample_period {sample_period} s must be a whole multiple of the "
-            f"position-loop period {loop_period} s"
-        )
+    ratio = check_periods(sample_period, loop_period)
     spline = CubicSpline(np.arange(len(samples)) * sample_period, samples, bc_type="clamped")
-    t = np.arange((len(samples) - 1) * round(ratio) + 1) * loop_period
+    t = np.arange((len(samples) - 1) * ratio + 1) * loop_period
     return ReferenceGrid(loop_period, spline(t), spline(t, 1), spline(t, 2))

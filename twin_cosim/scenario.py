@@ -22,6 +22,7 @@ Layout (every section but ``reference`` is optional)::
         - ramp: {velocity: 0.01, acceleration: 0.1, duration: 1.0}   # m/s, m/s^2, s
     run:
       metrics_window: [0.0, null]            # s; null: to the end
+      max_samples: 2400000                   # position-loop samples a run may have at most
     optimize: {...}                          # see twin_cosim.optimize.config
     diagnose: {...}                          # see twin_cosim.gap.diagnosis.settings_from
 
@@ -36,7 +37,12 @@ error when it is missing.
 
 Scenarios shipped with the package are found by name (``reference1``) as well as by path.
 
-Every error names the file and the key path, and says what was expected.
+Every error names the file and the key path, and says what was expected. ``name`` (used as the
+default output folder) must be a plain file name, ``plant.model`` one of the project's models, and
+the size of a run is checked before anything is allocated (``run.max_samples``).
+
+A scenario may name an FMU, which is native code that runs in this process: use scenario files
+from trusted sources only.
 """
 
 from __future__ import annotations
@@ -52,7 +58,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from fmu_build.build import DEFAULT_MODEL, BuildError, build_fmu
+from fmu_build.build import DEFAULT_MODEL, BuildError, available_models, build_fmu
 from twin_cosim import paper
 from twin_cosim.controller import TUNED_NAMES, ControllerSettings, TunedParameters
 from twin_cosim.environment import DATA_ENV
@@ -65,9 +71,11 @@ from twin_cosim.reference import (
     Ramp,
     ReferenceError,
     ReferenceGrid,
+    check_periods,
     interpolate,
     read_reference_csv,
     sample_segments,
+    segments_duration,
 )
 
 TOP_KEYS = {
@@ -80,6 +88,10 @@ TOP_KEYS = {
     "optimize",
     "diagnose",
 }
+
+
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
+MAX_SAMPLES = 2_400_000  # position-loop samples of a run: 10 min at 250 us
 
 
 class ScenarioError(ValueError):
@@ -105,6 +117,12 @@ def load_yaml(path: Path) -> Any:
         return yaml.load(Path(path).read_text(), Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
     except FileNotFoundError as exc:
         raise ScenarioError(f"{path}: file not found") from exc
+    except IsADirectoryError as exc:
+        raise ScenarioError(f"{path}: is a folder, not a YAML file") from exc
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{path}: not a text (YAML) file: {exc}") from exc
+    except OSError as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc.strerror or exc}") from exc
     except yaml.YAMLError as exc:
         raise ScenarioError(f"{path}: malformed YAML: {exc}") from exc
 
@@ -315,7 +333,22 @@ def _measured_path(check: _Checker, data: dict[str, Any]) -> Path:
     )
 
 
-def _from_measured(check: _Checker, data: dict[str, Any], position_period: float) -> _Reference:
+def _check_size(
+    check: _Checker, duration: float, position_period: float, max_samples: int, what: str
+) -> None:
+    """Refuse, before allocating it, a run with more position-loop samples than allowed."""
+    samples = duration / position_period + 1
+    if samples > max_samples:
+        raise ScenarioError(
+            f"{check.source}: {what}: {duration:g} s at the position-loop period "
+            f"{position_period:g} s makes {samples:.4g} samples, more than run.max_samples = "
+            f"{max_samples}; shorten the reference or raise run.max_samples"
+        )
+
+
+def _from_measured(
+    check: _Checker, data: dict[str, Any], position_period: float, max_samples: int
+) -> _Reference:
     """The reference (and disturbance) of a measured run file (.csv or EMPS .mat)."""
     path = _measured_path(check, data)
     try:
@@ -324,6 +357,7 @@ def _from_measured(check: _Checker, data: dict[str, Any], position_period: float
         raise ScenarioError(f"{check.source}: reference.measured: {exc}") from exc
     if abs(run.t[0]) > 0.5 * run.period:
         raise check.fail("reference.measured", "a run whose time starts at 0 s", float(run.t[0]))
+    _check_size(check, float(run.t[-1]), position_period, max_samples, "reference.measured")
     try:
         grid = interpolate(run.x_ref, run.period, position_period)
     except ReferenceError as exc:
@@ -333,7 +367,7 @@ def _from_measured(check: _Checker, data: dict[str, Any], position_period: float
     return _Reference(grid, float(run.x_ref[0]), path, float(run.x[0]), at_input, spec, at_command)
 
 
-def _reference(check: _Checker, data: Any, position_period: float) -> _Reference:
+def _reference(check: _Checker, data: Any, position_period: float, max_samples: int) -> _Reference:
     data = check.mapping(
         data,
         "reference",
@@ -351,7 +385,7 @@ def _reference(check: _Checker, data: Any, position_period: float) -> _Reference
     if len(sources) != 1:
         raise check.fail("reference", "exactly one of 'segments', 'csv' or 'measured'")
     if "measured" in data:
-        return _from_measured(check, data, position_period)
+        return _from_measured(check, data, position_period, max_samples)
     for key in ("disturbance", "data_source"):
         if key in data:
             raise check.fail(f"reference.{key}", "a 'measured' reference to go with it")
@@ -360,8 +394,11 @@ def _reference(check: _Checker, data: Any, position_period: float) -> _Reference
     )
     start = check.number(data.get("start_position", 0.0), "reference.start_position")
     try:
+        check_periods(sample_period, position_period)
         if "csv" in data:
             samples = read_reference_csv(check.source.parent / str(data["csv"]), sample_period)
+            duration = (len(samples) - 1) * sample_period
+            _check_size(check, duration, position_period, max_samples, "reference.csv")
             start = float(samples[0])
         else:
             segments = data["segments"]
@@ -370,6 +407,15 @@ def _reference(check: _Checker, data: Any, position_period: float) -> _Reference
             parsed = [
                 _segment(check, s, f"reference.segments[{i}]") for i, s in enumerate(segments)
             ]
+            duration = segments_duration(parsed, start)
+            _check_size(check, duration, position_period, max_samples, "reference.segments")
+            if duration < sample_period:
+                raise check.fail(
+                    "reference.sample_period",
+                    f"at most the reference's duration ({duration:g} s), so that it has two "
+                    "samples or more",
+                    sample_period,
+                )
             samples = sample_segments(parsed, sample_period, start)
         return _Reference(interpolate(samples, sample_period, position_period), start)
     except ReferenceError as exc:
@@ -471,6 +517,14 @@ def load_scenario(path: Path | str) -> Scenario:
     data = check.mapping(load_yaml(source), "(top level)", TOP_KEYS)
     if "reference" not in data:
         raise check.fail("reference", "a reference section")
+    name = str(data.get("name", source.stem))
+    if "name" in data and not NAME_PATTERN.fullmatch(name):
+        raise check.fail(
+            "name",
+            "a plain file name (letters, digits, '.', '_', '-'; at most 100; no folders), "
+            "used as the default output folder",
+            name,
+        )
     plant = check.mapping(data.get("plant"), "plant", {"fmu", "model", "parameters"})
     plant_parameters = {
         str(k): check.number(v, f"plant.parameters.{k}")
@@ -484,6 +538,10 @@ def load_scenario(path: Path | str) -> Scenario:
     fmu_path = None if fmu is None else (source.parent / str(fmu))
     model = None if fmu is not None else str(plant.get("model", DEFAULT_MODEL))
     if "model" in plant:
+        if plant["model"] not in available_models():
+            raise check.fail(
+                "plant.model", f"one of the project's models {available_models()}", plant["model"]
+            )
         try:
             fmu_path = build_fmu(model, announce=True)
         except BuildError as exc:
@@ -500,12 +558,13 @@ def load_scenario(path: Path | str) -> Scenario:
         )
     except ValueError as exc:
         raise ScenarioError(f"{source}: controller.settings: {exc}") from exc
-    chosen = _reference(check, data["reference"], settings.position_period)
+    run = check.mapping(data.get("run"), "run", {"metrics_window", "max_samples"})
+    max_samples = check.number(run.get("max_samples", MAX_SAMPLES), "run.max_samples", minimum=2)
+    chosen = _reference(check, data["reference"], settings.position_period, int(max_samples))
     reference = chosen.grid
     plant_parameters.setdefault(
         "load_position_start", chosen.start if chosen.plant_start is None else chosen.plant_start
     )
-    run = check.mapping(data.get("run"), "run", {"metrics_window"})
     window = run.get("metrics_window", [0.0, None])
     if not isinstance(window, list) or len(window) != 2:
         raise check.fail("run.metrics_window", "[t0, tF] in s (tF may be null)", window)
@@ -514,7 +573,7 @@ def load_scenario(path: Path | str) -> Scenario:
     if t_end is not None and not t0 < t_end <= reference.duration + 1e-9:
         raise check.fail("run.metrics_window", f"0 <= t0 < tF <= {reference.duration:g} s", window)
     return Scenario(
-        name=str(data.get("name", source.stem)),
+        name=name,
         description=str(data.get("description", "")),
         source=source,
         fmu=fmu_path,

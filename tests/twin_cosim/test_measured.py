@@ -12,6 +12,7 @@ from twin_cosim.measured import (
     MeasuredDataError,
     check_against_reference,
     current_warnings,
+    read_emps_mat,
     read_measured_csv,
 )
 from twin_cosim.scenario import load_scenario
@@ -92,3 +93,15 @@ def test_current_in_milliamps_warns(tmp_path, scenario):
     frame["current"] = 1500.0 * np.sin(frame["t"])
     run = read_measured_csv(write(tmp_path, frame))
     assert any("is it in mA" in w for w in current_warnings(run, 20.0))
+
+
+def test_mat_with_string_signals_is_named(tmp_path):
+    from scipy.io import savemat
+
+    path = tmp_path / "strings.mat"
+    n = 200
+    savemat(
+        path, {"t": np.arange(n) * 1e-3, "qg": ["abc"] * n, "qm": np.zeros(n), "vir": np.zeros(n)}
+    )
+    with pytest.raises(MeasuredDataError, match=r"strings.mat: variable 'qg' is not numeric"):
+        read_emps_mat(path)

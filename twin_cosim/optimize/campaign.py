@@ -8,6 +8,11 @@ A campaign folder holds
 - ``progress.json``: rewritten after every generation (generation, evaluations, best so far);
 - ``result.json``: the outcome (best parameters and metrics, evaluations, wall time).
 
+``campaign.json`` also holds content fingerprints of the scenario, the plant FMU and the
+settings: a resume whose inputs differ is refused, naming what changed. While a campaign runs,
+``campaign.lock`` keeps a second writer out of the folder. Every argument is checked before
+anything is written, so a mistake never blocks the folder.
+
 The optimizer starts from the scenario's parameters (the Fine-Tune set by default) when they lie
 inside the bounds. Resuming replays the optimizer from its seed, answering from the log every
 batch already evaluated, so a resumed campaign ends exactly where an uninterrupted one would.
@@ -18,6 +23,7 @@ from __future__ import annotations
 import json
 import logging
 import time
+import zipfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -31,10 +37,17 @@ from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.algorithms import make_optimizer
 from twin_cosim.optimize.config import OptimizeConfig, load_config, within_bounds
 from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
-from twin_cosim.optimize.evaluators import make_evaluator
+from twin_cosim.optimize.evaluators import SchedulerError, make_evaluator
+from twin_cosim.optimize.fingerprints import (
+    fmu_fingerprint,
+    scenario_fingerprint,
+    settings_fingerprint,
+)
+from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
 from twin_cosim.optimize.objective import ObjectiveSpec
-from twin_cosim.plant import Plant
+from twin_cosim.plant import Plant, default_fmu
 from twin_cosim.scenario import Scenario, load_scenario
+from twin_cosim.workers import check_workers
 
 LOG = logging.getLogger(__name__)
 
@@ -102,17 +115,80 @@ def reference_metrics(
     return compute_metrics(record, config.window).as_dict()
 
 
+def _read_header(out_dir: Path) -> dict[str, Any]:
+    path = Path(out_dir) / "campaign.json"
+    if not path.is_file():
+        raise CampaignError(f"{out_dir}: no campaign.json to resume from")
+    try:
+        header = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CampaignError(f"{path}: not a campaign record (JSON): {exc}") from exc
+    if not isinstance(header, dict) or not isinstance(header.get("spec"), dict):
+        raise CampaignError(f"{path}: not a campaign record: no 'spec' mapping")
+    missing = sorted({"iau_limit", "reference"} - set(header))
+    if missing or not isinstance(header["reference"], dict):
+        raise CampaignError(
+            f"{path}: not a campaign record: missing or bad {missing or 'reference'}"
+        )
+    return header
+
+
+def fingerprints(
+    spec: CampaignSpec, scenario: Scenario, config: OptimizeConfig, settings: dict[str, Any]
+) -> dict[str, str]:
+    """Content fingerprints of the campaign's scenario, plant FMU and settings."""
+    fmu = Path(spec.fmu) if spec.fmu else (scenario.fmu or default_fmu())
+    if not fmu.is_file() or not zipfile.is_zipfile(fmu):
+        raise CampaignError(f"{fmu}: plant FMU not found or not an FMU (zip archive)")
+    chosen = {"method": spec.method, "seed": spec.seed, "settings": settings}
+    return {
+        "scenario": scenario_fingerprint(scenario),
+        "plant_fmu": fmu_fingerprint(fmu),
+        "settings": settings_fingerprint({**chosen, "config": config.as_dict()}),
+    }
+
+
+def _check_resume(
+    out_dir: Path, header: dict[str, Any], spec: CampaignSpec, found: dict[str, str]
+) -> None:
+    """Refuse a resume whose options or input contents differ from the stored campaign."""
+    stored = {k: v for k, v in header["spec"].items() if k not in ("scenario", "fmu")}
+    given = {k: v for k, v in asdict(spec).items() if k not in ("scenario", "fmu")}
+    if stored != given:
+        raise CampaignError(f"{out_dir}: holds a different campaign {stored}, not {given}")
+    recorded = header.get("fingerprints")
+    if not isinstance(recorded, dict):
+        raise CampaignError(
+            f"{out_dir}/campaign.json: holds no content fingerprints (an older campaign), so "
+            "a resume cannot be checked against it; start a new campaign"
+        )
+    names = {
+        "scenario": f"scenario {spec.scenario}",
+        "plant_fmu": f"plant FMU {spec.fmu or 'of the scenario'}",
+        "settings": "optimizer settings",
+    }
+    changed = [names[key] for key in names if recorded.get(key) != found[key]]
+    if changed:
+        raise CampaignError(
+            f"{out_dir}: cannot resume: the {' and the '.join(changed)} changed since the "
+            f"campaign started (content fingerprints differ); start a new campaign in another "
+            "--out, or resume with the original inputs"
+        )
+
+
 def _prepare(
-    spec: CampaignSpec, out_dir: Path, resume: bool
-) -> tuple[dict[str, Any], OptimizeConfig]:
-    out_dir.mkdir(parents=True, exist_ok=True)
+    spec: CampaignSpec,
+    out_dir: Path,
+    resume: bool,
+    scenario: Scenario,
+    config: OptimizeConfig,
+    found: dict[str, str],
+) -> dict[str, Any]:
     header_path = out_dir / "campaign.json"
-    scenario = load_scenario(spec.scenario)
-    config = load_config(scenario)
     if resume:
-        if not header_path.exists():
-            raise CampaignError(f"{out_dir}: no campaign.json to resume from")
-        return json.loads(header_path.read_text()), config
+        header = _read_header(out_dir)
+        _check_resume(out_dir, header, spec, found)
+        return header
     if header_path.exists():
         raise CampaignError(
             f"{out_dir}: already holds a campaign; use --resume {out_dir} or another --out"
@@ -123,17 +199,36 @@ def _prepare(
         "config": config.as_dict(),
         "reference": {"params": scenario.tuned.as_dict(), "metrics": reference},
         "iau_limit": None if config.iau_cap is None else config.iau_cap * reference["IAU"],
+        "fingerprints": found,
     }
     header_path.write_text(json.dumps(header, indent=2) + "\n")
-    return header, config
+    return header
 
 
 def load_spec(out_dir: Path) -> CampaignSpec:
     """The spec of the campaign stored in ``out_dir`` (for ``--resume``)."""
-    path = Path(out_dir) / "campaign.json"
-    if not path.exists():
+    stored = _read_header(out_dir)["spec"]
+    try:
+        return CampaignSpec(**stored)
+    except TypeError as exc:
+        raise CampaignError(f"{Path(out_dir) / 'campaign.json'}: bad 'spec': {exc}") from exc
+
+
+def _check_arguments(spec: CampaignSpec, out_dir: Path, workers: int | None, resume: bool) -> None:
+    """Every argument, checked before anything is written."""
+    for name, value, low in (("seed", spec.seed, 0), ("budget", spec.budget, 1)):
+        if value is not None and (
+            isinstance(value, bool) or not isinstance(value, int) or value < low
+        ):
+            raise CampaignError(f"{name}: expected a whole number >= {low}, got {value!r}")
+    try:
+        check_workers(workers)
+    except ValueError as exc:
+        raise CampaignError(str(exc)) from None
+    if out_dir.exists() and not out_dir.is_dir():
+        raise CampaignError(f"{out_dir}: exists and is not a folder (campaign folder expected)")
+    if resume and not (out_dir / "campaign.json").is_file():
         raise CampaignError(f"{out_dir}: no campaign.json to resume from")
-    return CampaignSpec(**json.loads(path.read_text())["spec"])
 
 
 def run_campaign(
@@ -143,6 +238,7 @@ def run_campaign(
     scheduler: str | None = None,
     resume: bool = False,
     progress: bool = True,
+    scheduler_timeout: float | None = None,
 ) -> CampaignResult:
     """Run (or resume) a campaign and write its folder.
 
@@ -160,25 +256,84 @@ def run_campaign(
         Continue the campaign already in ``out_dir``.
     progress
         Show a progress bar on stderr.
+    scheduler_timeout
+        Seconds to wait for the Dask scheduler to answer, and again for a worker to join.
+
+    Raises
+    ------
+    CampaignError
+        On a bad argument (before anything is written), a folder in use by another process, or
+        a resume whose options or inputs differ from the stored campaign.
     """
     out_dir = Path(out_dir)
-    header, config = _prepare(spec, out_dir, resume)
-    if resume and header["spec"] != asdict(spec):
-        raise CampaignError(
-            f"{out_dir}: holds a different campaign {header['spec']}, not {asdict(spec)}"
-        )
+    _check_arguments(spec, out_dir, workers, resume)
     scenario = load_scenario(spec.scenario)
+    config = load_config(scenario)
     settings = {**config.methods.get(spec.method, {}), **spec.settings}
     if spec.budget is not None:
         settings["budget"] = spec.budget
     x0 = (
         config.to_unit(scenario.tuned.as_array()) if within_bounds(config, scenario.tuned) else None
     )
-    optimizer = make_optimizer(spec.method, len(TUNED_NAMES), spec.seed, x0, **settings)
-    log = EvaluationLog(out_dir / "evaluations.jsonl")
+    try:
+        optimizer = make_optimizer(spec.method, len(TUNED_NAMES), spec.seed, x0, **settings)
+    except (TypeError, ValueError) as exc:
+        raise CampaignError(f"method {spec.method} with settings {settings}: {exc}") from exc
+    found = fingerprints(spec, scenario, config, settings)
+    if scheduler:
+        from twin_cosim.optimize.dask_evaluator import check_scheduler
+
+        check_scheduler(scheduler, scheduler_timeout)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    lock = FolderLock(out_dir)
+    try:
+        lock.acquire()
+    except FolderLockedError as exc:
+        optimizer.close()
+        raise CampaignError(str(exc)) from None
+    try:
+        return _run_locked(
+            spec,
+            out_dir,
+            workers,
+            scheduler,
+            resume,
+            progress,
+            scenario,
+            config,
+            optimizer,
+            found,
+            scheduler_timeout,
+        )
+    finally:
+        lock.release()
+
+
+def _run_locked(
+    spec: CampaignSpec,
+    out_dir: Path,
+    workers: int | None,
+    scheduler: str | None,
+    resume: bool,
+    progress: bool,
+    scenario: Scenario,
+    config: OptimizeConfig,
+    optimizer,
+    found: dict[str, str],
+    scheduler_timeout: float | None,
+) -> CampaignResult:
+    log = evaluator = None
+    try:
+        header = _prepare(spec, out_dir, resume, scenario, config, found)
+        log = EvaluationLog(out_dir / "evaluations.jsonl")
+        objective_spec = ObjectiveSpec(spec.scenario, spec.fmu, header["iau_limit"])
+        evaluator = make_evaluator(objective_spec, workers, scheduler, scheduler_timeout)
+    except BaseException:
+        optimizer.close()
+        if log is not None:
+            log.close()
+        raise
     logged_before = {entry["key"] for entry in log.entries}
-    objective_spec = ObjectiveSpec(spec.scenario, spec.fmu, header["iau_limit"])
-    evaluator = make_evaluator(objective_spec, workers, scheduler)
     start = time.perf_counter()
     bar = tqdm(total=optimizer.budget, unit="eval", disable=not progress, desc=spec.method)
     reused = 0
@@ -215,6 +370,10 @@ def run_campaign(
             _write_progress(out_dir, optimizer, config, time.perf_counter() - start)
             best = optimizer.best[1]
             bar.set_postfix(gen=optimizer.generation, best_um=f"{best:.3f}")
+    except SchedulerError as exc:
+        raise CampaignError(
+            f"{exc}; every completed evaluation is in {log.path}: continue with --resume {out_dir}"
+        ) from exc
     finally:
         bar.close()
         evaluator.close()

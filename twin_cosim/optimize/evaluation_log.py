@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+REQUIRED_KEYS = frozenset({"key", "x", "fitness"})
+
 
 def candidate_key(x: np.ndarray) -> str:
     """Exact identity of a candidate: the hex of its float64 bytes."""
@@ -40,16 +42,30 @@ class EvaluationLog:
         self._file = self.path.open("a")
 
     def _load(self) -> None:
-        text = self.path.read_text()
+        try:
+            text = self.path.read_text()
+        except UnicodeDecodeError as exc:
+            line = self.path.read_bytes()[: exc.start].count(b"\n") + 1
+            raise ValueError(
+                f"{self.path}: line {line}: not text (corrupt evaluation log): {exc.reason}"
+            ) from None
         lines = text.split("\n")
         complete = lines[:-1] if not text.endswith("\n") else lines
-        for line in complete:
+        for number, line in enumerate(complete, start=1):
             if not line.strip():
                 continue
             try:
                 entry = json.loads(line)
             except json.JSONDecodeError as exc:
-                raise ValueError(f"{self.path}: corrupt line in the evaluation log: {exc}") from exc
+                raise ValueError(
+                    f"{self.path}: line {number}: corrupt line in the evaluation log: {exc}"
+                ) from exc
+            missing = REQUIRED_KEYS - set(entry) if isinstance(entry, dict) else REQUIRED_KEYS
+            if missing:
+                raise ValueError(
+                    f"{self.path}: line {number}: not an evaluation (expected a JSON object with "
+                    f"{sorted(REQUIRED_KEYS)}; missing {sorted(missing)})"
+                )
             self.entries.append(entry)
             self._by_key[entry["key"]] = entry
         # Drop a torn final line so that appends start on a fresh line.

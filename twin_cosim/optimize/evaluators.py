@@ -18,10 +18,22 @@ from twin_cosim.workers import make_pool
 Result = dict[str, Any]
 
 
-def make_evaluator(spec: ObjectiveSpec, workers: int | None, scheduler: str | None):
-    """Dask when a scheduler is given, serial for one worker, else a local process pool."""
+class SchedulerError(ValueError):
+    """The Dask scheduler cannot be reached, has no workers, or was lost mid-run."""
+
+
+def make_evaluator(
+    spec: ObjectiveSpec,
+    workers: int | None,
+    scheduler: str | None,
+    scheduler_timeout: float | None = None,
+):
+    """Dask when a scheduler is given, serial for one worker, else a local process pool.
+
+    ``scheduler_timeout`` (s) bounds the wait for the scheduler and for a first worker.
+    """
     if scheduler:
         from twin_cosim.optimize.dask_evaluator import DaskEvaluator
 
-        return DaskEvaluator(spec, scheduler)
+        return DaskEvaluator(spec, scheduler, scheduler_timeout)
     return make_pool(spec, workers)

@@ -1,0 +1,173 @@
+"""Worker pools leave nothing behind: no process, no extracted FMU, after any kind of end."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twin_cosim.optimize.objective import ObjectiveSpec
+from twin_cosim.workers import ProcessPool, command_temp_folder, make_pool
+
+ROOT = Path(__file__).resolve().parents[2]
+SHORT = """
+name: short
+reference:
+  segments:
+    - dwell: 0.1
+    - ramp: {velocity: 0.005, acceleration: 0.05, duration: 0.3}
+    - ramp: {velocity: 0.0, acceleration: 0.05, duration: 0.1}
+    - dwell: 0.1
+"""
+FINE_TUNE = np.array([66.667, 0.5, 0.01, 1.0, 0.01, 0.1])
+
+pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+
+
+def live_in_group(pgid: int) -> list[int]:
+    """Processes (not zombies) whose process group is ``pgid``."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if fields[0] != "Z" and int(fields[2]) == pgid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def wait_until_gone(pgid: int, seconds: float) -> list[int]:
+    deadline = time.monotonic() + seconds
+    while (alive := live_in_group(pgid)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return alive
+
+
+@pytest.fixture()
+def private_tmp(tmp_path, monkeypatch) -> Path:
+    """A temp folder for this process and the processes it starts."""
+    folder = tmp_path / "tmp"
+    folder.mkdir()
+    monkeypatch.setenv("TMPDIR", str(folder))
+    monkeypatch.setattr(tempfile, "tempdir", str(folder))
+    return folder
+
+
+@pytest.fixture(scope="module")
+def short_scenario(tmp_path_factory) -> str:
+    path = tmp_path_factory.mktemp("scenario") / "short.yaml"
+    path.write_text(SHORT)
+    return str(path)
+
+
+def test_pool_removes_every_extracted_fmu(short_scenario, private_tmp):
+    pool = make_pool(ObjectiveSpec(short_scenario, None, None), 2)
+    try:
+        results = list(pool.imap([FINE_TUNE, FINE_TUNE]))
+    finally:
+        pool.close()
+    assert [r["status"] for _, r in results] == ["ok", "ok"]
+    assert list(private_tmp.iterdir()) == []
+
+
+def test_serial_pool_removes_its_extracted_fmu(short_scenario, private_tmp):
+    pool = make_pool(ObjectiveSpec(short_scenario, None, None), 1)
+    pool.close()
+    assert list(private_tmp.iterdir()) == []
+
+
+@pytest.mark.parametrize("workers", [0, -2])
+def test_pool_refuses_a_worker_count_below_one(workers):
+    with pytest.raises(ValueError, match="workers: expected a whole number >= 1"):
+        ProcessPool(ObjectiveSpec("unused.yaml", None, None), workers)
+
+
+def test_stale_pool_folder_of_a_dead_process_is_removed(short_scenario, private_tmp):
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = private_tmp / f"twin-pool-{dead.pid}-abc"
+    (stale / "tmpx").mkdir(parents=True)
+    mine = private_tmp / f"twin-pool-{os.getppid()}-abc"  # a live process: kept
+    mine.mkdir()
+    with command_temp_folder() as folder:
+        assert tempfile.gettempdir() == folder
+        pool = make_pool(ObjectiveSpec(short_scenario, None, None), 1)
+        pool.close()
+    assert sorted(p.name for p in private_tmp.iterdir()) == [mine.name]
+
+
+def start_campaign(scenario: str, out: Path, tmp: Path) -> subprocess.Popen:
+    command = [
+        sys.executable,
+        "-m",
+        "twin_cosim",
+        "optimize",
+        scenario,
+        "--method",
+        "ce",
+        "--budget",
+        "2000",
+        "--workers",
+        "2",
+        "--quiet",
+        "--out",
+        str(out),
+    ]
+    env = {**os.environ, "TMPDIR": str(tmp)}
+    return subprocess.Popen(
+        command,
+        cwd=ROOT,
+        env=env,
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def wait_for_evaluations(process: subprocess.Popen, log: Path, count: int) -> None:
+    deadline = time.monotonic() + 90
+    while time.monotonic() < deadline and process.poll() is None:
+        if log.exists() and len(log.read_text().splitlines()) >= count:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"campaign did not reach {count} evaluations: {process.stderr.read()}")
+
+
+@pytest.mark.parametrize(
+    ("sent", "to_group"),
+    [(signal.SIGTERM, False), (signal.SIGKILL, False), (signal.SIGINT, True)],
+    ids=["sigterm-parent", "kill9-parent", "ctrl-c-group"],
+)
+def test_campaign_ends_cleanly_on_a_signal(short_scenario, tmp_path, sent, to_group):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    out = tmp_path / "campaign"
+    process = start_campaign(short_scenario, out, tmp)
+    try:
+        wait_for_evaluations(process, out / "evaluations.jsonl", 1)
+        if to_group:
+            os.killpg(process.pid, sent)
+        else:
+            os.kill(process.pid, sent)
+        process.wait(timeout=60)
+        stderr = process.stderr.read()
+        alive = wait_until_gone(process.pid, 15)
+    finally:
+        if live_in_group(process.pid):
+            os.killpg(process.pid, signal.SIGKILL)
+    assert alive == [], f"processes left behind: {alive}"
+    assert list(tmp.iterdir()) == [], "temp folders left behind"
+    if sent != signal.SIGKILL:
+        assert process.returncode == 128 + sent
+        assert "Traceback" not in stderr
+        assert f"--resume {out}" in stderr
+        assert len(stderr.strip().splitlines()) == 1, stderr
