@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import EMPS_DATA, needs_emps_data
 from scipy.io import savemat
 
 from twin_cosim.cosim import run_scenario
@@ -24,10 +25,8 @@ from twin_cosim.plant import Plant
 from twin_cosim.scenario import ScenarioError, load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
-DATA = (
-    Path(os.environ[DATA_ENV]) if os.environ.get(DATA_ENV) else ROOT.parent / "shared/data/emps"
-) / "DATA_EMPS.mat"
-needs_data = pytest.mark.skipif(not DATA.exists(), reason=f"EMPS data not found at {DATA}")
+DATA = EMPS_DATA
+needs_data = needs_emps_data
 
 
 def fake_mat(path: Path, pulses: bool) -> Path:

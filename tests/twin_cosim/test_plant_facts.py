@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from conftest import needs_emps_data
 from fmpy import read_model_description
 
 from fmu_build.build import build_fmu
@@ -51,14 +52,7 @@ def test_model_table_and_built_fmu_agree(fmu_path):
         "reference1",
         "reference2",
         "diagnosis",
-        pytest.param(
-            "emps",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="the emps FMU's DefaultExperiment step is 62.5 us, not its 1 ms; fixed "
-                "in fmu_build/generate.py on the FMU branch of issue 11 (remove this mark then)",
-            ),
-        ),
+        pytest.param("emps", marks=needs_emps_data),  # its reference is the EMPS data
     ],
 )
 def test_speed_loop_step_is_the_fmus_default_step(name):

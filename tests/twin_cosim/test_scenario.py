@@ -70,7 +70,7 @@ def test_scientific_notation_without_dot_is_a_number(tmp_path):
         ("controller:\n  settings: {current_limit: -5}\n", "current_limit must be finite and >= 0"),
         ("controller:\n  parameters: {Kp_pos: 1}\n", "missing"),
         ("controller:\n  parameters: xx\n", r"controller.parameters: expected the six"),
-        ("plant:\n  model: nope\n", "plant.model: unknown model 'nope'"),
+        ("plant:\n  model: nope\n", "plant.model: expected one of the project's models"),
         ("run:\n  metrics_window: [0.0, 99.0]\n", "run.metrics_window: expected 0 <= t0 < tF"),
     ],
 )
