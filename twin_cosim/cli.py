@@ -54,9 +54,12 @@ def _build(args: argparse.Namespace) -> int:
 
 def _simulate(args: argparse.Namespace) -> int:
     from twin_cosim.cosim import run_scenario
+    from twin_cosim.plant_parameters import with_plant_parameters
     from twin_cosim.plots import plot_run
 
-    scenario = load_scenario(args.scenario)
+    scenario = with_plant_parameters(
+        load_scenario(args.scenario), args.plant_parameters, args.plant
+    )
     tuned = load_tuned_parameters(args.params) if args.params else scenario.tuned
     fmu = Path(args.plant) if args.plant else scenario.fmu
     out = Path(args.out) if args.out else Path("out") / scenario.name
@@ -77,6 +80,12 @@ def _simulate(args: argparse.Namespace) -> int:
             "measured": str(scenario.measured),
             **compare_with_measured(record, run.t, run.x, run.current),
         }
+    on_machine = None
+    if args.machine:
+        from twin_cosim.machine import machine_metrics, prediction
+
+        judged, kind = machine_metrics(scenario, tuned, args.machine)
+        on_machine = {"source": args.machine, "kind": kind, **prediction(metrics, judged)}
     record.to_csv(out / "record.csv", index=False)
     plot_run(
         record, metrics, f"{scenario.name}: {args.params or 'scenario parameters'}", out / "run.png"
@@ -84,9 +93,11 @@ def _simulate(args: argparse.Namespace) -> int:
     summary = {
         "scenario": str(scenario.source),
         "fmu": fmu_path,
+        "plant_parameters_file": args.plant_parameters,
         "params": tuned.as_dict(),
         "metrics": metrics.as_dict(),
         "validation": validation,
+        "machine": on_machine,
         "metrics_window_s": list(scenario.metrics_window),
         "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
         "wall_s": wall,
@@ -111,6 +122,10 @@ def _simulate(args: argparse.Namespace) -> int:
                 f"{v['position_relative_error_pct']:.4f} %), command/force relative error "
                 f"{v['current_relative_error_pct']:.3f} %"
             )
+        if on_machine:
+            from twin_cosim.machine import JUDGED, describe
+
+            print(describe(args.machine, on_machine["kind"], {k: on_machine[k] for k in JUDGED}))
         print(f"wrote {out}/record.csv, run.png, summary.json")
     return 0
 
@@ -155,7 +170,9 @@ def _optimize(args: argparse.Namespace) -> int:
     if args.resume:
         spec = load_spec(Path(args.resume))
         given = {"method": args.method, "seed": args.seed, "budget": args.budget}
+        given |= _robust_options(args)
         stored = {"method": spec.method, "seed": spec.seed, "budget": spec.budget}
+        stored |= {k: getattr(spec, k) for k in _robust_options(args)}
         conflicts = {
             k: (v, stored[k]) for k, v in given.items() if v is not None and v != stored[k]
         }
@@ -169,12 +186,14 @@ def _optimize(args: argparse.Namespace) -> int:
             raise ValueError(
                 "--method is required (ce, ga, sa, cmaes or de) unless --resume is given"
             )
+        robust = {k: v for k, v in _robust_options(args).items() if v is not None}
         spec = CampaignSpec(
-            scenario=args.scenario,
+            scenario=args.scenario[0],
             method=args.method,
             seed=0 if args.seed is None else args.seed,
             budget=args.budget,
             fmu=args.plant,
+            **robust,
         )
         out = (
             Path(args.out) if args.out else Path("out") / f"optimize-{spec.method}-seed{spec.seed}"
@@ -213,6 +232,18 @@ def _optimize(args: argparse.Namespace) -> int:
         )
         print(f"wrote {out}/result.json, evaluations.jsonl, convergence.png, best_run.png")
     return 0
+
+
+def _robust_options(args: argparse.Namespace) -> dict[str, Any]:
+    """Options of a calibrated or robust campaign as given (None: not given)."""
+    return {
+        "plant_parameters": args.plant_parameters,
+        "scenarios": list(args.scenario[1:]) or None,
+        "tolerance": args.tolerance,
+        "samples": args.samples,
+        "aggregate": args.objective,
+        "early_stop": False if args.no_early_stop else None,
+    }
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -276,6 +307,7 @@ def _diagnose(args: argparse.Namespace) -> int:
     with Plant(Path(args.plant) if args.plant else scenario.fmu) as plant:
         gear_ratio = plant.start_values().get("gear_ratio", 1.5)
     files = write_report(result, out, gear_ratio)
+    files |= _write_calibration(args, scenario, result.summary, out)
     if args.json:
         print(json.dumps(result.summary))
     else:
@@ -288,10 +320,34 @@ def _diagnose(args: argparse.Namespace) -> int:
                 f"{step['holdout_current_after_A']:.4f} A; fitted {step['params']}"
             )
         print(
-            f"wrote {files['markdown']}, {files['html']}, {files['json']} "
-            f"({result.summary['wall_s']:.1f} s)"
+            f"wrote {files['markdown']}, {files['html']}, {files['json']}, {files['plant']}, "
+            f"{files['calibrated']} ({result.summary['wall_s']:.1f} s)"
         )
     return 0
+
+
+def _write_calibration(
+    args: argparse.Namespace, scenario, summary: dict[str, Any], out: Path
+) -> dict[str, str]:
+    """DIR/plant.yaml (the accepted effects and noise) and DIR/calibrated.yaml."""
+    from twin_cosim.plant_parameters import (
+        calibrated_scenario,
+        fmu_model,
+        from_diagnosis,
+        write_plant_parameters,
+    )
+
+    runs = [f"--measured {m}" for m in args.measured] + [
+        f"--holdout {h}" for h in args.holdout or []
+    ]
+    made_by = {
+        "command": " ".join(["twin diagnose", str(args.scenario), *runs]),
+        "version": versions()["twin-cosim"],
+    }
+    plant = from_diagnosis(summary, fmu_model(args.plant or scenario.fmu), made_by)
+    plant_file = write_plant_parameters(out / "plant.yaml", plant)
+    calibrated = calibrated_scenario(scenario.source, plant, out / "calibrated.yaml")
+    return {"plant": str(plant_file), "calibrated": str(calibrated)}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -311,6 +367,14 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("scenario", help="scenario YAML file")
     simulate.add_argument("--params", help="ft|ga|ce|sa (paper Table 3) or a YAML/JSON file")
     simulate.add_argument("--plant", help="another FMU offering the plant contract")
+    simulate.add_argument(
+        "--plant-parameters", help="calibrated plant parameters (plant.yaml of twin diagnose)"
+    )
+    simulate.add_argument(
+        "--machine",
+        help="judge on a machine: a measured run (CSV/.mat) made with these gains, or a virtual "
+        "machine (a scenario or plant.yaml whose plant stands for the machine)",
+    )
     simulate.add_argument("--out", help="output folder (default: out/<scenario name>)")
     simulate.add_argument(
         "--json", action="store_true", help="print the summary as one JSON object"
@@ -325,7 +389,11 @@ def build_parser() -> argparse.ArgumentParser:
     optimize = commands.add_parser(
         "optimize", help="tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H]"
     )
-    optimize.add_argument("scenario", help="scenario YAML file (its optimize section)")
+    optimize.add_argument(
+        "scenario",
+        nargs="+",
+        help="scenario YAML file (its optimize section); more files: a robust objective over all",
+    )
     optimize.add_argument("--method", choices=["ce", "ga", "sa", "cmaes", "de"])
     optimize.add_argument("--seed", type=int, help="seed (default 0)")
     optimize.add_argument("--budget", type=int, help="maximum evaluations (default: the method's)")
@@ -335,6 +403,23 @@ def build_parser() -> argparse.ArgumentParser:
     optimize.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://host:8786")
     optimize.add_argument("--plant", help="another FMU offering the plant contract")
     optimize.add_argument("--out", help="campaign folder (default: out/optimize-<method>-seed<N>)")
+    optimize.add_argument(
+        "--plant-parameters", help="calibrated plant parameters (plant.yaml of twin diagnose)"
+    )
+    optimize.add_argument(
+        "--tolerance", type=float, help="relative tolerance of the uncertain plant parameters"
+    )
+    optimize.add_argument(
+        "--samples", type=int, help="plant samples per scenario, the first nominal (default 1)"
+    )
+    optimize.add_argument(
+        "--objective", choices=["worst", "mean"], help="over scenarios x samples (default worst)"
+    )
+    optimize.add_argument(
+        "--no-early-stop",
+        action="store_true",
+        help="run every candidate to the end (early stopping is exact; this is for measuring it)",
+    )
     optimize.add_argument("--resume", help="campaign folder to resume")
     optimize.add_argument("--json", action="store_true", help="print the result as one JSON object")
     optimize.add_argument("--quiet", action="store_true", help="no progress bar")

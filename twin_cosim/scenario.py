@@ -7,6 +7,9 @@ Layout (every section but ``reference`` is optional)::
     plant:
       fmu: other.fmu            # relative to the scenario file; default: the project's drive2mass
       parameters: {backlash: 12.2e-6}        # FMU parameters by name
+      parameters_file: plant.yaml            # a calibrated plant (twin_cosim.plant_parameters),
+                                             # relative to the scenario file; its names must not
+                                             # be repeated in parameters
     controller:
       parameters: {Kp_pos: 66.667, ...}      # the six tuned parameters (default: Fine-Tune, eq. 8)
       settings: {current_limit: 20.0, ...}   # see twin_cosim.controller.ControllerSettings
@@ -128,6 +131,7 @@ class Scenario:
     disturbance: np.ndarray | None = None
     diagnose: dict[str, Any] = field(default_factory=dict)
     disturbance_spec: dict[str, Any] = field(default_factory=dict)
+    plant_parameters_file: Path | None = None
 
 
 class _Checker:
@@ -328,7 +332,9 @@ def load_scenario(path: Path | str) -> Scenario:
     data = check.mapping(load_yaml(source), "(top level)", TOP_KEYS)
     if "reference" not in data:
         raise check.fail("reference", "a reference section")
-    plant = check.mapping(data.get("plant"), "plant", {"fmu", "model", "parameters"})
+    plant = check.mapping(
+        data.get("plant"), "plant", {"fmu", "model", "parameters", "parameters_file"}
+    )
     plant_parameters = {
         str(k): check.number(v, f"plant.parameters.{k}")
         for k, v in check.mapping(plant.get("parameters"), "plant.parameters").items()
@@ -344,6 +350,10 @@ def load_scenario(path: Path | str) -> Scenario:
             fmu_path = build_fmu(str(plant["model"]))
         except BuildError as exc:
             raise ScenarioError(f"{source}: plant.model: {exc}") from exc
+    parameters_file = None
+    if "parameters_file" in plant:
+        parameters_file = source.parent / str(plant["parameters_file"])
+        plant_parameters = _with_parameters_file(check, plant_parameters, parameters_file, fmu_path)
     control = check.mapping(data.get("controller"), "controller", {"parameters", "settings"})
     tuned = (
         tuned_from_mapping(control["parameters"], f"{source}: controller.parameters")
@@ -386,7 +396,26 @@ def load_scenario(path: Path | str) -> Scenario:
         measured=chosen.measured,
         disturbance=chosen.disturbance,
         disturbance_spec=chosen.disturbance_spec,
+        plant_parameters_file=parameters_file,
     )
+
+
+def _with_parameters_file(
+    check: _Checker, parameters: dict[str, float], path: Path, fmu: Path | None
+) -> dict[str, float]:
+    """The scenario's plant parameters plus those of ``plant.parameters_file`` (no name twice)."""
+    from twin_cosim.plant_parameters import PlantParametersError, fmu_model, read_plant_parameters
+
+    try:
+        calibrated = read_plant_parameters(path, fmu_model(fmu)).parameters
+    except PlantParametersError as exc:
+        raise ScenarioError(f"{check.source}: plant.parameters_file: {exc}") from exc
+    twice = sorted(set(parameters) & set(calibrated))
+    if twice:
+        raise check.fail(
+            "plant.parameters", f"no name also set by plant.parameters_file {path}", twice
+        )
+    return {**calibrated, **parameters}
 
 
 def for_measured_run(scenario: Scenario, run: MeasuredRun) -> Scenario:
