@@ -250,6 +250,8 @@ def _compare(args: argparse.Namespace) -> int:
     from twin_cosim.optimize.comparison import load_comparison, run_comparison
 
     comparison = load_comparison(Path(args.campaign))
+    if args.plant_parameters:
+        comparison = dataclasses.replace(comparison, plant_parameters=Path(args.plant_parameters))
     methods = args.methods.split(",") if args.methods else None
     out = Path(args.out) if args.out else Path("out") / comparison.name
     text = run_comparison(
@@ -433,6 +435,9 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--workers", type=int, help="local processes (default: all cores)")
     compare.add_argument("--scheduler", help="Dask scheduler address")
     compare.add_argument("--out", help="output folder (default: out/<campaign name>)")
+    compare.add_argument(
+        "--plant-parameters", help="calibrated plant parameters for every scenario (plant.yaml)"
+    )
     compare.add_argument("--quiet", action="store_true", help="no progress bars")
     compare.set_defaults(handler=_compare)
 

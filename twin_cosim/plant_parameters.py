@@ -113,7 +113,10 @@ def check_values(
     key
         The key path named in errors.
     """
-    known = model_parameters(model)
+    try:
+        known = model_parameters(model)
+    except PlantParametersError as exc:
+        raise PlantParametersError(f"{where}: model: {exc}") from exc
     checked = {}
     for name, value in values.items():
         at = f"{where}: {key}.{name}"
@@ -171,6 +174,10 @@ def read_plant_parameters(path: Path | str, model: str | None = None) -> PlantPa
     found = data.get("model")
     if not isinstance(found, str):
         raise PlantParametersError(f"{path}: model: expected a plant model name, got {found!r}")
+    if found not in available_models():
+        raise PlantParametersError(
+            f"{path}: model: unknown plant model {found!r}: expected one of {available_models()}"
+        )
     if model is not None and found != model:
         raise PlantParametersError(
             f"{path}: model: the file is for plant model {found!r}, the scenario's plant is "
