@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
 from pathlib import Path
 
 import pytest
 import yaml
 
-from twin_cosim.gap.diagnosis import DiagnosisSettings, diagnose
+from twin_cosim import cli
+from twin_cosim.gap import diagnosis
 from twin_cosim.gap.synth import parse_effect, synthesize
-from twin_cosim.measured import read_measured_csv
 from twin_cosim.plant_parameters import (
     PlantParameters,
     PlantParametersError,
@@ -49,14 +51,30 @@ def excitation(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def diagnosis_summary(excitation, tmp_path_factory) -> dict:
-    """A real diagnosis (two hypotheses only, to stay fast) of a run with a known answer."""
+def diagnosis_dir(excitation, tmp_path_factory) -> Path:
+    """``twin diagnose --out DIR`` on a run with a known answer (two hypotheses, to stay fast)."""
     scenario = load_scenario(excitation)
     synthesis = synthesize(scenario, [parse_effect(e) for e in HIDDEN], seed=1)
     run = tmp_path_factory.mktemp("run") / "run.csv"
     synthesis.run.to_csv(run, index=False)
-    settings = DiagnosisSettings(max_effects=1, hypotheses=("coulomb_change", "backlash_change"))
-    return diagnose(scenario, [read_measured_csv(run)], settings=settings, workers=1).summary
+    out = tmp_path_factory.mktemp("diagnosis")
+
+    def two_hypotheses(*args, **kwargs):  # the whole library would take minutes
+        settings = original(*args, **kwargs)
+        return dataclasses.replace(settings, hypotheses=("coulomb_change", "backlash_change"))
+
+    original = diagnosis.settings_from
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(diagnosis, "settings_from", two_hypotheses)
+        argv = ["diagnose", str(excitation), "--measured", str(run), "--max-effects", "1"]
+        assert cli.main([*argv, "--workers", "1", "--out", str(out)]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def diagnosis_summary(diagnosis_dir) -> dict:
+    """The JSON summary ``twin diagnose`` wrote."""
+    return json.loads((diagnosis_dir / "diagnosis.json").read_text())
 
 
 def test_plant_yaml_of_a_real_diagnosis_holds_the_hidden_answer(diagnosis_summary, tmp_path):
@@ -73,6 +91,15 @@ def test_plant_yaml_of_a_real_diagnosis_holds_the_hidden_answer(diagnosis_summar
     back = read_plant_parameters(path, "drive2mass")
     assert back.parameters == plant.parameters  # floats round-trip exactly
     assert back.provenance == plant.provenance
+
+
+def test_diagnose_writes_plant_and_calibrated_yaml(diagnosis_dir, diagnosis_summary):
+    written = read_plant_parameters(diagnosis_dir / "plant.yaml", "drive2mass")
+    assert written.parameters == from_diagnosis(diagnosis_summary, "drive2mass").parameters
+    assert written.created_by["command"].startswith("twin diagnose ")
+    calibrated = load_scenario(diagnosis_dir / "calibrated.yaml")
+    for name, value in written.parameters.items():
+        assert calibrated.plant_parameters[name] == value
 
 
 def test_calibrated_scenario_folds_the_parameters_in(diagnosis_summary, excitation, tmp_path):
