@@ -111,9 +111,13 @@ def load_comparison(path: Path) -> Comparison:
     if not isinstance(others, list):
         raise ScenarioError(f"{path}: robust.scenarios: expected a list of files, got {others!r}")
     try:
-        check_uncertainty(robust.get("tolerance", 0.0), robust.get("samples", 1))
+        check_uncertainty(
+            robust.get("tolerance", 0.0),
+            robust.get("samples", 1),
+            ("robust.tolerance", "robust.samples"),
+        )
     except ValueError as exc:
-        raise ScenarioError(f"{path}: robust: {exc}") from exc
+        raise ScenarioError(f"{path}: {exc}") from exc
     if robust.get("objective", "worst") not in AGGREGATES:
         raise ScenarioError(f"{path}: robust.objective: expected one of {AGGREGATES}")
     holdout = data.get("holdout") or []

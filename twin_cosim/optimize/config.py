@@ -233,9 +233,11 @@ def uncertain_parameters(model: str, calibrated: dict[str, float]) -> tuple[str,
     return tuple(names)
 
 
-def check_uncertainty(tolerance: float, samples: int) -> None:
-    """ValueError naming the option unless 0 <= tolerance < 1 and samples >= 1."""
+def check_uncertainty(
+    tolerance: float, samples: int, names: tuple[str, str] = ("--tolerance", "--samples")
+) -> None:
+    """ValueError naming the option (or key) unless 0 <= tolerance < 1 and samples >= 1."""
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
-        raise ValueError(f"--samples: expected an integer >= 1, got {samples!r}")
+        raise ValueError(f"{names[1]}: expected an integer >= 1, got {samples!r}")
     if not (isinstance(tolerance, (int, float)) and 0.0 <= tolerance < 1.0):
-        raise ValueError(f"--tolerance: expected a relative tolerance in [0, 1), got {tolerance!r}")
+        raise ValueError(f"{names[0]}: expected a relative tolerance in [0, 1), got {tolerance!r}")
