@@ -22,6 +22,7 @@ own generation (elsewhere it is evaluated again).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import time
@@ -147,9 +148,11 @@ def _robust_settings(spec: CampaignSpec, scenario: Scenario) -> dict[str, Any]:
     uncertainty = UncertaintySet(
         spec.tolerance, spec.samples, spec.seed, uncertain_parameters(model, calibrated)
     )
+    files = [spec.scenario, *spec.scenarios]
     return {
         "plant_parameters": calibrated,
-        "scenarios": [spec.scenario, *spec.scenarios],
+        "scenarios": files,
+        "scenarios_sha256": [hashlib.sha256(Path(f).read_bytes()).hexdigest() for f in files],
         "uncertain_parameters": list(uncertainty.parameters),
         "samples": uncertainty.factors() if spec.samples > 1 else [],
     }
