@@ -153,6 +153,9 @@ def _robust_settings(spec: CampaignSpec, scenario: Scenario) -> dict[str, Any]:
         "plant_parameters": calibrated,
         "scenarios": files,
         "scenarios_sha256": [hashlib.sha256(Path(f).read_bytes()).hexdigest() for f in files],
+        "scenario_plant_parameters": [  # with any plant.parameters_file folded in
+            (scenario if f == spec.scenario else _scenario(spec, f)).plant_parameters for f in files
+        ],
         "uncertain_parameters": list(uncertainty.parameters),
         "samples": uncertainty.factors() if spec.samples > 1 else [],
     }
