@@ -1,6 +1,7 @@
 """Robust tuning and exact early stopping: what they buy and what they cost, in one run.
 
-Campaigns (CE, the same seed and budget; nominal twin), all through ``twin optimize``:
+Campaigns (CE by default, the same seed and budget; nominal twin), all through ``twin optimize``
+(with another ``--method``, early stopping is off and ``ref1`` is ``ref1-full``):
 
 - ``ref1-full``: reference 1 alone, every run to the end (``--no-early-stop``);
 - ``ref1``: reference 1 alone with early stopping (must end exactly where ``ref1-full`` does);
@@ -47,7 +48,7 @@ def campaign(name: str, scenarios: list[Path], extra: list[str], args) -> dict:
             "optimize",
             *map(str, scenarios),
             "--method",
-            "ce",
+            args.method,
             "--seed",
             str(args.seed),
             "--budget",
@@ -74,6 +75,7 @@ def on_reference2(params: str, out: Path) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--method", default="ce", help="ce (early stopping exact) or another")
     parser.add_argument("--budget", type=int, default=300)
     parser.add_argument("--samples", type=int, default=4)
     parser.add_argument("--tolerance", type=float, default=0.03)
@@ -90,10 +92,12 @@ def main() -> None:
     robust = ["--samples", str(args.samples), "--tolerance", str(args.tolerance)]
     runs = {
         "ref1-full": campaign("ref1-full", [ref1], ["--no-early-stop"], args),
-        "ref1": campaign("ref1", [ref1], [], args),
+        "ref1": campaign("ref1", [ref1], [], args) if args.method == "ce" else None,
         "robust": campaign("robust", pair, robust, args),
         "ref2": campaign("ref2", [ref2], [], args),
     }
+    if runs["ref1"] is None:  # no early stopping for this method: the same campaign
+        runs["ref1"] = runs["ref1-full"]
     if args.robust_full:
         runs["robust-full"] = campaign("robust-full", pair, [*robust, "--no-early-stop"], args)
     print(f"load average at end of the campaigns: {os.getloadavg()}", flush=True)
