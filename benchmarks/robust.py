@@ -103,7 +103,8 @@ def main() -> None:
     print(f"load average at end of the campaigns: {os.getloadavg()}", flush=True)
     judged = {"FT": on_reference2("ft", out / "judge-FT")}
     for name in runs:
-        judged[name] = on_reference2(str(out / name / "result.json"), out / f"judge-{name}")
+        result = Path(runs[name]["out_dir"]) / "result.json"
+        judged[name] = on_reference2(str(result), out / f"judge-{name}")
     full, early = runs["ref1-full"], runs["ref1"]
     same = full["best_params"] == early["best_params"] and full["fitness"] == early["fitness"]
     print("\ncampaign | evaluations | stopped early | simulated steps | wall [s] | best [um]")
