@@ -148,10 +148,13 @@ def _simulate(args: argparse.Namespace) -> int:
     from twin_cosim.cosim import run_scenario
     from twin_cosim.metrics import compute_metrics
     from twin_cosim.plant import Plant
+    from twin_cosim.plant_parameters import with_plant_parameters
     from twin_cosim.plots import plot_run
     from twin_cosim.scenario import load_scenario, load_tuned_parameters
 
-    scenario = load_scenario(args.scenario)
+    scenario = with_plant_parameters(
+        load_scenario(args.scenario), args.plant_parameters, args.plant
+    )
     tuned = load_tuned_parameters(args.params) if args.params else scenario.tuned
     fmu = Path(args.plant) if args.plant else scenario.fmu
     mismatch = warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
@@ -175,6 +178,12 @@ def _simulate(args: argparse.Namespace) -> int:
             "measured": str(scenario.measured),
             **compare_with_measured(record, run.t, run.x, run.current),
         }
+    on_machine = None
+    if args.machine:
+        from twin_cosim.machine import machine_metrics, prediction
+
+        judged, kind = machine_metrics(scenario, tuned, args.machine)
+        on_machine = {"source": args.machine, "kind": kind, **prediction(metrics, judged)}
     record.to_csv(out / "record.csv", index=False)
     plot_run(
         record, metrics, f"{scenario.name}: {args.params or 'scenario parameters'}", out / "run.png"
@@ -182,9 +191,11 @@ def _simulate(args: argparse.Namespace) -> int:
     summary = {
         "scenario": str(scenario.source),
         "fmu": fmu_path,
+        "plant_parameters_file": args.plant_parameters,
         "params": tuned.as_dict(),
         "metrics": metrics.as_dict(),
         "validation": validation,
+        "machine": on_machine,
         "metrics_window_s": list(scenario.metrics_window),
         "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
         "wall_s": wall,
@@ -210,6 +221,10 @@ def _simulate(args: argparse.Namespace) -> int:
                 f"{v['position_relative_error_pct']:.4f} %), command/force relative error "
                 f"{v['current_relative_error_pct']:.3f} %"
             )
+        if on_machine:
+            from twin_cosim.machine import JUDGED, describe
+
+            print(describe(args.machine, on_machine["kind"], {k: on_machine[k] for k in JUDGED}))
         print(f"wrote {out}/record.csv, run.png, summary.json")
     for warning in warnings:
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
@@ -261,8 +276,10 @@ def _optimize(args: argparse.Namespace) -> int:
     if args.resume:
         stored = load_spec(Path(args.resume))
         given = {"method": args.method, "seed": args.seed, "budget": args.budget}
-        spec = dataclasses.replace(stored, scenario=args.scenario, fmu=args.plant or stored.fmu)
+        given |= _robust_options(args)
+        spec = dataclasses.replace(stored, scenario=args.scenario[0], fmu=args.plant or stored.fmu)
         stored = {"method": spec.method, "seed": spec.seed, "budget": spec.budget}
+        stored |= {k: getattr(spec, k) for k in _robust_options(args)}
         conflicts = {
             k: (v, stored[k]) for k, v in given.items() if v is not None and v != stored[k]
         }
@@ -277,13 +294,15 @@ def _optimize(args: argparse.Namespace) -> int:
         if args.plant:
             from twin_cosim.scenario import load_scenario
 
-            warn_plant_mismatch(load_scenario(args.scenario), Path(args.plant))
+            warn_plant_mismatch(load_scenario(args.scenario[0]), Path(args.plant))
+        robust = {k: v for k, v in _robust_options(args).items() if v is not None}
         spec = CampaignSpec(
-            scenario=args.scenario,
+            scenario=args.scenario[0],
             method=args.method,
             seed=0 if args.seed is None else args.seed,
             budget=args.budget,
             fmu=args.plant,
+            **robust,
         )
         out = out_folder(args.out, Path("out") / f"optimize-{spec.method}-seed{spec.seed}")
     try:
@@ -297,7 +316,8 @@ def _optimize(args: argparse.Namespace) -> int:
         )
     except KeyboardInterrupt as exc:
         if (out / "campaign.json").exists():
-            exc.hint = f"; the log is intact: twin optimize {args.scenario} --resume {out}"
+            scenarios = " ".join(args.scenario)
+            exc.hint = f"; the log is intact: twin optimize {scenarios} --resume {out}"
         raise
     write_campaign_plots(out)
     summary = {
@@ -327,10 +347,24 @@ def _optimize(args: argparse.Namespace) -> int:
     return 0
 
 
+def _robust_options(args: argparse.Namespace) -> dict[str, Any]:
+    """Options of a calibrated or robust campaign as given (None: not given)."""
+    return {
+        "plant_parameters": args.plant_parameters,
+        "scenarios": list(args.scenario[1:]) or None,
+        "tolerance": args.tolerance,
+        "samples": args.samples,
+        "aggregate": args.objective,
+        "early_stop": False if args.no_early_stop else None,
+    }
+
+
 def _compare(args: argparse.Namespace) -> int:
     from twin_cosim.optimize.comparison import load_comparison, run_comparison
 
     comparison = load_comparison(Path(args.campaign))
+    if args.plant_parameters:
+        comparison = dataclasses.replace(comparison, plant_parameters=Path(args.plant_parameters))
     methods = args.methods.split(",") if args.methods else None
     out = out_folder(args.out, Path("out") / comparison.name)
     text = run_comparison(
@@ -465,6 +499,7 @@ def _diagnose(args: argparse.Namespace) -> int:
     }
     files = write_report(result, out, extra)
     summary = {**result.summary(), **extra}
+    files |= _write_calibration(args, scenario, summary, out)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -477,7 +512,8 @@ def _diagnose(args: argparse.Namespace) -> int:
                 f"{step['holdout_current_after_A']:.4f} A; fitted {step['params']}"
             )
         print(
-            f"wrote {files['markdown']}, {files['html']}, {files['json']} ({extra['wall_s']:.1f} s)"
+            f"wrote {files['markdown']}, {files['html']}, {files['json']}, {files['plant']}, "
+            f"{files['calibrated']} ({extra['wall_s']:.1f} s)"
         )
     return 0
 
@@ -511,6 +547,30 @@ def _plant_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _write_calibration(
+    args: argparse.Namespace, scenario, summary: dict[str, Any], out: Path
+) -> dict[str, str]:
+    """DIR/plant.yaml (the accepted effects and noise) and DIR/calibrated.yaml."""
+    from twin_cosim.plant_parameters import (
+        calibrated_scenario,
+        fmu_model,
+        from_diagnosis,
+        write_plant_parameters,
+    )
+
+    runs = [f"--measured {m}" for m in args.measured] + [
+        f"--holdout {h}" for h in args.holdout or []
+    ]
+    made_by = {
+        "command": " ".join(["twin diagnose", str(args.scenario), *runs]),
+        "version": versions()["twin-cosim"],
+    }
+    plant = from_diagnosis(summary, fmu_model(args.plant or scenario.fmu), made_by)
+    plant_file = write_plant_parameters(out / "plant.yaml", plant)
+    calibrated = calibrated_scenario(scenario.source, plant, out / "calibrated.yaml")
+    return {"plant": str(plant_file), "calibrated": str(calibrated)}
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``twin``."""
     parser = argparse.ArgumentParser(
@@ -542,6 +602,17 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _plant_option(simulate)
     simulate.add_argument(
+        "--plant-parameters",
+        metavar="FILE",
+        help="calibrated plant parameters, the plant.yaml of twin diagnose (default: none)",
+    )
+    simulate.add_argument(
+        "--machine",
+        metavar="RUN_OR_PLANT",
+        help="judge on a machine: a measured run (CSV/.mat) made with these gains, or a virtual "
+        "machine (a scenario or plant.yaml whose plant stands for the machine) (default: none)",
+    )
+    simulate.add_argument(
         "--out", metavar="DIR", help="output folder (default: out/<scenario name>)"
     )
     simulate.add_argument(
@@ -556,6 +627,12 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.set_defaults(handler=_simulate)
 
     optimize = command("optimize", "tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H]")
+    optimize.add_argument(
+        "scenario",
+        nargs="+",
+        help="scenario YAML file or shipped name (its optimize section); more scenarios: a "
+        "robust objective over all of them",
+    )
     optimize.add_argument(
         "scenario", help="scenario YAML file or shipped name (its optimize section)"
     )
@@ -581,6 +658,31 @@ def build_parser() -> argparse.ArgumentParser:
     optimize.add_argument(
         "--resume", metavar="DIR", help="campaign folder to resume (default: a new campaign)"
     )
+    optimize.add_argument(
+        "--plant-parameters",
+        metavar="FILE",
+        help="calibrated plant parameters, the plant.yaml of twin diagnose (default: none)",
+    )
+    optimize.add_argument(
+        "--tolerance",
+        type=float,
+        help="relative tolerance of the uncertain plant parameters (default: 0, no samples)",
+    )
+    optimize.add_argument(
+        "--samples",
+        type=whole_number(1),
+        help="plant samples per scenario, the first nominal (default: 1)",
+    )
+    optimize.add_argument(
+        "--objective",
+        choices=["worst", "mean"],
+        help="over scenarios x samples (default: worst)",
+    )
+    optimize.add_argument(
+        "--no-early-stop",
+        action="store_true",
+        help="run every candidate to the end (early stopping is exact; this is for measuring it)",
+    )
     optimize.add_argument("--json", action="store_true", help="print the result as one JSON object")
     optimize.add_argument("--quiet", action="store_true", help="no progress bar")
     _data_option(optimize)
@@ -600,6 +702,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     compare.add_argument(
         "--out", metavar="DIR", help="output folder (default: out/<campaign name>)"
+    )
+    compare.add_argument(
+        "--plant-parameters",
+        metavar="FILE",
+        help="calibrated plant parameters for every scenario, a plant.yaml (default: none)",
     )
     compare.add_argument("--quiet", action="store_true", help="no progress bars")
     _data_option(compare)

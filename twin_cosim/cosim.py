@@ -55,7 +55,12 @@ _ABORTED = -2
 
 
 class RunAborted(RuntimeError):
-    """The position error left the allowed band: the closed loop is unstable or runs away."""
+    """The position error left the allowed band: the closed loop is unstable or runs away.
+
+    ``time_s``: the position-loop sample time (s) at which the run stopped.
+    """
+
+    time_s: float = math.nan
 
 
 _SET_REAL = ctypes.CFUNCTYPE(
@@ -82,7 +87,9 @@ def _check_inputs(grid: ReferenceGrid, signal: np.ndarray | None, what: str) -> 
 
 
 def _raise_aborted(abort_error: float, t: float) -> None:
-    raise RunAborted(f"|x_ref - x| exceeded {abort_error * 1e6:g} um at t = {t:.4f} s")
+    aborted = RunAborted(f"|x_ref - x| exceeded {abort_error * 1e6:g} um at t = {t:.4f} s")
+    aborted.time_s = t
+    raise aborted
 
 
 def _to_frame(record: np.ndarray) -> pd.DataFrame:

@@ -8,6 +8,9 @@ Layout (every section but ``reference`` is optional)::
       model: drive2mass         # a folder of models/ (the default), built on first use; or
       fmu: other.fmu            # an FMU file, relative to the scenario file
       parameters: {backlash: 12.2e-6}        # FMU parameters by name
+      parameters_file: plant.yaml            # a calibrated plant (twin_cosim.plant_parameters),
+                                             # relative to the scenario file; its names must not
+                                             # be repeated in parameters
     controller:
       parameters: {Kp_pos: 66.667, ...}      # the six tuned parameters, or the name of a set of
                                              # the paper's Table 3 (ft, ga, ce, sa); default: ft
@@ -173,6 +176,7 @@ class Scenario:
     command_disturbance: np.ndarray | None = None
     disturbance_in_record: bool = False
     model: str | None = None
+    plant_parameters_file: Path | None = None
 
 
 class _Checker:
@@ -525,7 +529,9 @@ def load_scenario(path: Path | str) -> Scenario:
             "used as the default output folder",
             name,
         )
-    plant = check.mapping(data.get("plant"), "plant", {"fmu", "model", "parameters"})
+    plant = check.mapping(
+        data.get("plant"), "plant", {"fmu", "model", "parameters", "parameters_file"}
+    )
     plant_parameters = {
         str(k): check.number(v, f"plant.parameters.{k}")
         for k, v in check.mapping(plant.get("parameters"), "plant.parameters").items()
@@ -546,6 +552,10 @@ def load_scenario(path: Path | str) -> Scenario:
             fmu_path = build_fmu(model, announce=True)
         except BuildError as exc:
             raise ScenarioError(f"{source}: plant.model: {exc}") from exc
+    parameters_file = None
+    if "parameters_file" in plant:
+        parameters_file = source.parent / str(plant["parameters_file"])
+        plant_parameters = _with_parameters_file(check, plant_parameters, parameters_file, fmu_path)
     control = check.mapping(data.get("controller"), "controller", {"parameters", "settings"})
     tuned = _tuned(control.get("parameters", "ft"), f"{source}: controller.parameters")
     setting_names = {f.name for f in fields(ControllerSettings)}
@@ -590,6 +600,7 @@ def load_scenario(path: Path | str) -> Scenario:
         command_disturbance=chosen.command_disturbance,
         disturbance_in_record=bool(chosen.disturbance_spec.get("in_recorded_command", False)),
         model=model,
+        plant_parameters_file=parameters_file,
     )
 
 
@@ -627,6 +638,24 @@ def plant_mismatch(scenario: Scenario, fmu: Path) -> str | None:
         f"{identifier!r}" + (f" ({differences[0]})" if differences else "") + ": its controller "
         "settings and plant parameters were chosen for another plant"
     )
+
+
+def _with_parameters_file(
+    check: _Checker, parameters: dict[str, float], path: Path, fmu: Path | None
+) -> dict[str, float]:
+    """The scenario's plant parameters plus those of ``plant.parameters_file`` (no name twice)."""
+    from twin_cosim.plant_parameters import PlantParametersError, fmu_model, read_plant_parameters
+
+    try:
+        calibrated = read_plant_parameters(path, fmu_model(fmu)).parameters
+    except PlantParametersError as exc:
+        raise ScenarioError(f"{check.source}: plant.parameters_file: {exc}") from exc
+    twice = sorted(set(parameters) & set(calibrated))
+    if twice:
+        raise check.fail(
+            "plant.parameters", f"no name also set by plant.parameters_file {path}", twice
+        )
+    return {**calibrated, **parameters}
 
 
 def for_measured_run(scenario: Scenario, run: MeasuredRun) -> Scenario:

@@ -3,7 +3,9 @@
 A campaign folder holds
 
 - ``campaign.json``: what was asked (scenario, method, seed, budget, settings, bounds, the
-  Fine-Tune reference metrics and the IAU limit); ``--resume`` reads it back;
+  Fine-Tune reference metrics and the IAU limit; for a calibrated or robust campaign also the
+  plant parameters, the scenarios, their IAU limits and the plant samples, which a resume checks
+  against the files as they are now); ``--resume`` reads it back;
 - ``evaluations.jsonl``: every completed evaluation, flushed at once (the checkpoint);
 - ``progress.json``: rewritten after every generation (generation, evaluations, best so far);
 - ``result.json``: the outcome (best parameters and metrics, evaluations, wall time).
@@ -16,10 +18,16 @@ anything is written, so a mistake never blocks the folder.
 The optimizer starts from the scenario's parameters (the Fine-Tune set by default) when they lie
 inside the bounds. Resuming replays the optimizer from its seed, answering from the log every
 batch already evaluated, so a resumed campaign ends exactly where an uninterrupted one would.
+
+Early stopping (CE, on by default where exact, see :mod:`twin_cosim.optimize.early_stop`): a
+generation's candidates go out in groups of as many as there are workers, each with the cutoff
+known at that moment; a stopped candidate's lower bound is reused from the log only within its
+own generation (elsewhere it is evaluated again).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import time
@@ -35,7 +43,15 @@ from twin_cosim.controller import TUNED_NAMES, TunedParameters
 from twin_cosim.cosim import run_scenario
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.algorithms import make_optimizer
-from twin_cosim.optimize.config import OptimizeConfig, load_config, within_bounds
+from twin_cosim.optimize.config import (
+    OptimizeConfig,
+    UncertaintySet,
+    check_uncertainty,
+    load_config,
+    uncertain_parameters,
+    within_bounds,
+)
+from twin_cosim.optimize.early_stop import EXACT_METHODS, elite_cutoff, window_spans_run
 from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
 from twin_cosim.optimize.evaluators import SchedulerError, make_evaluator
 from twin_cosim.optimize.fingerprints import (
@@ -44,8 +60,9 @@ from twin_cosim.optimize.fingerprints import (
     settings_fingerprint,
 )
 from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
-from twin_cosim.optimize.objective import ObjectiveSpec
+from twin_cosim.optimize.objective import AGGREGATES, EvaluationTask, ObjectiveSpec
 from twin_cosim.plant import Plant, default_fmu
+from twin_cosim.plant_parameters import fmu_model, read_plant_parameters, with_plant_parameters
 from twin_cosim.scenario import Scenario, load_scenario
 from twin_cosim.workers import check_workers
 
@@ -74,6 +91,18 @@ class CampaignSpec:
         Plant FMU; the scenario's when None.
     settings : dict
         Method settings (overrides of the scenario's ``optimize.methods.<method>``).
+    plant_parameters : str or None
+        Plant parameter file (``plant.yaml``) applied to every scenario.
+    scenarios : list of str
+        Further scenarios of a robust objective.
+    tolerance : float
+        Relative tolerance of the uncertain plant parameters.
+    samples : int
+        Plant samples per scenario (1: the nominal plant only).
+    aggregate : str
+        ``worst`` or ``mean`` over scenarios x samples.
+    early_stop : bool
+        Stop runs early where that is exact.
     """
 
     scenario: str
@@ -82,6 +111,12 @@ class CampaignSpec:
     budget: int | None = None
     fmu: str | None = None
     settings: dict[str, Any] = field(default_factory=dict)
+    plant_parameters: str | None = None
+    scenarios: list[str] = field(default_factory=list)
+    tolerance: float = 0.0
+    samples: int = 1
+    aggregate: str = "worst"
+    early_stop: bool = True
 
 
 @dataclass
@@ -104,6 +139,39 @@ class CampaignResult:
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return asdict(self)
+
+
+def _scenario(spec: CampaignSpec, path: str) -> Scenario:
+    return with_plant_parameters(load_scenario(path), spec.plant_parameters, spec.fmu)
+
+
+def _robust_settings(spec: CampaignSpec, scenario: Scenario) -> dict[str, Any]:
+    """The plant parameters, scenarios and plant samples of a campaign as its files are now."""
+    if spec.aggregate not in AGGREGATES:
+        raise CampaignError(f"objective {spec.aggregate!r}: expected one of {AGGREGATES}")
+    check_uncertainty(spec.tolerance, spec.samples)
+    if spec.samples > 1 and spec.tolerance == 0.0:
+        raise ValueError("--samples above 1 needs a --tolerance above 0 (e.g. 0.03)")
+    model = fmu_model(spec.fmu or scenario.fmu)
+    calibrated = (
+        read_plant_parameters(spec.plant_parameters, model).parameters
+        if spec.plant_parameters
+        else {}
+    )
+    uncertainty = UncertaintySet(
+        spec.tolerance, spec.samples, spec.seed, uncertain_parameters(model, calibrated)
+    )
+    files = [spec.scenario, *spec.scenarios]
+    return {
+        "plant_parameters": calibrated,
+        "scenarios": files,
+        "scenarios_sha256": [hashlib.sha256(Path(f).read_bytes()).hexdigest() for f in files],
+        "scenario_plant_parameters": [  # with any plant.parameters_file folded in
+            (scenario if f == spec.scenario else _scenario(spec, f)).plant_parameters for f in files
+        ],
+        "uncertain_parameters": list(uncertainty.parameters),
+        "samples": uncertainty.factors() if spec.samples > 1 else [],
+    }
 
 
 def reference_metrics(
@@ -185,21 +253,36 @@ def _prepare(
     found: dict[str, str],
 ) -> dict[str, Any]:
     header_path = out_dir / "campaign.json"
+    robust = _robust_settings(spec, scenario)
     if resume:
         header = _read_header(out_dir)
         _check_resume(out_dir, header, spec, found)
+        stored = {key: (header.get("robust") or {}).get(key) for key in robust}
+        if stored != robust:
+            changed = sorted(k for k in robust if stored[k] != robust[k])
+            raise CampaignError(
+                f"{out_dir}: the campaign's {changed} changed since it started (plant parameter "
+                "file or robust settings); start a new campaign"
+            )
         return header
     if header_path.exists():
         raise CampaignError(
             f"{out_dir}: already holds a campaign; use --resume {out_dir} or another --out"
         )
     reference = reference_metrics(scenario, config, spec.fmu)
+    limits = []
+    for path in spec.scenarios:
+        other = _scenario(spec, path)
+        other_reference = reference_metrics(other, load_config(other), spec.fmu)
+        limits.append(None if config.iau_cap is None else config.iau_cap * other_reference["IAU"])
     header = {
         "spec": asdict(spec),
         "config": config.as_dict(),
         "reference": {"params": scenario.tuned.as_dict(), "metrics": reference},
         "iau_limit": None if config.iau_cap is None else config.iau_cap * reference["IAU"],
         "fingerprints": found,
+        "iau_limits": limits,
+        "robust": robust,
     }
     header_path.write_text(json.dumps(header, indent=2) + "\n")
     return header
@@ -267,7 +350,7 @@ def run_campaign(
     """
     out_dir = Path(out_dir)
     _check_arguments(spec, out_dir, workers, resume)
-    scenario = load_scenario(spec.scenario)
+    scenario = _scenario(spec, spec.scenario)
     config = load_config(scenario)
     settings = {**config.methods.get(spec.method, {}), **spec.settings}
     if spec.budget is not None:
@@ -326,7 +409,18 @@ def _run_locked(
     try:
         header = _prepare(spec, out_dir, resume, scenario, config, found)
         log = EvaluationLog(out_dir / "evaluations.jsonl")
-        objective_spec = ObjectiveSpec(spec.scenario, spec.fmu, header["iau_limit"])
+        robust = header.get("robust") or {}
+        objective_spec = ObjectiveSpec(
+            spec.scenario,
+            spec.fmu,
+            header["iau_limit"],
+            spec.plant_parameters,
+            tuple(spec.scenarios),
+            tuple(header.get("iau_limits") or ()),
+            tuple(robust.get("samples") or ()),
+            spec.aggregate,
+        )
+        early_stop = spec.early_stop and _early_stop_exact(spec, config)
         evaluator = make_evaluator(objective_spec, workers, scheduler, scheduler_timeout)
     except BaseException:
         optimizer.close()
@@ -347,7 +441,9 @@ def _run_locked(
             missing = []
             for i, x in enumerate(candidates):
                 entry = log.lookup(x)
-                if entry is None:
+                if entry is None or (
+                    entry["status"] == "stopped" and entry["generation"] != optimizer.generation
+                ):  # a lower bound holds only against its own generation's cutoff
                     missing.append(i)
                 else:
                     fitness[i] = entry["fitness"]
@@ -357,15 +453,26 @@ def _run_locked(
             for i in missing:
                 unique.setdefault(candidate_key(candidates[i]), []).append(i)
             firsts = [rows[0] for rows in unique.values()]
-            for j, result in evaluator.imap(candidates[firsts]):
-                entry = log.append(candidates[firsts[j]], result, optimizer.generation)
-                if result["status"] != "ok":
-                    LOG.info(
-                        "candidate %s: %s (%s)", entry["x"], result["status"], result["reason"]
-                    )
-                rows = unique[entry["key"]]
-                fitness[rows] = result["fitness"]
-                bar.update(len(rows))
+            known = [i for i in range(len(candidates)) if i not in missing]
+            group = evaluator.workers if early_stop else max(1, len(firsts))
+            for start_at in range(0, len(firsts), group):
+                chosen = firsts[start_at : start_at + group]
+                cutoff = (
+                    elite_cutoff(optimizer, len(candidates), fitness[known])
+                    if early_stop
+                    else float("inf")
+                )
+                tasks = [EvaluationTask(candidates[i], cutoff) for i in chosen]
+                for j, result in evaluator.imap(tasks):
+                    entry = log.append(candidates[chosen[j]], result, optimizer.generation)
+                    if result["status"] != "ok":
+                        LOG.info(
+                            "candidate %s: %s (%s)", entry["x"], result["status"], result["reason"]
+                        )
+                    rows = unique[entry["key"]]
+                    fitness[rows] = result["fitness"]
+                    known += rows
+                    bar.update(len(rows))
             optimizer.tell(fitness)
             _write_progress(out_dir, optimizer, config, time.perf_counter() - start)
             best = optimizer.best[1]
@@ -398,6 +505,18 @@ def _run_locked(
     )
     (out_dir / "result.json").write_text(json.dumps(result.as_dict(), indent=2) + "\n")
     return result
+
+
+def _early_stop_exact(spec: CampaignSpec, config: OptimizeConfig) -> bool:
+    """Whether the method and every scenario's objective window allow exact early stopping."""
+    if spec.method not in EXACT_METHODS:
+        return False
+    for path in (spec.scenario, *spec.scenarios):
+        scenario = load_scenario(path)
+        window = config.window if path == spec.scenario else load_config(scenario).window
+        if not window_spans_run(window, scenario.reference.duration):
+            return False
+    return True
 
 
 def _write_progress(out_dir: Path, optimizer, config: OptimizeConfig, elapsed: float) -> None:

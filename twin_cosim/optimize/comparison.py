@@ -8,10 +8,18 @@ A comparison file::
     methods: [ce, ga, sa, cmaes, de]
     seed: 0
     budgets: {sa: 18000}             # optional per-method evaluation budgets
+    plant_parameters: plant.yaml     # optional calibrated plant for every scenario
+    robust:                          # optional robust objective (see twin optimize)
+      scenarios: [diagnosis.yaml]    #   further scenarios tuned on together with `scenario`
+      tolerance: 0.03                #   relative tolerance of the uncertain plant parameters
+      samples: 4                     #   plant samples per scenario (the first nominal)
+      objective: worst               #   worst or mean over scenarios x samples
+    holdout: [reference2.yaml]       # optional held-out scenarios: one table each
 
 Each method's campaign lives in ``<out>/<method>/`` and is resumed or reused when present.
 Writes ``tables.md`` (Table 3: parameters; Table 4: reference metrics, wall time, evaluations;
-Table 5: validation metrics; each with the scenario's own set, Fine-Tune by default, as "FT"),
+Table 5: validation metrics; one table per held-out scenario; each with the scenario's own set,
+Fine-Tune by default, as "FT"),
 ``tables.json``, ``convergence.png``, ``errors_optimized.png`` and ``errors_validation.png``.
 """
 
@@ -20,6 +28,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
@@ -27,13 +36,27 @@ from twin_cosim.controller import TUNED_NAMES, TunedParameters
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.algorithms import ALGORITHMS
 from twin_cosim.optimize.campaign import CampaignSpec, run_campaign
+from twin_cosim.optimize.config import check_uncertainty
+from twin_cosim.optimize.objective import AGGREGATES
 from twin_cosim.optimize.outputs import plot_convergence
 from twin_cosim.plant import Plant
+from twin_cosim.plant_parameters import with_plant_parameters
 from twin_cosim.plots import plot_error_comparison
 from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table
 from twin_cosim.scenario import ScenarioError, load_scenario, load_yaml
 
-KEYS = {"name", "scenario", "validation", "methods", "seed", "budgets"}
+KEYS = {
+    "name",
+    "scenario",
+    "validation",
+    "methods",
+    "seed",
+    "budgets",
+    "plant_parameters",
+    "robust",
+    "holdout",
+}
+ROBUST_KEYS = {"scenarios", "tolerance", "samples", "objective"}
 
 
 @dataclass(frozen=True)
@@ -46,6 +69,9 @@ class Comparison:
     methods: list[str]
     seed: int = 0
     budgets: dict[str, int] = field(default_factory=dict)
+    plant_parameters: Path | None = None
+    robust: dict[str, Any] = field(default_factory=dict)
+    holdout: list[Path] = field(default_factory=list)
 
 
 def load_comparison(path: Path) -> Comparison:
@@ -74,6 +100,30 @@ def load_comparison(path: Path) -> Comparison:
     if not isinstance(seed, int) or seed < 0:
         raise ScenarioError(f"{path}: seed: expected a non-negative integer, got {seed!r}")
     validation = data.get("validation")
+    here = Path(path).parent
+    robust = data.get("robust") or {}
+    if not isinstance(robust, dict) or set(robust) - ROBUST_KEYS:
+        raise ScenarioError(
+            f"{path}: robust: expected a mapping with keys from {sorted(ROBUST_KEYS)}, "
+            f"got {robust!r}"
+        )
+    others = robust.get("scenarios", [])
+    if not isinstance(others, list):
+        raise ScenarioError(f"{path}: robust.scenarios: expected a list of files, got {others!r}")
+    try:
+        check_uncertainty(
+            robust.get("tolerance", 0.0),
+            robust.get("samples", 1),
+            ("robust.tolerance", "robust.samples"),
+        )
+    except ValueError as exc:
+        raise ScenarioError(f"{path}: {exc}") from exc
+    if robust.get("objective", "worst") not in AGGREGATES:
+        raise ScenarioError(f"{path}: robust.objective: expected one of {AGGREGATES}")
+    holdout = data.get("holdout") or []
+    if not isinstance(holdout, list):
+        raise ScenarioError(f"{path}: holdout: expected a list of scenario files, got {holdout!r}")
+    calibrated = data.get("plant_parameters")
     return Comparison(
         name=str(data.get("name", Path(path).stem)),
         scenario=Path(path).parent / str(data["scenario"]),
@@ -81,6 +131,14 @@ def load_comparison(path: Path) -> Comparison:
         methods=methods,
         seed=seed,
         budgets=budgets,
+        plant_parameters=None if calibrated is None else here / str(calibrated),
+        robust={
+            "scenarios": [str(here / str(f)) for f in others],
+            "tolerance": float(robust.get("tolerance", 0.0)),
+            "samples": int(robust.get("samples", 1)),
+            "aggregate": robust.get("objective", "worst"),
+        },
+        holdout=[here / str(f) for f in holdout],
     )
 
 
@@ -106,17 +164,28 @@ def run_comparison(
             results[method] = json.loads(result_path.read_text())
             continue
         spec = CampaignSpec(
-            str(comparison.scenario), method, comparison.seed, comparison.budgets.get(method)
+            str(comparison.scenario),
+            method,
+            comparison.seed,
+            comparison.budgets.get(method),
+            plant_parameters=_text(comparison.plant_parameters),
+            **comparison.robust,
         )
         resume = (folder / "campaign.json").exists()
         results[method] = run_campaign(spec, folder, workers, scheduler, resume, progress).as_dict()
-    scenario = load_scenario(comparison.scenario)
+    calibrated = _text(comparison.plant_parameters)
+    scenario = with_plant_parameters(load_scenario(comparison.scenario), calibrated)
     sets = {"FT": scenario.tuned} | {
         m.upper(): TunedParameters(**results[m]["best_params"]) for m in methods
     }
     scenarios = {"optimized": scenario}
     if comparison.validation:
-        scenarios["validation"] = load_scenario(comparison.validation)
+        scenarios["validation"] = with_plant_parameters(
+            load_scenario(comparison.validation), calibrated
+        )
+    for path in comparison.holdout:
+        held = with_plant_parameters(load_scenario(path), calibrated)
+        scenarios[f"holdout {held.name}"] = held
     with Plant(scenario.fmu) as plant:
         table, records = evaluate_sets(plant, scenarios, sets)
     params = pd.DataFrame({name: tuned.as_dict() for name, tuned in sets.items()}).T[
@@ -140,6 +209,10 @@ def run_comparison(
             f"{scenario.name}\n\n"
         )
         text += markdown_table(validation)
+    for label in (k for k in scenarios if k.startswith("holdout ")):
+        held = table.loc[label].copy()
+        held.index.name = "method"
+        text += f"\n## Held out: {scenarios[label].name}\n\n{markdown_table(held)}"
     (out / "tables.md").write_text(text)
     (out / "tables.json").write_text(
         json.dumps(
@@ -158,6 +231,13 @@ def run_comparison(
         runs = {name: records[(label, name)] for name in sets}
         peak = compute_metrics(runs["FT"], s.metrics_window).t_E_pk
         plot_error_comparison(
-            runs, peak, f"{s.name}: position error per method", out / f"errors_{label}.png"
+            runs,
+            peak,
+            f"{s.name}: position error per method",
+            out / f"errors_{label.replace(' ', '_')}.png",
         )
     return text
+
+
+def _text(path: Path | None) -> str | None:
+    return None if path is None else str(path)

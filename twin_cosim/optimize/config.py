@@ -180,3 +180,64 @@ def within_bounds(config: OptimizeConfig, tuned: TunedParameters) -> bool:
     """Whether a parameter set lies inside the bounds."""
     x = tuned.as_array()
     return bool(np.all((x >= config.lower) & (x <= config.upper)))
+
+
+@dataclass(frozen=True)
+class UncertaintySet:
+    """Plant variations a robust campaign tunes against.
+
+    Attributes
+    ----------
+    tolerance : float
+        Largest relative change of each uncertain parameter (0.03: +/- 3 %).
+    samples : int
+        Plant samples per scenario; the first is the nominal (calibrated) plant, the others
+        draw each factor uniformly from [1 - tolerance, 1 + tolerance].
+    seed : int
+        Seed of the draws.
+    parameters : tuple of str
+        The uncertain FMU parameters.
+    """
+
+    tolerance: float
+    samples: int
+    seed: int
+    parameters: tuple[str, ...]
+
+    def factors(self) -> list[dict[str, float]]:
+        """Relative factors per sample (the first sample: none, the nominal plant)."""
+        rng = np.random.default_rng(self.seed)
+        draws = [{}]
+        for _ in range(self.samples - 1):
+            draws.append(
+                {
+                    n: float(1.0 + rng.uniform(-self.tolerance, self.tolerance))
+                    for n in self.parameters
+                }
+            )
+        return draws
+
+
+def uncertain_parameters(model: str, calibrated: dict[str, float]) -> tuple[str, ...]:
+    """Default uncertain parameters: the model's calibrated ones and the non-zero real values of
+    a plant parameter file (noise harmonics excepted)."""
+    from twin_cosim.gap.effects import CALIBRATED
+    from twin_cosim.plant_parameters import model_parameters
+
+    variables = model_parameters(model)
+    names = list(CALIBRATED.get(model, ()))
+    for name, value in calibrated.items():
+        real = variables[name].type == "Real"
+        if real and value != 0.0 and not name.startswith("noise_") and name not in names:
+            names.append(name)
+    return tuple(names)
+
+
+def check_uncertainty(
+    tolerance: float, samples: int, names: tuple[str, str] = ("--tolerance", "--samples")
+) -> None:
+    """ValueError naming the option (or key) unless 0 <= tolerance < 1 and samples >= 1."""
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+        raise ValueError(f"{names[1]}: expected an integer >= 1, got {samples!r}")
+    if not (isinstance(tolerance, (int, float)) and 0.0 <= tolerance < 1.0):
+        raise ValueError(f"{names[0]}: expected a relative tolerance in [0, 1), got {tolerance!r}")

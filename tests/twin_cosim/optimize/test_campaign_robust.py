@@ -1,0 +1,76 @@
+"""Calibrated and robust campaigns: checkpoint, resume, and the settings they are bound to."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
+from twin_cosim.plant_parameters import PlantParameters, write_plant_parameters
+
+SHORT = """
+name: short
+reference:
+  segments:
+    - dwell: 0.1
+    - ramp: {velocity: 0.005, acceleration: 0.05, duration: 0.3}
+    - ramp: {velocity: -0.005, acceleration: 0.05, duration: 0.3}
+    - ramp: {velocity: 0.0, acceleration: 0.05, duration: 0.1}
+    - dwell: 0.1
+optimize:
+  methods: {ce: {population_size: 10, elite_fraction: 0.2}}
+"""
+
+
+@pytest.fixture()
+def files(tmp_path):
+    first, second = tmp_path / "a.yaml", tmp_path / "b.yaml"
+    first.write_text(SHORT)
+    second.write_text(SHORT.replace("0.05,", "0.1,").replace("name: short", "name: b"))
+    plant = write_plant_parameters(
+        tmp_path / "plant.yaml",
+        PlantParameters("drive2mass", {"backlash": 15e-6, "stribeck_friction": 0.1}),
+    )
+    return str(first), str(second), str(plant)
+
+
+def robust_spec(files, **changes) -> CampaignSpec:
+    first, second, plant = files
+    settings = dict(
+        plant_parameters=plant, scenarios=[second], tolerance=0.03, samples=2, budget=30, seed=2
+    )
+    return CampaignSpec(first, "ce", **(settings | changes))
+
+
+def test_robust_campaign_resumes_to_the_same_result(files, tmp_path):
+    whole = run_campaign(robust_spec(files), tmp_path / "whole", workers=1, progress=False)
+    header = json.loads((tmp_path / "whole" / "campaign.json").read_text())
+    assert header["robust"]["plant_parameters"]["backlash"] == 15e-6
+    assert len(header["robust"]["samples"]) == 2 and header["robust"]["samples"][0] == {}
+    assert "stribeck_friction" in header["robust"]["uncertain_parameters"]
+    assert len(whole.metrics["runs"]) == 4
+    # A crash inside generation 2: keep the first 15 logged evaluations only.
+    cut = tmp_path / "cut"
+    shutil.copytree(tmp_path / "whole", cut)
+    lines = (cut / "evaluations.jsonl").read_text().splitlines(keepends=True)
+    (cut / "evaluations.jsonl").write_text("".join(lines[:15]))
+    (cut / "result.json").unlink()
+    resumed = run_campaign(robust_spec(files), cut, workers=1, resume=True, progress=False)
+    assert resumed.best_params == whole.best_params
+    assert resumed.fitness == whole.fitness
+    assert resumed.evaluations == whole.evaluations
+    assert resumed.evaluations_reused >= 15
+
+
+def test_resume_refuses_a_changed_plant_file(files, tmp_path):
+    run_campaign(robust_spec(files, budget=10), tmp_path / "c", workers=1, progress=False)
+    write_plant_parameters(files[2], PlantParameters("drive2mass", {"backlash": 16e-6}))
+    with pytest.raises(CampaignError, match="plant_parameters"):
+        run_campaign(robust_spec(files, budget=10), tmp_path / "c", workers=1, resume=True)
+
+
+def test_samples_need_a_tolerance(files, tmp_path):
+    with pytest.raises(ValueError, match="--tolerance"):
+        run_campaign(robust_spec(files, tolerance=0.0), tmp_path / "d", workers=1)

@@ -1,0 +1,71 @@
+"""Exact early stopping: the same campaign, fewer simulated steps."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from twin_cosim.optimize.algorithms import make_optimizer
+from twin_cosim.optimize.campaign import CampaignSpec, run_campaign
+from twin_cosim.optimize.early_stop import elite_cutoff, lower_bound_above, window_spans_run
+
+SHORT = """
+name: short
+reference:
+  segments:
+    - dwell: 0.1
+    - ramp: {velocity: 0.005, acceleration: 0.05, duration: 0.3}
+    - ramp: {velocity: -0.005, acceleration: 0.05, duration: 0.3}
+    - ramp: {velocity: 0.0, acceleration: 0.05, duration: 0.1}
+    - dwell: 0.1
+optimize:
+  methods: {ce: {population_size: 10, elite_fraction: 0.2}}
+"""
+
+
+def test_elite_cutoff_is_the_elite_count_th_best_known():
+    ce = make_optimizer("ce", 6, 0, population_size=10, elite_fraction=0.2)  # elite of 2
+    assert elite_cutoff(ce, 10, np.array([5.0])) == math.inf
+    assert elite_cutoff(ce, 10, np.array([5.0, 3.0, 4.0])) == 4.0
+    assert elite_cutoff(make_optimizer("cmaes", 6, 0), 10, np.array([1.0, 2.0])) == math.inf
+    assert lower_bound_above(4.0) > 4.0
+
+
+def test_window_spans_run():
+    assert window_spans_run((0.0, None), 2.0)
+    assert not window_spans_run((0.5, None), 2.0)
+    assert not window_spans_run((0.0, 1.0), 2.0)
+
+
+@pytest.fixture(scope="module")
+def short_scenario(tmp_path_factory) -> str:
+    path = tmp_path_factory.mktemp("scenario") / "short.yaml"
+    path.write_text(SHORT)
+    return str(path)
+
+
+def entries(folder):
+    lines = (folder / "evaluations.jsonl").read_text().splitlines()
+    return [json.loads(line) for line in lines]
+
+
+def test_early_stop_changes_nothing_but_the_cost(short_scenario, tmp_path):
+    results = {}
+    for name, early, workers in (("full", False, 1), ("early", True, 1), ("pool", True, 2)):
+        spec = CampaignSpec(short_scenario, "ce", seed=5, budget=60, early_stop=early)
+        results[name] = run_campaign(spec, tmp_path / name, workers=workers, progress=False)
+    full, early = results["full"], results["early"]
+    for other in (early, results["pool"]):
+        assert other.best_params == full.best_params
+        assert other.fitness == full.fitness
+        assert other.evaluations == full.evaluations == 60
+    steps = {name: sum(e["steps"] for e in entries(tmp_path / name)) for name in ("full", "early")}
+    assert steps["early"] < 0.8 * steps["full"]
+    stopped = [e for e in entries(tmp_path / "early") if e["status"] == "stopped"]
+    assert stopped
+    exact = {e["key"]: e["fitness"] for e in entries(tmp_path / "full")}
+    for entry in stopped:  # a lower bound of the value the full run found
+        assert entry["fitness"] <= exact[entry["key"]]

@@ -1,0 +1,85 @@
+"""The machine as judge: metrics there beside the twin's prediction."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from twin_cosim import paper
+from twin_cosim.cosim import run_scenario
+from twin_cosim.gap.synth import synthesize
+from twin_cosim.machine import machine_metrics, prediction
+from twin_cosim.metrics import compute_metrics
+from twin_cosim.plant import Plant
+from twin_cosim.plant_parameters import PlantParameters, write_plant_parameters
+from twin_cosim.scenario import load_scenario
+
+SHORT = """
+name: short
+reference:
+  segments:
+    - dwell: 0.1
+    - ramp: {velocity: 0.01, acceleration: 0.1, duration: 0.4}
+    - ramp: {velocity: -0.01, acceleration: 0.1, duration: 0.4}
+    - ramp: {velocity: 0.0, acceleration: 0.1, duration: 0.1}
+    - dwell: 0.1
+"""
+
+
+@pytest.fixture()
+def scenario(tmp_path):
+    path = tmp_path / "short.yaml"
+    path.write_text(SHORT)
+    return load_scenario(path)
+
+
+def twin_metrics(scenario):
+    with Plant(scenario.fmu) as plant:
+        return compute_metrics(run_scenario(plant, scenario, paper.FINE_TUNE))
+
+
+def test_twin_on_itself_predicts_exactly(scenario, tmp_path):
+    same = write_plant_parameters(tmp_path / "same.yaml", PlantParameters("drive2mass", {}))
+    judged, kind = machine_metrics(scenario, paper.FINE_TUNE, same)
+    assert kind == "virtual machine"
+    figures = prediction(twin_metrics(scenario), judged)
+    assert all(f["relative_error_pct"] == 0.0 for f in figures.values())
+
+
+def test_more_backlash_on_the_machine_shows_as_a_transfer_gap(scenario, tmp_path):
+    machine = write_plant_parameters(
+        tmp_path / "machine.yaml", PlantParameters("drive2mass", {"backlash": 40e-6})
+    )
+    judged, _ = machine_metrics(scenario, paper.FINE_TUNE, machine)
+    twin = twin_metrics(scenario)
+    figures = prediction(twin, judged)
+    assert judged.E_pk_um > twin.E_pk_um  # a larger dead zone at every reversal
+    expected = 100 * (twin.E_pk_um - judged.E_pk_um) / judged.E_pk_um
+    assert figures["E_pk_um"]["relative_error_pct"] == pytest.approx(expected)
+    assert figures["E_pk_um"]["relative_error_pct"] < 0
+
+
+def test_machine_given_as_a_scenario_keeps_the_trajectory(scenario, tmp_path):
+    machine = tmp_path / "machine_scenario.yaml"
+    machine.write_text(
+        "plant:\n  parameters: {backlash: 40e-6}\nreference:\n  segments:\n    - dwell: 5.0\n"
+    )
+    by_scenario, _ = machine_metrics(scenario, paper.FINE_TUNE, machine)
+    file = write_plant_parameters(
+        tmp_path / "machine.yaml", PlantParameters("drive2mass", {"backlash": 40e-6})
+    )
+    by_file, _ = machine_metrics(scenario, paper.FINE_TUNE, file)
+    assert by_scenario == by_file
+
+
+def test_measured_run_is_judged_from_its_own_record(scenario, tmp_path):
+    """A noise-free synthetic run made with the same gains gives the twin's own metrics."""
+    run = synthesize(scenario, [], noise_position=0.0, noise_current=0.0).run
+    path = Path(tmp_path / "run.csv")
+    run.to_csv(path, index=False)
+    judged, kind = machine_metrics(scenario, paper.FINE_TUNE, path)
+    assert kind == "measured run"
+    figures = prediction(twin_metrics(scenario), judged)
+    for name in ("E_pk_um", "ITAE", "IAU"):
+        assert abs(figures[name]["relative_error_pct"]) < 1e-6

@@ -1,0 +1,93 @@
+"""The machine as the judge of a tuned set: its E_pk, ITAE and IAU beside the twin's prediction.
+
+A machine is either
+
+- a measured run (CSV or EMPS .mat, see :mod:`twin_cosim.measured`) made on the machine with the
+  gains being judged, following the scenario's reference: its metrics come from the recorded
+  error and current; or
+- a virtual machine: a YAML file whose plant stands for the machine, either a scenario (its
+  ``plant`` section: FMU and parameters, as ``twin synth`` switches effects on) or a plant
+  parameter file (``model`` and ``parameters``). The scenario being simulated is run on that
+  plant with the same gains; only the start position is the scenario's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from twin_cosim.controller import TunedParameters
+from twin_cosim.metrics import Metrics, compute_metrics
+from twin_cosim.plant import Plant
+from twin_cosim.scenario import Scenario, load_scenario, load_yaml
+
+MEASURED_SUFFIXES = (".csv", ".mat")
+JUDGED = ("E_pk_um", "ITAE", "IAU")
+
+
+def machine_scenario(scenario: Scenario, machine: Path) -> Scenario:
+    """The scenario with the virtual machine's plant (FMU and parameters) in place of the twin's."""
+    data = load_yaml(machine)
+    if isinstance(data, dict) and "reference" in data:
+        plant = load_scenario(machine)
+        fmu, parameters = plant.fmu, dict(plant.plant_parameters)
+    else:
+        from twin_cosim.plant_parameters import fmu_model, read_plant_parameters
+
+        fmu = scenario.fmu
+        parameters = read_plant_parameters(machine, fmu_model(fmu)).parameters
+    parameters["load_position_start"] = scenario.plant_parameters["load_position_start"]
+    return dataclasses.replace(scenario, fmu=fmu, plant_parameters=parameters)
+
+
+def machine_metrics(
+    scenario: Scenario, tuned: TunedParameters, machine: Path | str
+) -> tuple[Metrics, str]:
+    """Metrics of ``tuned`` on the machine over the scenario's window, and the machine's kind.
+
+    Raises
+    ------
+    ValueError
+        (ScenarioError, MeasuredDataError) naming the file when the machine cannot be read or a
+        measured run does not follow the scenario's reference.
+    """
+    from twin_cosim.cosim import run_scenario
+
+    machine = Path(machine)
+    if machine.suffix.lower() in MEASURED_SUFFIXES:
+        from twin_cosim.measured import check_against_reference, read_measured
+
+        run = read_measured(machine)
+        check_against_reference(run, scenario.reference)
+        record = pd.DataFrame({"t": run.t, "error": run.x_ref - run.x, "current": run.current})
+        return compute_metrics(record, scenario.metrics_window), "measured run"
+    judged = machine_scenario(scenario, machine)
+    with Plant(judged.fmu) as plant:
+        record = run_scenario(plant, judged, tuned)
+    return compute_metrics(record, scenario.metrics_window), "virtual machine"
+
+
+def prediction(twin: Metrics, machine: Metrics) -> dict[str, dict[str, float]]:
+    """Per judged metric: the machine's value, the twin's and the twin's relative error (%)."""
+    found = {}
+    for name in JUDGED:
+        real, predicted = getattr(machine, name), getattr(twin, name)
+        error = 100.0 * (predicted - real) / real if real else math.nan
+        found[name] = {"machine": real, "twin": predicted, "relative_error_pct": error}
+    return found
+
+
+def describe(source: str, kind: str, figures: dict[str, dict[str, Any]]) -> str:
+    """One line per judged metric: machine, twin prediction, relative error."""
+    units = {"E_pk_um": "um", "ITAE": "um.s^2", "IAU": "A.s"}
+    lines = [f"on the {kind} {source}:"]
+    for name, f in figures.items():
+        lines.append(
+            f"  {name.removesuffix('_um')}: machine {f['machine']:.4g} {units[name]}, twin "
+            f"predicted {f['twin']:.4g} ({f['relative_error_pct']:+.1f} %)"
+        )
+    return "\n".join(lines)
