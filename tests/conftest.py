@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from collections.abc import Callable, Mapping
@@ -12,18 +11,9 @@ import numpy as np
 import pytest
 
 from fmu_build.build import build_fmu
-from twin_cosim.environment import DATA_ENV
 from twin_cosim.plant import Plant
 
 ROOT = Path(__file__).resolve().parents[1]
-# The EMPS benchmark's estimation run: in TWIN_COSIM_DATA when set, else in ../shared beside the
-# repository; tests that need it skip cleanly where it is absent.
-EMPS_DATA = (
-    Path(os.environ[DATA_ENV]) if os.environ.get(DATA_ENV) else ROOT.parent / "shared/data/emps"
-) / "DATA_EMPS.mat"
-needs_emps_data = pytest.mark.skipif(
-    not EMPS_DATA.exists(), reason=f"EMPS data not found at {EMPS_DATA}"
-)
 
 
 @pytest.fixture(scope="session")

@@ -634,9 +634,6 @@ def build_parser() -> argparse.ArgumentParser:
         "robust objective over all of them",
     )
     optimize.add_argument(
-        "scenario", help="scenario YAML file or shipped name (its optimize section)"
-    )
-    optimize.add_argument(
         "--method", choices=METHOD_NAMES, help="optimizer (default: none; required unless --resume)"
     )
     optimize.add_argument("--seed", type=whole_number(0), help="seed (default: 0)")

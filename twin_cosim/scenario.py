@@ -27,7 +27,7 @@ Layout (every section but ``reference`` is optional)::
       metrics_window: [0.0, null]            # s; null: to the end
       max_samples: 2400000                   # position-loop samples a run may have at most
     optimize: {...}                          # see twin_cosim.optimize.config
-    diagnose: {...}                          # see twin_cosim.gap.diagnosis.settings_from
+    diagnose: {...}                          # see twin_cosim.gap.settings.settings_from
 
 The controller's plant facts (travel per radian, inertia, torque constant, friction) come from
 the plant model's start values and ``plant.parameters`` (:mod:`twin_cosim.plant_facts`) unless

@@ -108,7 +108,7 @@ def test_readme_synopsis_lists_every_option():
 
 
 def test_diagnose_help_defaults_are_the_settings_defaults():
-    from twin_cosim.gap.diagnosis import DiagnosisSettings
+    from twin_cosim.gap.settings import DiagnosisSettings
 
     help_text = {a.dest: a.help for a in options(subcommands()["diagnose"])}
     assert f"else {DiagnosisSettings().split})" in help_text["split"]

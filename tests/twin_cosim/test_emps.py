@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import EMPS_DATA, needs_emps_data
+from emps_data import EMPS_DATA, needs_emps_data
 from scipy.io import savemat
 
 from twin_cosim.cosim import run_scenario

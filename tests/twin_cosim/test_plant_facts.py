@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from conftest import needs_emps_data
+from emps_data import needs_emps_data
 from fmpy import read_model_description
 
 from fmu_build.build import build_fmu

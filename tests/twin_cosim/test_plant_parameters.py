@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from twin_cosim import cli
-from twin_cosim.gap import diagnosis
+from twin_cosim.gap import settings as diagnosis_settings
 from twin_cosim.gap.synth import parse_effect, synthesize
 from twin_cosim.plant_parameters import (
     PlantParameters,
@@ -63,9 +63,9 @@ def diagnosis_dir(excitation, tmp_path_factory) -> Path:
         settings = original(*args, **kwargs)
         return dataclasses.replace(settings, hypotheses=("coulomb_change", "backlash_change"))
 
-    original = diagnosis.settings_from
+    original = diagnosis_settings.settings_from
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(diagnosis, "settings_from", two_hypotheses)
+        patch.setattr(diagnosis_settings, "settings_from", two_hypotheses)
         argv = ["diagnose", str(excitation), "--measured", str(run), "--max-effects", "1"]
         assert cli.main([*argv, "--workers", "1", "--out", str(out)]) == 0
     return out

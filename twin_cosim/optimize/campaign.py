@@ -257,9 +257,11 @@ def _prepare(
     if resume:
         header = _read_header(out_dir)
         _check_resume(out_dir, header, spec, found)
-        stored = {key: (header.get("robust") or {}).get(key) for key in robust}
-        if stored != robust:
-            changed = sorted(k for k in robust if stored[k] != robust[k])
+        # the files' contents decide (scenarios_sha256), not their paths: a moved file resumes
+        compared = [key for key in robust if key != "scenarios"]
+        stored = {key: (header.get("robust") or {}).get(key) for key in compared}
+        if any(stored[k] != robust[k] for k in compared):
+            changed = sorted(k for k in compared if stored[k] != robust[k])
             raise CampaignError(
                 f"{out_dir}: the campaign's {changed} changed since it started (plant parameter "
                 "file or robust settings); start a new campaign"
