@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
-import signal
 from pathlib import Path
 
 import pytest
 
 from twin_cosim.cli import main
+
+pytestmark = pytest.mark.usefixtures("keep_sigterm")
 
 SHORT = """
 name: short
@@ -22,14 +23,6 @@ optimize:
   abort_error_um: 100.0
 """
 ABSURD = "Kp_pos: 3000.0\nKp_vel: 0.05\nKi_vel: 0.03\nPP2: 5.0\nPP3: 0.1\nf_H: 0.5\n"
-
-
-@pytest.fixture(autouse=True)
-def keep_sigterm():
-    """``main`` turns SIGTERM into an interrupt: give the test process its handler back."""
-    before = signal.getsignal(signal.SIGTERM)
-    yield
-    signal.signal(signal.SIGTERM, before)
 
 
 @pytest.fixture()

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -15,6 +14,8 @@ import pytest
 from twin_cosim.cli import main
 from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, load_spec, run_campaign
 from twin_cosim.optimize.folder_lock import FolderLock
+
+pytestmark = pytest.mark.usefixtures("keep_sigterm")
 
 SHORT = """
 name: short
@@ -27,14 +28,6 @@ reference:
 optimize:
   abort_error_um: 50.0
 """
-
-
-@pytest.fixture(autouse=True)
-def keep_sigterm():
-    """``main`` turns SIGTERM into an interrupt: give the test process its handler back."""
-    before = signal.getsignal(signal.SIGTERM)
-    yield
-    signal.signal(signal.SIGTERM, before)
 
 
 @pytest.fixture()
