@@ -64,7 +64,8 @@ def terminate_as_interrupt() -> None:
     signal.signal(signal.SIGTERM, _raise_terminated)
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """Whether a process with this id runs (perhaps another user's)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -78,7 +79,7 @@ def remove_stale_pool_folders() -> None:
     """Remove pool folders in the temp folder whose process is no longer running."""
     for folder in Path(tempfile.gettempdir()).glob(f"{POOL_PREFIX}*"):
         match = re.fullmatch(rf"{POOL_PREFIX}(\d+)-.*", folder.name)
-        if match and folder.is_dir() and not _pid_alive(int(match.group(1))):
+        if match and folder.is_dir() and not pid_alive(int(match.group(1))):
             shutil.rmtree(folder, ignore_errors=True)
 
 

@@ -13,18 +13,10 @@ import logging
 import os
 from pathlib import Path
 
+from twin_cosim.workers import pid_alive
+
 LOG = logging.getLogger(__name__)
 LOCK_NAME = "campaign.lock"
-
-
-def _running(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 class FolderLockedError(ValueError):
@@ -70,7 +62,7 @@ class FolderLock:
                 break
             os.close(fd)  # the holder removed the file meanwhile: lock the new one
         stale = os.read(fd, 64).decode(errors="replace").strip()
-        if stale.isdigit() and int(stale) != os.getpid() and _running(int(stale)):
+        if stale.isdigit() and int(stale) != os.getpid() and pid_alive(int(stale)):
             os.close(fd)  # a file system without working flock, and the holder still runs
             raise FolderLockedError(
                 f"{self.path.parent}: in use by process {stale} (lock file {self.path}); if that "
