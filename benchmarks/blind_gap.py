@@ -254,7 +254,7 @@ def judge_unseen(r: dict) -> bool:
     if "crashed" in r:
         return False
     if r["size"] == "null":
-        return not r["accepted"] and "significant gap" not in r["verdict"]
+        return not r["accepted"] and not r["significant"]
     if r["size"] == "single":
         return r["truth"] in names(r["first"]) and r["reduction"] >= 0.5
     if r["size"] == "pair":

@@ -125,7 +125,7 @@ class Diagnosis:
         """The diagnosis as JSON-ready data (the one place it is serialised)."""
         first = next((r for r in self.rounds if r.candidates), None)
         last = next((r for r in reversed(self.rounds) if r.candidates), None)
-        steps = [_step(r) for r in self.rounds if r.accepted]
+        steps = [_step(r, self.settings.accept_reduction) for r in self.rounds if r.accepted]
         held = self.held_out_runs
         gap = {
             "significant": self.significant,
@@ -150,8 +150,16 @@ class Diagnosis:
                 "split": context.split,
                 "accepted": [g if len(g) > 1 else g[0] for g in self.accepted_groups],
                 "steps": steps,
-                "effects": [_row(c, first) for c in first.candidates] if first else [],
-                "last_round": [_row(c, last) for c in last.candidates] if last else [],
+                "effects": [
+                    _row(c, first, self.settings.accept_reduction) for c in first.candidates
+                ]
+                if first
+                else [],
+                "last_round": [
+                    _row(c, last, self.settings.accept_reduction) for c in last.candidates
+                ]
+                if last
+                else [],
                 "rounds": [_round(r) for r in self.rounds],
                 "where": {
                     "position": self.where.position,
@@ -204,7 +212,7 @@ def _metrics(c: MetricComparison) -> dict[str, Any]:
     }
 
 
-def _row(c, round_: Round) -> dict[str, Any]:
+def _row(c, round_: Round, accept_reduction: float) -> dict[str, Any]:
     fit = c.fit
     return {
         "name": fit.hypothesis,
@@ -219,7 +227,7 @@ def _row(c, round_: Round) -> dict[str, Any]:
         "holdout_reduction": c.reduction,
         "reduction_beyond_calibration": c.reduction_beyond_calibration,
         "above_calibration_floor": bool(
-            c.size_above_tolerance and c.reduction_beyond_calibration >= 0.25
+            c.size_above_tolerance and c.reduction_beyond_calibration >= accept_reduction
         ),
         "size_above_tolerance": c.size_above_tolerance,
         "explained_normalised_rms": c.explained,
@@ -229,7 +237,7 @@ def _row(c, round_: Round) -> dict[str, Any]:
     }
 
 
-def _step(r: Round) -> dict[str, Any]:
+def _step(r: Round, accept_reduction: float) -> dict[str, Any]:
     best = r.best
     assert best is not None
     return {
@@ -247,7 +255,7 @@ def _step(r: Round) -> dict[str, Any]:
         "holdout_normalised_rms_after": best.holdout_rms,
         "reduction": best.reduction,
         "reduction_beyond_calibration": best.reduction_beyond_calibration,
-        "ranking": [_row(c, r) for c in r.candidates],
+        "ranking": [_row(c, r, accept_reduction) for c in r.candidates],
     }
 
 

@@ -11,13 +11,17 @@ library; later rounds the periodic hypotheses (their orders may have changed) an
 An effect is *accepted* when, on the held-out data,
 
 1. the gap is significant (:func:`twin_cosim.gap.floors.is_significant`, judged on the replay
-   after the best calibration correction, so that calibration error alone is not a gap);
-2. it cuts the normalised RMS by at least ``accept_reduction`` (25 %);
+   after the best calibration correction, so that calibration error alone is not a gap); after
+   an accepted effect, also when what the best calibration correction leaves is still
+   ``significance_left`` (5) times the noise floor: an effect whose signature averages out in
+   the figures of merit (a friction asymmetry in IAU) is still a gap;
+2. it cuts the normalised RMS (it makes the held-out gap smaller as it stands);
 3. it goes beyond the calibration floor: after the best calibration correction
-   (:mod:`twin_cosim.gap.calibration`) with the effect, the normalised RMS is still at least
-   ``accept_reduction`` below what the best correction leaves without it; and a change of a
-   calibrated parameter itself (Coulomb level, backlash, inertia, stiffness) exceeds the
-   tolerance;
+   (:mod:`twin_cosim.gap.calibration`) with the effect, the normalised RMS is at least
+   ``accept_reduction`` (25 %) below what the best correction leaves without it (what
+   calibration error can explain is not the effect's to claim, nor to be judged against); and a
+   change of a calibrated parameter itself (Coulomb level, backlash, inertia, stiffness)
+   exceeds the tolerance;
 4. it is consistent: it makes neither the position nor the current held-out RMS worse than
    ``worsen_limit`` (1.1) times what it was, plus the noise floor (a wrong effect can trade one
    signal for the other).
@@ -304,7 +308,9 @@ class Selector:
             calibrated = self.calibrated_replay(base, floor)
             last = (floor, calibrated)
             metrics = self.judging.metrics(calibrated, settings)
-            significant = is_significant(metrics, floor.left, settings)
+            significant = is_significant(metrics, floor.left, settings) or (
+                bool(rounds) and floor.left >= settings.significance_left
+            )
             context = self.context(training_residuals(self.run_context, replays.training))
             current = Round(
                 len(rounds) + 1,
@@ -412,7 +418,7 @@ class Selector:
         candidate.consistent = worse_x <= sigma_x and worse_i <= sigma_i
         candidate.change = vector - after_vector
         candidate.passes = (
-            candidate.reduction >= settings.accept_reduction
+            candidate.reduction > 0.0
             and candidate.reduction_beyond_calibration >= settings.accept_reduction
             and candidate.size_above_tolerance
             and candidate.consistent

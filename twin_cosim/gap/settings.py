@@ -31,6 +31,9 @@ class DiagnosisSettings:
         ``significance_metric``.
     significance_rms : float or None
         Also significant when the normalised held-out RMS reaches this (None: not used).
+    significance_left : float
+        After an accepted effect, the gap left is also significant when the normalised RMS the
+        best calibration correction leaves reaches this.
     accept_reduction : float
         Least held-out reduction of the normalised RMS for an effect to be accepted, after the
         best calibration correction has been applied with and without it.
@@ -65,13 +68,14 @@ class DiagnosisSettings:
     significance_metric: float = 0.02
     significance_noise: float = 3.0
     significance_rms: float | None = None
+    significance_left: float = 5.0
     accept_reduction: float = 0.25
     calibration_tolerance: float = 0.03
     worsen_limit: float = 1.1
     group_reduction_margin: float = 0.1
     group_correlation: float = 0.9
     max_effects: int = 3
-    later_round_candidates: int = 3
+    later_round_candidates: int = 12
     noise_draws: int = 12
     outlier_share: float = 0.001
     axis_bin: float = 0.5e-3
