@@ -130,6 +130,15 @@ def test_shipped_scenario_by_name_from_any_folder(tmp_path):
     assert summary["warnings"] == []
 
 
+def test_optimize_a_shipped_scenario_by_name_from_any_folder(tmp_path):
+    """The campaign fingerprints the scenario's file, found by name like everywhere else."""
+    command = [sys.executable, "-m", "twin_cosim", "optimize", "reference1", "--method", "ce"]
+    command += ["--budget", "6", "--workers", "1", "--quiet", "--json", "--out", "c"]
+    result = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["evaluations"] == 6
+
+
 def test_a_plant_of_another_model_is_warned_about(tmp_path, twin_cli):
     emps = build_fmu("emps")
     result = twin_cli(

@@ -63,7 +63,7 @@ from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
 from twin_cosim.optimize.objective import AGGREGATES, EvaluationTask, ObjectiveSpec
 from twin_cosim.plant import Plant, default_fmu
 from twin_cosim.plant_parameters import fmu_model, read_plant_parameters, with_plant_parameters
-from twin_cosim.scenario import Scenario, load_scenario
+from twin_cosim.scenario import Scenario, find_scenario, load_scenario
 from twin_cosim.workers import check_workers
 
 LOG = logging.getLogger(__name__)
@@ -165,7 +165,9 @@ def _robust_settings(spec: CampaignSpec, scenario: Scenario) -> dict[str, Any]:
     return {
         "plant_parameters": calibrated,
         "scenarios": files,
-        "scenarios_sha256": [hashlib.sha256(Path(f).read_bytes()).hexdigest() for f in files],
+        "scenarios_sha256": [
+            hashlib.sha256(find_scenario(f).read_bytes()).hexdigest() for f in files
+        ],
         "scenario_plant_parameters": [  # with any plant.parameters_file folded in
             (scenario if f == spec.scenario else _scenario(spec, f)).plant_parameters for f in files
         ],
