@@ -539,6 +539,15 @@ def _data_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _plant_parameters_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--plant-parameters",
+        metavar="FILE",
+        help="calibrated plant parameters for every scenario, the plant.yaml of twin diagnose "
+        "(default: none)",
+    )
+
+
 def _plant_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--plant",
@@ -601,11 +610,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="ft|ga|ce|sa (paper Table 3) or a YAML/JSON file (default: the scenario's)",
     )
     _plant_option(simulate)
-    simulate.add_argument(
-        "--plant-parameters",
-        metavar="FILE",
-        help="calibrated plant parameters, the plant.yaml of twin diagnose (default: none)",
-    )
+    _plant_parameters_option(simulate)
     simulate.add_argument(
         "--machine",
         metavar="RUN_OR_PLANT",
@@ -655,11 +660,7 @@ def build_parser() -> argparse.ArgumentParser:
     optimize.add_argument(
         "--resume", metavar="DIR", help="campaign folder to resume (default: a new campaign)"
     )
-    optimize.add_argument(
-        "--plant-parameters",
-        metavar="FILE",
-        help="calibrated plant parameters, the plant.yaml of twin diagnose (default: none)",
-    )
+    _plant_parameters_option(optimize)
     optimize.add_argument(
         "--tolerance",
         type=float,
@@ -700,11 +701,7 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument(
         "--out", metavar="DIR", help="output folder (default: out/<campaign name>)"
     )
-    compare.add_argument(
-        "--plant-parameters",
-        metavar="FILE",
-        help="calibrated plant parameters for every scenario, a plant.yaml (default: none)",
-    )
+    _plant_parameters_option(compare)
     compare.add_argument("--quiet", action="store_true", help="no progress bars")
     _data_option(compare)
     compare.set_defaults(handler=_compare)

@@ -167,13 +167,14 @@ def run_reference_path(
         if abs(grid.position[i] - position) > abort_error:
             _raise_aborted(abort_error, t)
         current_sum = 0.0
+        inputs = [0.0] * len(vr_in)
+        inputs[_IN_DISTURBANCE] = disturbance[i]  # both held over the position period
+        offset = command_offset[i]
         for j in range(ratio):
             k = i * ratio + j
             current = controller.speed_loop(p, s, k * h, speed)
             current_sum += current
-            inputs = [0.0] * len(vr_in)
-            inputs[_IN_CURRENT] = current + command_offset[i]
-            inputs[_IN_DISTURBANCE] = disturbance[i]
+            inputs[_IN_CURRENT] = current + offset
             plant.call("fmi2SetReal", fmu.setReal, vr_in, inputs)
             plant.call("fmi2DoStep", fmu.doStep, k * h, h)
             speed, position, angle = read_outputs()
@@ -225,11 +226,12 @@ def _closed_loop(
         if abs(record[i, 4]) > abort_error:
             return _ABORTED, i * ratio
         current_sum = 0.0
+        inputs[_IN_DISTURBANCE] = disturbance[i]  # both held over the position period
+        offset = command_offset[i]
         for j in range(ratio):
             k = i * ratio + j
             current = _speed_loop(p, s, k * h, outputs[_OUT_SPEED])
-            inputs[_IN_CURRENT] = current + command_offset[i]
-            inputs[_IN_DISTURBANCE] = disturbance[i]
+            inputs[_IN_CURRENT] = current + offset
             current_sum += current
             status = set_real(component, vr_in.ctypes, vr_in.shape[0], inputs.ctypes)
             if status > _FMI2_OK_OR_WARNING:

@@ -50,7 +50,7 @@ from twin_cosim.gap.effects import CALIBRATED, DEFAULT_CONTEXT, Hypothesis, libr
 from twin_cosim.gap.floors import Floors, MetricComparison, compare_metrics, is_significant
 from twin_cosim.gap.location import dominant_order
 from twin_cosim.gap.replay import FitResult, FitTask, Replays, SimulateTask
-from twin_cosim.gap.residuals import Residuals, residuals_of
+from twin_cosim.gap.residuals import Residuals, residuals_of, rms
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.reference import ReferenceGrid
@@ -103,7 +103,12 @@ class Judging:
 
 @dataclass
 class Candidate:
-    """A fitted hypothesis judged on the held-out data."""
+    """A fitted hypothesis judged on the held-out data.
+
+    ``holdout_rms`` and ``explained`` are normalised RMS values (1 = noise at the floors);
+    ``reduction`` and ``reduction_beyond_calibration`` are fractions; ``position_rms_um`` is the
+    held-out position gap in um and ``current_rms`` the held-out current gap in A (V for EMPS).
+    """
 
     fit: FitResult
     n_parameters: int
@@ -114,8 +119,8 @@ class Candidate:
     size_above_tolerance: bool = True
     consistent: bool = True
     explained: float = 0.0
-    position_rms_um: float = 0.0
-    current_rms: float = 0.0
+    position_rms_um: float = 0.0  # um
+    current_rms: float = 0.0  # A
     passes: bool = False
     change: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     replays: Replays | None = field(default=None, repr=False)
@@ -411,10 +416,8 @@ class Selector:
         )
         candidate.position_rms_um = after.position_rms_um()
         candidate.current_rms = after.current_rms()
-        worse_x = (
-            after.position_rms_um() / 1e6 - settings.worsen_limit * held.position_rms_um() / 1e6
-        )
-        worse_i = after.current_rms() - settings.worsen_limit * held.current_rms()
+        worse_x = rms(after.position) - settings.worsen_limit * rms(held.position)  # m
+        worse_i = rms(after.current) - settings.worsen_limit * rms(held.current)  # A
         candidate.consistent = worse_x <= sigma_x and worse_i <= sigma_i
         candidate.change = vector - after_vector
         candidate.passes = (
