@@ -355,6 +355,7 @@ def _robust_options(args: argparse.Namespace) -> dict[str, Any]:
         "tolerance": args.tolerance,
         "samples": args.samples,
         "aggregate": args.objective,
+        "relative": True if args.relative else None,
         "early_stop": False if args.no_early_stop else None,
     }
 
@@ -675,6 +676,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--objective",
         choices=["worst", "mean"],
         help="over scenarios x samples (default: worst)",
+    )
+    optimize.add_argument(
+        "--relative",
+        action="store_true",
+        help="score each run's E_pk relative to the reference set's (Fine-Tune) on the same "
+        "scenario and plant sample, so that no scenario outweighs the others by being harder "
+        "(default: off, E_pk in um)",
     )
     optimize.add_argument(
         "--no-early-stop",

@@ -3,9 +3,10 @@
 A campaign folder holds
 
 - ``campaign.json``: what was asked (scenario, method, seed, budget, settings, bounds, the
-  Fine-Tune reference metrics and the IAU limit; for a calibrated or robust campaign also the
-  plant parameters, the scenarios, their IAU limits and the plant samples, which a resume checks
-  against the files as they are now); ``--resume`` reads it back;
+  Fine-Tune reference metrics and the IAU limit; per case, a scenario on a plant sample, its
+  reference run, IAU limit and E_pk scale; for a calibrated or robust campaign also the plant
+  parameters, the scenarios and the plant samples, which a resume checks against the files as
+  they are now); ``--resume`` reads it back;
 - ``evaluations.jsonl``: every completed evaluation, flushed at once (the checkpoint);
 - ``progress.json``: rewritten after every generation (generation, evaluations, best so far);
 - ``result.json``: the outcome (best parameters and metrics, evaluations, wall time).
@@ -40,8 +41,6 @@ import numpy as np
 from tqdm import tqdm
 
 from twin_cosim.controller import TUNED_NAMES, TunedParameters
-from twin_cosim.cosim import run_scenario
-from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.algorithms import make_optimizer
 from twin_cosim.optimize.config import (
     OptimizeConfig,
@@ -60,8 +59,8 @@ from twin_cosim.optimize.fingerprints import (
     settings_fingerprint,
 )
 from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
-from twin_cosim.optimize.objective import AGGREGATES, EvaluationTask, ObjectiveSpec
-from twin_cosim.plant import Plant, default_fmu
+from twin_cosim.optimize.objective import AGGREGATES, EvaluationTask, Objective, ObjectiveSpec
+from twin_cosim.plant import default_fmu
 from twin_cosim.plant_parameters import fmu_model, read_plant_parameters, with_plant_parameters
 from twin_cosim.scenario import Scenario, find_scenario, load_scenario
 from twin_cosim.workers import check_workers
@@ -101,6 +100,9 @@ class CampaignSpec:
         Plant samples per scenario (1: the nominal plant only).
     aggregate : str
         ``worst`` or ``mean`` over scenarios x samples.
+    relative : bool
+        Score each run's E_pk relative to the reference set's E_pk on the same scenario and
+        plant sample, in units of the first scenario's nominal reference E_pk (um).
     early_stop : bool
         Stop runs early where that is exact.
     """
@@ -116,6 +118,7 @@ class CampaignSpec:
     tolerance: float = 0.0
     samples: int = 1
     aggregate: str = "worst"
+    relative: bool = False
     early_stop: bool = True
 
 
@@ -176,13 +179,48 @@ def _robust_settings(spec: CampaignSpec, scenario: Scenario) -> dict[str, Any]:
     }
 
 
-def reference_metrics(
-    scenario: Scenario, config: OptimizeConfig, fmu: str | None
-) -> dict[str, float]:
-    """Metrics of the scenario's own parameters (Fine-Tune by default) over the objective window."""
-    with Plant(Path(fmu) if fmu else scenario.fmu) as plant:
-        record = run_scenario(plant, scenario)
-    return compute_metrics(record, config.window).as_dict()
+def case_references(
+    spec: CampaignSpec, config: OptimizeConfig, samples: list[dict[str, float]]
+) -> list[dict[str, Any]]:
+    """Each case's reference run, IAU limit and E_pk scale.
+
+    A case is a scenario on a plant sample. Its reference is the scenario's own parameter set
+    (Fine-Tune by default) run on that plant sample; its IAU limit (A.s) is the cap times the
+    reference's IAU, so that a plant sample needing more current does not penalise every
+    candidate; its scale is 1, or for a relative objective the first case's reference E_pk over
+    its own.
+    """
+    probe = Objective(
+        ObjectiveSpec(
+            spec.scenario,
+            spec.fmu,
+            None,
+            spec.plant_parameters,
+            tuple(spec.scenarios),
+            samples=tuple(samples),
+        )
+    )
+    try:
+        references = probe.reference_metrics()
+    finally:
+        probe.close()
+    first = references[0]["E_pk_um"]
+    cases = []
+    for reference in references:
+        if spec.relative and not reference["E_pk_um"] > 0.0:
+            raise CampaignError(
+                f"{reference['case']}: the reference set's E_pk is {reference['E_pk_um']} um; a "
+                "relative objective needs it above 0"
+            )
+        cases.append(
+            {
+                "case": reference.pop("case"),
+                "reference": reference,
+                "iau_limit": None if config.iau_cap is None else config.iau_cap * reference["IAU"],
+                "scale": first / reference["E_pk_um"] if spec.relative else 1.0,
+            }
+        )
+    return cases
 
 
 def _read_header(out_dir: Path) -> dict[str, Any]:
@@ -273,19 +311,14 @@ def _prepare(
         raise CampaignError(
             f"{out_dir}: already holds a campaign; use --resume {out_dir} or another --out"
         )
-    reference = reference_metrics(scenario, config, spec.fmu)
-    limits = []
-    for path in spec.scenarios:
-        other = _scenario(spec, path)
-        other_reference = reference_metrics(other, load_config(other), spec.fmu)
-        limits.append(None if config.iau_cap is None else config.iau_cap * other_reference["IAU"])
+    cases = case_references(spec, config, robust["samples"])
     header = {
         "spec": asdict(spec),
         "config": config.as_dict(),
-        "reference": {"params": scenario.tuned.as_dict(), "metrics": reference},
-        "iau_limit": None if config.iau_cap is None else config.iau_cap * reference["IAU"],
+        "reference": {"params": scenario.tuned.as_dict(), "metrics": cases[0]["reference"]},
+        "iau_limit": cases[0]["iau_limit"],
         "fingerprints": found,
-        "iau_limits": limits,
+        "cases": cases,
         "robust": robust,
     }
     header_path.write_text(json.dumps(header, indent=2) + "\n")
@@ -414,15 +447,17 @@ def _run_locked(
         header = _prepare(spec, out_dir, resume, scenario, config, found)
         log = EvaluationLog(out_dir / "evaluations.jsonl")
         robust = header.get("robust") or {}
+        cases = header.get("cases") or []
         objective_spec = ObjectiveSpec(
             spec.scenario,
             spec.fmu,
             header["iau_limit"],
             spec.plant_parameters,
             tuple(spec.scenarios),
-            tuple(header.get("iau_limits") or ()),
+            tuple(c["iau_limit"] for c in cases),
             tuple(robust.get("samples") or ()),
             spec.aggregate,
+            tuple(c["scale"] for c in cases),
         )
         early_stop = spec.early_stop and _early_stop_exact(spec, config)
         evaluator = make_evaluator(objective_spec, workers, scheduler, scheduler_timeout)

@@ -14,6 +14,7 @@ A comparison file::
       tolerance: 0.03                #   relative tolerance of the uncertain plant parameters
       samples: 4                     #   plant samples per scenario (the first nominal)
       objective: worst               #   worst or mean over scenarios x samples
+      relative: false                #   E_pk relative to the reference set's, case by case
     holdout: [reference2.yaml]       # optional held-out scenarios: one table each
 
 Each method's campaign lives in ``<out>/<method>/`` and is resumed or reused when present.
@@ -56,7 +57,7 @@ KEYS = {
     "robust",
     "holdout",
 }
-ROBUST_KEYS = {"scenarios", "tolerance", "samples", "objective"}
+ROBUST_KEYS = {"scenarios", "tolerance", "samples", "objective", "relative"}
 
 
 @dataclass(frozen=True)
@@ -120,6 +121,8 @@ def load_comparison(path: Path) -> Comparison:
         raise ScenarioError(f"{path}: {exc}") from exc
     if robust.get("objective", "worst") not in AGGREGATES:
         raise ScenarioError(f"{path}: robust.objective: expected one of {AGGREGATES}")
+    if not isinstance(robust.get("relative", False), bool):
+        raise ScenarioError(f"{path}: robust.relative: expected true or false")
     holdout = data.get("holdout") or []
     if not isinstance(holdout, list):
         raise ScenarioError(f"{path}: holdout: expected a list of scenario files, got {holdout!r}")
@@ -137,6 +140,7 @@ def load_comparison(path: Path) -> Comparison:
             "tolerance": float(robust.get("tolerance", 0.0)),
             "samples": int(robust.get("samples", 1)),
             "aggregate": robust.get("objective", "worst"),
+            "relative": robust.get("relative", False),
         },
         holdout=[here / str(f) for f in holdout],
     )

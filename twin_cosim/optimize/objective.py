@@ -8,9 +8,11 @@ A candidate's fitness (um) is
   left the allowed band (unstable loop), or an FMU error. The reason is kept with the result.
 
 Robust objective: with several scenarios and plant samples (relative factors on plant
-parameters, the first sample the nominal plant), every candidate runs on each scenario x sample;
-each run is scored as above (each scenario with its own IAU limit) and the fitness is the worst
-(or the mean) of the runs.
+parameters, the first sample the nominal plant), every candidate runs on each scenario x sample
+(a case); each run is scored as above, with the IAU limit of its own case (the cap times the
+reference set's IAU on that scenario and plant sample), its E_pk optionally multiplied by the
+case's scale (a relative objective: the first case's reference E_pk over this case's), and the
+fitness is the worst (or the mean) of the runs.
 
 A task may carry a cutoff (:class:`EvaluationTask`): when the candidate's fitness is certain to
 exceed it, the runs stop early and the result has status ``stopped`` with a lower bound as
@@ -57,17 +59,20 @@ class ObjectiveSpec:
     fmu : str or None
         Plant FMU; the scenario's (or the project's drive2mass) when None.
     iau_limit : float or None
-        Largest allowed IAU on ``scenario``, A.s; None: no cap.
+        Largest allowed IAU, A.s, of every case when ``iau_limits`` is empty; None: no cap.
     plant_parameters : str or None
         Plant parameter file applied to every scenario.
     scenarios : tuple of str
         Further scenarios of a robust objective.
     iau_limits : tuple
-        Their IAU limits, A.s (None: no cap).
+        IAU limit of each case, A.s (None: no cap), in case order: scenario by scenario
+        (``scenario`` first), plant sample by sample within each.
     samples : tuple of dict
         Plant samples: relative factors by FMU parameter name; none: the nominal plant only.
     aggregate : str
         ``worst`` or ``mean`` over the runs.
+    scales : tuple of float
+        Factor on each case's E_pk (case order); empty: 1 for every case.
     """
 
     scenario: str
@@ -78,6 +83,7 @@ class ObjectiveSpec:
     iau_limits: tuple[float | None, ...] = ()
     samples: tuple[dict[str, float], ...] = ()
     aggregate: str = "worst"
+    scales: tuple[float, ...] = ()
 
     def build(self) -> Objective:
         """The objective (a worker of :mod:`twin_cosim.workers`)."""
@@ -86,13 +92,14 @@ class ObjectiveSpec:
 
 @dataclass(frozen=True)
 class _Case:
-    """One run of a candidate: a scenario, a plant sample, its IAU limit."""
+    """One run of a candidate: a scenario, a plant sample, its IAU limit (A.s) and E_pk scale."""
 
     label: str
     scenario: Scenario
     window: tuple[float, float | None]
     overrides: dict[str, float]
     iau_limit: float | None
+    scale: float
     steps: int
 
 
@@ -108,9 +115,16 @@ class Objective:
         start = self.plant.start_values()
         samples = spec.samples or ({},)
         files = (spec.scenario, *spec.scenarios)
-        limits = (spec.iau_limit, *spec.iau_limits)
+        count = len(files) * len(samples)
+        limits = spec.iau_limits or (spec.iau_limit,) * count
+        scales = spec.scales or (1.0,) * count
+        if len(limits) != count or len(scales) != count:
+            raise ValueError(
+                f"objective of {count} cases ({len(files)} scenarios x {len(samples)} samples): "
+                f"got {len(limits)} IAU limits and {len(scales)} scales"
+            )
         self.cases: list[_Case] = []
-        for file, limit in zip(files, limits, strict=True):
+        for file in files:
             scenario = self.scenario if file == spec.scenario else self._load(file)
             window = load_config(scenario).window
             nominal = {**start, **scenario.plant_parameters}
@@ -119,13 +133,33 @@ class Objective:
                 overrides = {name: nominal[name] * f for name, f in factors.items()}
                 label = scenario.name + (f"/sample{k}" if len(samples) > 1 else "")
                 steps = len(scenario.reference.position) * ratio
-                self.cases.append(_Case(label, scenario, window, overrides, limit, steps))
+                i = len(self.cases)
+                self.cases.append(
+                    _Case(label, scenario, window, overrides, limits[i], scales[i], steps)
+                )
+        self._order = list(range(count))
         self.exact_early_stop = all(
             window_spans_run(c.window, c.scenario.reference.duration) for c in self.cases
         )
 
     def _load(self, path: str) -> Scenario:
         return with_plant_parameters(load_scenario(path), self.spec.plant_parameters, self.spec.fmu)
+
+    def reference_metrics(self) -> list[dict[str, Any]]:
+        """Metrics of each case run with its scenario's own parameters (Fine-Tune by default).
+
+        Returns
+        -------
+        list of dict
+            Per case (case order): ``case`` label and the metrics of
+            :func:`twin_cosim.metrics.compute_metrics` over the case's objective window
+            (``E_pk_um`` um, ``ITAE`` um.s^2, ``IAU`` A.s, ...).
+        """
+        found = []
+        for case in self.cases:
+            record = run_scenario(self.plant, case.scenario, plant_overrides=case.overrides)
+            found.append({"case": case.label, **compute_metrics(record, case.window).as_dict()})
+        return found
 
     def __call__(self, task: np.ndarray | EvaluationTask) -> dict[str, Any]:
         """Evaluate one candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] (physical units).
@@ -148,10 +182,14 @@ class Objective:
         except ValueError as exc:
             return _result(failure, "failed", str(exc), None, 0)
         n = len(self.cases)
-        scores, runs, steps = [], [], 0
-        for case in self.cases:
-            allowed = cutoff if self.spec.aggregate == "worst" else n * cutoff - sum(scores)
-            abort_um = min(self.config.abort_error_um, allowed)
+        worst_case = self.spec.aggregate == "worst"
+        scores: dict[int, float] = {}
+        runs: dict[int, dict[str, Any]] = {}
+        steps = 0
+        for i in list(self._order):
+            case = self.cases[i]
+            allowed = cutoff if worst_case else n * cutoff - sum(scores.values())
+            abort_um = min(self.config.abort_error_um, max(allowed, 0.0) / case.scale)
             try:
                 record = run_scenario(
                     self.plant,
@@ -163,6 +201,7 @@ class Objective:
             except RunAborted as exc:
                 steps += _steps_until(case, exc.time_s)
                 if abort_um < self.config.abort_error_um:
+                    self._put_first(i)
                     reason = f"{case.label}: {exc}; fitness above the cutoff {cutoff:.6g} um"
                     return _result(lower_bound_above(cutoff), "stopped", reason, None, steps)
                 return _result(failure, "unstable", f"{case.label}: {exc}", None, steps)
@@ -170,36 +209,49 @@ class Objective:
                 return _result(failure, "failed", f"{case.label}: {exc}", None, steps)
             steps += case.steps
             metrics = compute_metrics(record, case.window).as_dict()
-            score, status, reason = self._score(metrics, case.iau_limit)
-            scores.append(score)
-            runs.append({"case": case.label, "status": status, "reason": reason, **metrics})
-            bound = max(scores) if self.spec.aggregate == "worst" else sum(scores) / n
+            scores[i], status, reason = self._score(metrics, case)
+            runs[i] = {"case": case.label, "status": status, "reason": reason, **metrics}
+            bound = max(scores.values()) if worst_case else sum(scores.values()) / n
             if bound > cutoff and len(scores) < n:
+                self._put_first(i)
                 reason = f"{case.label}: fitness at least {bound:.6g} um, above the cutoff"
-                return _result(bound, "stopped", reason, None, steps)
+                return _result(lower_bound_above(cutoff), "stopped", reason, None, steps)
         if n == 1:
             run = runs[0]
             metrics = {k: v for k, v in run.items() if k not in ("case", "status", "reason")}
             return _result(scores[0], run["status"], run["reason"], metrics, steps)
-        combine = max if self.spec.aggregate == "worst" else (lambda v: sum(v) / len(v))
-        worst = int(np.argmax(scores))
+        ordered = [runs[i] for i in range(n)]
+        values = [scores[i] for i in range(n)]
+        worst = int(np.argmax(values))
+        self._put_first(worst)
+        combine = max if worst_case else (lambda v: sum(v) / len(v))
         metrics = {
-            name: float(combine([r[name] for r in runs])) for name in ("E_pk_um", "ITAE", "IAU")
+            name: float(combine([r[name] for r in ordered])) for name in ("E_pk_um", "ITAE", "IAU")
         }
-        metrics["runs"] = runs
-        status = "ok" if all(r["status"] == "ok" for r in runs) else "violation"
-        reason = "; ".join(r["reason"] for r in runs if r["reason"])
-        fitness = float(combine(scores))
+        metrics["runs"] = ordered
+        status = "ok" if all(r["status"] == "ok" for r in ordered) else "violation"
+        reason = "; ".join(r["reason"] for r in ordered if r["reason"])
         return _result(
-            fitness, status, reason or f"worst run: {runs[worst]['case']}", metrics, steps
+            float(combine(values)),
+            status,
+            reason or f"worst run: {ordered[worst]['case']}",
+            metrics,
+            steps,
         )
 
-    def _score(self, metrics: dict[str, float], limit: float | None) -> tuple[float, str, str]:
-        """Fitness (um), status and reason of one completed run."""
+    def _put_first(self, case: int) -> None:
+        """Run ``case`` first for the next candidate (the likeliest to stop it early)."""
+        self._order.remove(case)
+        self._order.insert(0, case)
+
+    def _score(self, metrics: dict[str, float], case: _Case) -> tuple[float, str, str]:
+        """Fitness (um), status and reason of one completed run of ``case``."""
+        score = case.scale * metrics["E_pk_um"]
+        limit = case.iau_limit
         if limit is not None and metrics["IAU"] > limit:
             reason = f"IAU {metrics['IAU']:.4g} A.s above the cap {limit:.4g} A.s"
-            return self.config.penalty_um + metrics["E_pk_um"], "violation", reason
-        return metrics["E_pk_um"], "ok", ""
+            return self.config.penalty_um + score, "violation", reason
+        return score, "ok", ""
 
     def close(self) -> None:
         """Free the plant."""

@@ -74,3 +74,28 @@ def test_resume_refuses_a_changed_plant_file(files, tmp_path):
 def test_samples_need_a_tolerance(files, tmp_path):
     with pytest.raises(ValueError, match="--tolerance"):
         run_campaign(robust_spec(files, tolerance=0.0), tmp_path / "d", workers=1)
+
+
+def test_each_case_is_judged_against_its_own_reference_run(files, tmp_path):
+    spec = robust_spec(files, budget=10, relative=True)
+    result = run_campaign(spec, tmp_path / "rel", workers=1, progress=False)
+    cases = json.loads((tmp_path / "rel" / "campaign.json").read_text())["cases"]
+    labels = ["short/sample0", "short/sample1", "b/sample0", "b/sample1"]
+    assert [c["case"] for c in cases] == labels
+    first = cases[0]["reference"]["E_pk_um"]
+    for case in cases:
+        assert case["iau_limit"] == pytest.approx(1.05 * case["reference"]["IAU"])
+        assert case["scale"] == pytest.approx(first / case["reference"]["E_pk_um"])
+    assert len({c["reference"]["IAU"] for c in cases}) == 4  # every case needs its own limit
+    scaled = [
+        c["scale"] * run["E_pk_um"] for c, run in zip(cases, result.metrics["runs"], strict=True)
+    ]
+    assert result.fitness == pytest.approx(max(scaled))
+
+
+def test_resume_refuses_a_change_of_relative(files, tmp_path):
+    run_campaign(robust_spec(files, budget=10), tmp_path / "r", workers=1, progress=False)
+    with pytest.raises(CampaignError, match="different campaign"):
+        run_campaign(
+            robust_spec(files, budget=10, relative=True), tmp_path / "r", workers=1, resume=True
+        )

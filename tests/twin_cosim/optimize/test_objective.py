@@ -90,7 +90,7 @@ def single_run_fitness(scenario_file, factors, x, plant):
 @pytest.mark.parametrize("aggregate", ["worst", "mean"])
 def test_robust_fitness_is_the_worst_or_mean_of_separate_runs(two_scenarios, plant, aggregate):
     first, second = two_scenarios
-    spec = ObjectiveSpec(first, None, None, None, (second,), (None,), SAMPLES, aggregate)
+    spec = ObjectiveSpec(first, None, None, None, (second,), (), SAMPLES, aggregate)
     robust = Objective(spec)
     x = TABLE3["ft"].as_array()
     result = robust(x)
@@ -105,7 +105,7 @@ def test_robust_fitness_is_the_worst_or_mean_of_separate_runs(two_scenarios, pla
 @pytest.mark.parametrize("aggregate", ["worst", "mean"])
 def test_early_stop_gives_a_lower_bound_above_the_cutoff(two_scenarios, aggregate):
     first, second = two_scenarios
-    spec = ObjectiveSpec(first, None, None, None, (second,), (None,), SAMPLES, aggregate)
+    spec = ObjectiveSpec(first, None, None, None, (second,), (), SAMPLES, aggregate)
     robust = Objective(spec)
     x = TABLE3["ft"].as_array()
     full = robust(x)
@@ -116,4 +116,61 @@ def test_early_stop_gives_a_lower_bound_above_the_cutoff(two_scenarios, aggregat
         assert cutoff < stopped["fitness"] <= full["fitness"]
         assert stopped["steps"] < full["steps"]
     assert robust(EvaluationTask(x, 1.01 * full["fitness"]))["fitness"] == full["fitness"]
+    robust.close()
+
+
+def test_relative_scales_multiply_each_runs_epk(two_scenarios, plant):
+    first, second = two_scenarios
+    scales = tuple(0.5 + 0.25 * k for k in range(6))
+    spec = ObjectiveSpec(first, None, None, None, (second,), (), SAMPLES, "worst", scales)
+    robust = Objective(spec)
+    x = TABLE3["ga"].as_array()
+    result = robust(x)
+    robust.close()
+    singles = [single_run_fitness(f, s, x, plant) for f in two_scenarios for s in SAMPLES]
+    assert result["fitness"] == pytest.approx(
+        max(a * b for a, b in zip(scales, singles, strict=True))
+    )
+    assert result["metrics"]["E_pk_um"] == pytest.approx(max(singles))  # metrics stay in um
+
+
+def test_a_case_count_mismatch_is_refused(two_scenarios):
+    first, second = two_scenarios
+    with pytest.raises(ValueError, match="6 cases .* got 2 IAU limits"):
+        Objective(ObjectiveSpec(first, None, None, None, (second,), (1.0, 1.0), SAMPLES))
+
+
+def test_each_case_has_its_own_iau_limit(two_scenarios):
+    first, second = two_scenarios
+    probe = Objective(ObjectiveSpec(first, None, None, None, (second,), (), SAMPLES))
+    references = probe.reference_metrics()
+    probe.close()
+    iau = [r["IAU"] for r in references]
+    assert max(iau) > 1.02 * min(iau)  # the samples and scenarios need different currents
+    own = tuple(1.001 * value for value in iau)
+    capped = Objective(ObjectiveSpec(first, None, None, None, (second,), own, SAMPLES))
+    assert capped(TABLE3["ft"].as_array())["status"] == "ok"
+    capped.close()
+    # One limit for every case, the nominal first case's, penalises the samples needing more.
+    shared = Objective(ObjectiveSpec(first, None, 1.001 * iau[0], None, (second,), (), SAMPLES))
+    assert shared(TABLE3["ft"].as_array())["status"] == "violation"
+    shared.close()
+
+
+def test_the_case_that_stopped_a_candidate_runs_first_next(two_scenarios):
+    first, second = two_scenarios
+    spec = ObjectiveSpec(first, None, None, None, (second,), (), SAMPLES, "worst")
+    robust = Objective(spec)
+    x = TABLE3["ft"].as_array()
+    full = robust(x)
+    worst = int(np.argmax([r["E_pk_um"] for r in full["metrics"]["runs"]]))
+    cutoff = 0.99 * full["fitness"]
+    fresh = Objective(spec)  # the case order of a new objective: the first case first
+    first_try = fresh(EvaluationTask(x, cutoff))
+    second_try = fresh(EvaluationTask(x, cutoff))
+    fresh.close()
+    assert worst != 0
+    assert first_try["fitness"] == second_try["fitness"]  # the bound does not depend on order
+    assert second_try["steps"] < first_try["steps"]  # the stopping case ran first
+    assert robust(EvaluationTask(x, cutoff))["steps"] == second_try["steps"]
     robust.close()
