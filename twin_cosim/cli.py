@@ -560,7 +560,7 @@ def _plant_option(parser: argparse.ArgumentParser) -> None:
 def _write_calibration(
     args: argparse.Namespace, scenario, summary: dict[str, Any], out: Path
 ) -> dict[str, str]:
-    """DIR/plant.yaml (the accepted effects and noise) and DIR/calibrated.yaml."""
+    """DIR/plant.yaml (noise, accepted effects, calibration correction), DIR/calibrated.yaml."""
     from twin_cosim.plant_parameters import (
         calibrated_scenario,
         fmu_model,
@@ -575,7 +575,8 @@ def _write_calibration(
         "command": " ".join(["twin diagnose", str(args.scenario), *runs]),
         "version": versions()["twin-cosim"],
     }
-    plant = from_diagnosis(summary, fmu_model(args.plant or scenario.fmu), made_by)
+    model = fmu_model(args.plant or scenario.fmu)
+    plant = from_diagnosis(summary, model, made_by, scenario.plant_parameters)
     plant_file = write_plant_parameters(out / "plant.yaml", plant)
     calibrated = calibrated_scenario(scenario.source, plant, out / "calibrated.yaml")
     return {"plant": str(plant_file), "calibrated": str(calibrated)}

@@ -35,6 +35,10 @@ if TYPE_CHECKING:
 
 TOP_KEYS = {"model", "parameters", "provenance", "created_by"}
 NOISE_SOURCE = "noise harmonics identified at standstill by twin diagnose"
+CALIBRATION_SOURCE = (
+    "calibration correction of twin diagnose: the best correction within the calibration "
+    "tolerance of what the accepted effects leave on the held-out runs (linearised)"
+)
 
 
 class PlantParametersError(ValueError):
@@ -217,21 +221,35 @@ def _changed(before: Mapping[str, float], after: Mapping[str, float]) -> list[st
 
 
 def from_diagnosis(
-    summary: Mapping[str, Any], model: str, created_by: Mapping[str, Any] | None = None
+    summary: Mapping[str, Any],
+    model: str,
+    created_by: Mapping[str, Any] | None = None,
+    nominal: Mapping[str, float] | None = None,
 ) -> PlantParameters:
-    """The calibrated plant of a diagnosis: identified noise and the accepted effects.
+    """The calibrated plant of a diagnosis: noise, accepted effects and calibration correction.
 
     Parameters
     ----------
     summary
         The JSON summary of ``twin diagnose``: ``steps`` (accepted effects, each with its
         cumulative FMU ``plant_parameters``, ``fitted`` hypothesis, fitted ``params`` and
-        held-out figures) and ``noise.plant_parameters``.
+        held-out figures), ``noise.plant_parameters``, ``rounds`` (the last one's
+        ``calibration.coefficients``: the correction of each calibrated parameter in units of
+        the tolerance) and ``thresholds.calibration_tolerance``.
     model
         The plant model the diagnosis ran on.
     created_by
         What made it (command, version, runs); ``measured`` and ``holdout`` default to the
         summary's.
+    nominal
+        The diagnosed scenario's plant parameters (SI units of the model's variable table), on
+        top of the model's start values: what the correction multiplies.
+
+    Notes
+    -----
+    A calibrated parameter p becomes p (1 + a tol), a the last round's coefficient (|a| <= 1),
+    when that round accepted nothing (its residual is what the accepted effects leave); an
+    accepted effect's value of p is the one corrected.
     """
     parameters: dict[str, float] = {}
     provenance: dict[str, dict[str, Any]] = {}
@@ -255,6 +273,20 @@ def from_diagnosis(
             }
         parameters |= cumulative
         previous = cumulative
+    rounds = summary.get("rounds") or []
+    if rounds and not rounds[-1].get("accepted"):
+        from twin_cosim.plant_facts import model_start_values
+
+        tolerance = float(summary["thresholds"]["calibration_tolerance"])
+        base = {**model_start_values(model), **(nominal or {}), **parameters}
+        for name, a in (rounds[-1].get("calibration") or {}).get("coefficients", {}).items():
+            if a != 0.0:
+                parameters[name] = float(base[name] * (1.0 + a * tolerance))
+                provenance[name] = {
+                    "source": CALIBRATION_SOURCE,
+                    "before": float(base[name]),
+                    "relative_change": float(a * tolerance),
+                }
     made = {"measured": summary.get("measured"), "holdout": summary.get("holdout")}
     return PlantParameters(model, parameters, provenance, {**made, **(created_by or {})})
 

@@ -165,3 +165,35 @@ def test_scenario_key_and_command_line_file(excitation, tmp_path):
     write(tmp_path / "plant.yaml", {"model": "emps", "parameters": {}})
     with pytest.raises(ScenarioError, match=r"s.yaml: plant.parameters_file: .*'drive2mass'"):
         load_scenario(tmp_path / "s.yaml")
+
+
+def test_the_calibration_correction_of_the_last_round_is_applied():
+    summary = {
+        "steps": [
+            {
+                "plant_parameters": {"coulomb_friction": 0.5},
+                "fitted": "coulomb_change",
+                "effect": "coulomb_change",
+            }
+        ],
+        "rounds": [
+            {"accepted": ["coulomb_change"], "calibration": {"coefficients": {"backlash": 1.0}}},
+            {
+                "accepted": [],
+                "calibration": {
+                    "coefficients": {"motor_inertia": 1.0, "coulomb_friction": -0.5, "backlash": 0}
+                },
+            },
+        ],
+        "thresholds": {"calibration_tolerance": 0.03},
+    }
+    plant = from_diagnosis(summary, "drive2mass", nominal={"motor_inertia": 2e-4})
+    assert plant.parameters["motor_inertia"] == pytest.approx(2e-4 * 1.03)  # the scenario's value
+    assert plant.parameters["coulomb_friction"] == pytest.approx(0.5 * 0.985)  # the effect's value
+    assert "backlash" not in plant.parameters  # a zero coefficient changes nothing
+    assert plant.provenance["motor_inertia"]["relative_change"] == pytest.approx(0.03)
+    assert "calibration correction" in plant.provenance["motor_inertia"]["source"]
+    # A last round that accepted an effect saw the residual before it: no correction then.
+    summary["rounds"][-1]["accepted"] = ["backlash_change"]
+    plant = from_diagnosis(summary, "drive2mass")
+    assert plant.parameters == {"coulomb_friction": 0.5}
