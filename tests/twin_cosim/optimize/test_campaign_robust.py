@@ -44,8 +44,10 @@ def robust_spec(files, **changes) -> CampaignSpec:
     return CampaignSpec(first, "ce", **(settings | changes))
 
 
-def test_robust_campaign_resumes_to_the_same_result(files, tmp_path):
-    whole = run_campaign(robust_spec(files), tmp_path / "whole", workers=1, progress=False)
+@pytest.mark.parametrize("relative", [False, True])
+def test_robust_campaign_resumes_to_the_same_result(files, tmp_path, relative):
+    spec = robust_spec(files, relative=relative)
+    whole = run_campaign(spec, tmp_path / "whole", workers=1, progress=False)
     header = json.loads((tmp_path / "whole" / "campaign.json").read_text())
     assert header["robust"]["plant_parameters"]["backlash"] == 15e-6
     assert len(header["robust"]["samples"]) == 2 and header["robust"]["samples"][0] == {}
@@ -57,7 +59,7 @@ def test_robust_campaign_resumes_to_the_same_result(files, tmp_path):
     lines = (cut / "evaluations.jsonl").read_text().splitlines(keepends=True)
     (cut / "evaluations.jsonl").write_text("".join(lines[:15]))
     (cut / "result.json").unlink()
-    resumed = run_campaign(robust_spec(files), cut, workers=1, resume=True, progress=False)
+    resumed = run_campaign(spec, cut, workers=1, resume=True, progress=False)
     assert resumed.best_params == whole.best_params
     assert resumed.fitness == whole.fitness
     assert resumed.evaluations == whole.evaluations
