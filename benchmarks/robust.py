@@ -76,8 +76,19 @@ def campaign(out: Path, scenarios: list[Path], extra: list[str], args, seed: int
     return result
 
 
+STOP_ACCELERATION = 0.2  # m/s^2 of the stops of a random trajectory
+
+
+def _stop(speed: float) -> dict:
+    """A ramp from ``speed`` (m/s) to standstill at STOP_ACCELERATION, 10 ms held."""
+    duration = abs(speed) / STOP_ACCELERATION + 0.01
+    return {
+        "ramp": {"velocity": 0.0, "acceleration": STOP_ACCELERATION, "duration": round(duration, 3)}
+    }
+
+
 def random_trajectory(seed: int, path: Path) -> Path:
-    """Write a seeded random production trajectory (about 6-9 s) as a scenario file.
+    """Write a seeded random production trajectory (about 6 to 12 s) as a scenario file.
 
     Six moves, each to a speed of 5 to 120 mm/s in either direction at an acceleration of
     0.02 to 1 m/s^2 (log-uniform, raised where the change would take over 1.5 s), held 0.2 to
@@ -97,29 +108,10 @@ def random_trajectory(seed: int, path: Path) -> Path:
         )
         speed = target
         if rng.uniform() < 1.0 / 3.0:
-            stop = max(0.2, abs(speed) / 1.0)
-            segments.append(
-                {
-                    "ramp": {
-                        "velocity": 0.0,
-                        "acceleration": round(stop, 3),
-                        "duration": round(abs(speed) / stop + 0.01, 3),
-                    }
-                }
-            )
+            segments.append(_stop(speed))
             segments.append({"dwell": round(float(rng.uniform(0.1, 0.3)), 3)})
             speed = 0.0
-    stop = max(0.2, abs(speed) / 1.0)
-    segments.append(
-        {
-            "ramp": {
-                "velocity": 0.0,
-                "acceleration": round(stop, 3),
-                "duration": round(abs(speed) / stop + 0.01, 3),
-            }
-        }
-    )
-    segments.append({"dwell": 0.2})
+    segments += [_stop(speed), {"dwell": 0.2}]
     scenario = {
         "name": path.stem,
         "description": f"random production trajectory, seed {seed} (benchmarks/robust.py)",
