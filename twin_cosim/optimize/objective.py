@@ -16,7 +16,11 @@ fitness is the worst (or the mean) of the runs.
 
 A task may carry a cutoff (:class:`EvaluationTask`): when the candidate's fitness is certain to
 exceed it, the runs stop early and the result has status ``stopped`` with a lower bound as
-fitness (see :mod:`twin_cosim.optimize.early_stop`).
+fitness (see :mod:`twin_cosim.optimize.early_stop`). The cases of a candidate run in an order
+that puts first the case that stopped, or was the worst of, the previous candidate (cheaper
+stops). The order changes the cost only: a candidate below the cutoff gets the same fitness in
+any order, one above it the same lower bound (or, when a run fails before one stops it, the
+failure's score, also above the cutoff).
 """
 
 from __future__ import annotations
