@@ -15,9 +15,10 @@ Per seed, campaigns of one method (CE by default; nominal twin), all through ``t
 Early stopping is exact for CE only: with another ``--method`` it is off and ``ref1`` is
 ``ref1-full``. Then every tuned set (and Fine-Tune) is judged on each held-out scenario with
 ``twin simulate``. Prints per seed the cost (evaluations, simulated speed-loop steps, wall time)
-and the goal figures, and the medians over the seeds; writes ``<out>/robust.json``. The
-machine's load average is printed at start and end. Simulated steps are the cost measure that
-the machine's load does not blur.
+and the goal figures (with what of each held-out trajectory's motion lies beyond that of the
+tuning ones, :mod:`twin_cosim.motion_envelope`), and the medians over the seeds; writes
+``<out>/robust.json``. The machine's load average is printed at start and end. Simulated steps
+are the cost measure that the machine's load does not blur.
 
     python benchmarks/robust.py [--method ce] [--seeds 0,1,2] [--budget 300] [--samples 4]
                                 [--tolerance 0.03] [--objective worst] [--relative]
@@ -37,6 +38,9 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+
+from twin_cosim.motion_envelope import envelope_of, outside
+from twin_cosim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -154,11 +158,14 @@ def run_seed(seed: int, args) -> dict:
             judged[holdout.stem][name] = epk_on(
                 holdout, result, out / f"judge-{holdout.stem}-{name}"
             )
+    tuned_on = [envelope_of(load_scenario(p).reference) for p in pair]
+    beyond = {h.stem: outside(envelope_of(load_scenario(h).reference), tuned_on) for h in holdouts}
     full, early = runs["ref1-full"], runs["ref1"]
     return {
         "seed": seed,
         "campaigns": runs,
         "judged": judged,
+        "beyond_tuning_motion": beyond,
         "same_with_early_stop": full["best_params"] == early["best_params"]
         and full["fitness"] == early["fitness"],
         "robust_steps_vs_full": runs["robust"]["steps"] / full["steps"],
@@ -187,7 +194,8 @@ def print_seed(r: dict) -> None:
             f"  E_pk on {h} [um]: "
             + ", ".join(f"{k} {v:.3f}" for k, v in values.items())
             + f"; robust {r['robust_vs_itself'][h]:+.1%}, reference-1 set "
-            f"{r['ref1_vs_itself'][h]:+.1%} from the set tuned on {h} itself"
+            f"{r['ref1_vs_itself'][h]:+.1%} from the set tuned on {h} itself; beyond the tuning "
+            f"motion: {'; '.join(r['beyond_tuning_motion'][h]) or 'nothing'}"
         )
 
 

@@ -19,8 +19,9 @@ A comparison file::
 
 Each method's campaign lives in ``<out>/<method>/`` and is resumed or reused when present.
 Writes ``tables.md`` (Table 3: parameters; Table 4: reference metrics, wall time, evaluations;
-Table 5: validation metrics; one table per held-out scenario; each with the scenario's own set,
-Fine-Tune by default, as "FT"),
+Table 5: validation metrics; one table per held-out scenario, with what of its motion lies beyond
+that of the tuning trajectories (:mod:`twin_cosim.motion_envelope`); each with the scenario's own
+set, Fine-Tune by default, as "FT"),
 ``tables.json``, ``convergence.png``, ``errors_optimized.png`` and ``errors_validation.png``.
 """
 
@@ -35,6 +36,7 @@ import pandas as pd
 
 from twin_cosim.controller import TUNED_NAMES, TunedParameters
 from twin_cosim.metrics import compute_metrics
+from twin_cosim.motion_envelope import MARGIN, envelope_of, outside
 from twin_cosim.optimize.algorithms import ALGORITHMS
 from twin_cosim.optimize.campaign import CampaignSpec, run_campaign
 from twin_cosim.optimize.config import check_uncertainty
@@ -213,10 +215,22 @@ def run_comparison(
             f"{scenario.name}\n\n"
         )
         text += markdown_table(validation)
+    tuned_on = [scenario.reference] + [
+        load_scenario(f).reference for f in comparison.robust["scenarios"]
+    ]
+    beyond = {}
     for label in (k for k in scenarios if k.startswith("holdout ")):
         held = table.loc[label].copy()
         held.index.name = "method"
         text += f"\n## Held out: {scenarios[label].name}\n\n{markdown_table(held)}"
+        beyond[scenarios[label].name] = outside(
+            envelope_of(scenarios[label].reference), [envelope_of(r) for r in tuned_on]
+        )
+        if beyond[scenarios[label].name]:
+            text += (
+                f"\nBeyond the motion of the tuning trajectories (by more than "
+                f"{MARGIN:.0%}): {'; '.join(beyond[scenarios[label].name])}.\n"
+            )
     (out / "tables.md").write_text(text)
     (out / "tables.json").write_text(
         json.dumps(
@@ -225,6 +239,7 @@ def run_comparison(
                 "metrics": {f"{s}/{m}": row.to_dict() for (s, m), row in table.iterrows()},
                 "campaigns": results,
                 "metric_units": METRIC_COLUMNS,
+                "holdout_beyond_tuning_motion": beyond,
             },
             indent=2,
         )

@@ -36,13 +36,23 @@ def test_robust_comparison_reports_held_out_scenarios(folder):
     (folder / "c.yaml").write_text(
         "scenario: a.yaml\nmethods: [cmaes]\nbudgets: {cmaes: 8}\nplant_parameters: plant.yaml\n"
         "robust: {scenarios: [b.yaml], tolerance: 0.03, samples: 2, objective: mean}\n"
-        "holdout: [b.yaml]\n"
+        "holdout: [b.yaml, fast.yaml]\n"
     )
+    fast = SHORT.replace("name: short", "name: fast").replace(
+        "acceleration: 0.05", "acceleration: 0.2"
+    )
+    (folder / "fast.yaml").write_text(fast)
     comparison = load_comparison(folder / "c.yaml")
     assert comparison.robust["scenarios"] == [str(folder / "b.yaml")]
     assert comparison.robust["aggregate"] == "mean"
     text = run_comparison(comparison, folder / "out", workers=1, progress=False)
     assert "## Held out: held" in text
+    beyond = json.loads((folder / "out" / "tables.json").read_text())[
+        "holdout_beyond_tuning_motion"
+    ]
+    assert beyond["held"] == []  # the same motion as the tuning trajectories
+    assert any(line.startswith("reversal while moving at 0.2") for line in beyond["fast"])
+    assert "Beyond the motion of the tuning trajectories (by more than 20%): " in text
     campaign = json.loads((folder / "out" / "cmaes" / "campaign.json").read_text())
     assert campaign["robust"]["plant_parameters"] == {"backlash": 18e-6}
     assert len(campaign["robust"]["samples"]) == 2
