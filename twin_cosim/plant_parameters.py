@@ -29,6 +29,7 @@ import yaml
 
 from fmu_build.build import DEFAULT_MODEL, MODELS_DIR, available_models
 from fmu_build.variable_table import Variable, VariableTableError, load_variable_table
+from twin_cosim.plant_facts import model_start_values
 
 if TYPE_CHECKING:
     from twin_cosim.scenario import Scenario
@@ -275,8 +276,6 @@ def from_diagnosis(
         previous = cumulative
     rounds = summary.get("rounds") or []
     if rounds and not rounds[-1].get("accepted"):
-        from twin_cosim.plant_facts import model_start_values
-
         tolerance = float(summary["thresholds"]["calibration_tolerance"])
         base = {**model_start_values(model), **(nominal or {}), **parameters}
         for name, a in (rounds[-1].get("calibration") or {}).get("coefficients", {}).items():

@@ -12,20 +12,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scenario_texts import short_scenario
 
 from twin_cosim.optimize.objective import ObjectiveSpec
 from twin_cosim.workers import ProcessPool, command_temp_folder, make_pool
 
 ROOT = Path(__file__).resolve().parents[2]
-SHORT = """
-name: short
-reference:
-  segments:
-    - dwell: 0.1
-    - ramp: {velocity: 0.005, acceleration: 0.05, duration: 0.3}
-    - ramp: {velocity: 0.0, acceleration: 0.05, duration: 0.1}
-    - dwell: 0.1
-"""
+SHORT = short_scenario(back=False)
 FINE_TUNE = np.array([66.667, 0.5, 0.01, 1.0, 0.01, 0.1])
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")

@@ -11,24 +11,16 @@ import time
 from pathlib import Path
 
 import pytest
+from scenario_texts import short_scenario
 
 from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
 from twin_cosim.optimize.comparison import load_comparison, run_comparison
 
 ROOT = Path(__file__).resolve().parents[3]
-SHORT = """
-name: short
-reference:
-  segments:
-    - dwell: 0.1
-    - ramp: {velocity: 0.005, acceleration: 0.05, duration: 0.3}
-    - ramp: {velocity: -0.005, acceleration: 0.05, duration: 0.3}
-    - ramp: {velocity: 0.0, acceleration: 0.05, duration: 0.1}
-    - dwell: 0.1
-optimize:
-  bounds: {Kp_pos: [20.0, 3000.0]}   # wide enough to hold runaway candidates
-  abort_error_um: 50.0               # ... which the abort band stops early
-"""
+SHORT = short_scenario(
+    optimize="bounds: {Kp_pos: [20.0, 3000.0]}   # wide enough to hold runaway candidates\n"
+    "abort_error_um: 50.0               # ... which the abort band stops early"
+)
 
 
 @pytest.fixture(scope="module")

@@ -12,21 +12,14 @@ import time
 from pathlib import Path
 
 import pytest
+from scenario_texts import short_scenario
 
 from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
 from twin_cosim.optimize.evaluators import SchedulerError
 
 distributed = pytest.importorskip("distributed")
 
-SHORT = """
-name: short
-reference:
-  segments:
-    - dwell: 0.1
-    - ramp: {velocity: 0.005, acceleration: 0.05, duration: 0.2}
-    - ramp: {velocity: 0.0, acceleration: 0.05, duration: 0.1}
-    - dwell: 0.1
-"""
+SHORT = short_scenario(move=0.2, back=False)
 
 
 @pytest.fixture(scope="module")

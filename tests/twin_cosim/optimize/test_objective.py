@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scenario_texts import short_scenario
 
 from twin_cosim.controller import TunedParameters
 from twin_cosim.cosim import run_scenario
@@ -56,16 +57,7 @@ def test_refused_parameters_are_a_failure(objective):
     assert "PP3 must be > 0" in result["reason"]
 
 
-SHORT = """
-name: short
-reference:
-  segments:
-    - dwell: 0.1
-    - ramp: {velocity: 0.01, acceleration: 0.1, duration: 0.4}
-    - ramp: {velocity: -0.01, acceleration: 0.1, duration: 0.4}
-    - ramp: {velocity: 0.0, acceleration: 0.1, duration: 0.1}
-    - dwell: 0.1
-"""
+SHORT = short_scenario(speed=0.01, acceleration=0.1, move=0.4)
 SAMPLES = ({}, {"backlash": 1.5, "coulomb_friction": 1.2}, {"load_inertia": 0.8})
 
 
@@ -73,9 +65,7 @@ SAMPLES = ({}, {"backlash": 1.5, "coulomb_friction": 1.2}, {"load_inertia": 0.8}
 def two_scenarios(tmp_path_factory):
     folder = tmp_path_factory.mktemp("robust")
     (folder / "a.yaml").write_text(SHORT)
-    (folder / "b.yaml").write_text(
-        SHORT.replace("acceleration: 0.1", "acceleration: 0.3").replace("name: short", "name: b")
-    )
+    (folder / "b.yaml").write_text(short_scenario("b", speed=0.01, acceleration=0.3, move=0.4))
     return str(folder / "a.yaml"), str(folder / "b.yaml")
 
 
