@@ -5,7 +5,7 @@ from __future__ import annotations
 import textwrap
 
 
-def short_scenario(
+def scenario_text(
     name: str = "short",
     *,
     speed: float = 0.005,

@@ -6,13 +6,14 @@ process calls ``build()`` once (spawned processes: an FMU is never instantiated 
 then forks); tasks then run on that worker and results stream back as they complete.
 
 Nothing outlives a pool. Every pool has a private temp folder (``twin-pool-<parent pid>-*``) that
-its workers extract FMUs into and that ``close()`` removes. A worker ignores Ctrl-C (its parent
-handles it and shuts the pool down), frees its plant when it exits, and dies with its parent: a
-watchdog thread polls the parent's pid, so after ``kill -9`` of the parent every worker removes
-the pool's folder and exits (the multiprocessing resource tracker then ends too). A command of
-the ``twin`` CLI keeps all its temporary files in one such folder (:func:`command_temp_folder`);
-one left by a process that could not clean up (``kill -9`` of a serial run) is removed by the
-next pool or command.
+its workers extract FMUs into and that ``close()`` removes. A worker ignores Ctrl-C from the
+moment it starts (it is spawned with SIGINT ignored, so a Ctrl-C while it still imports prints
+no traceback; its parent handles Ctrl-C and shuts the pool down), frees its plant when it
+exits, and dies with its parent: a watchdog thread polls the parent's pid, so after ``kill -9``
+of the parent every worker removes the pool's folder and exits (the multiprocessing resource
+tracker then ends too). A command of the ``twin`` CLI keeps all its temporary files in one such
+folder (:func:`command_temp_folder`); one left by a process that could not clean up (``kill -9``
+of a serial run) is removed by the next pool or command.
 :func:`terminate_as_interrupt` makes SIGTERM end a process the way Ctrl-C does.
 """
 
@@ -184,6 +185,28 @@ def _build_in_process(factory: WorkerFactory, pool_folder: str, parent_pid: int)
     _PROCESS_WORKER = factory.build()
 
 
+@contextmanager
+def _children_ignore_interrupts() -> Iterator[None]:
+    """Start processes in this block with SIGINT ignored; this process keeps its Ctrl-C.
+
+    SIGINT is blocked, then ignored: a spawned interpreter inherits the ignored disposition
+    (and then installs no Ctrl-C handler of its own), while a Ctrl-C that arrives here meanwhile
+    stays pending (a blocked signal is never discarded as ignored) and reaches the restored
+    handler when the block ends. Outside the main thread (where handlers cannot change) nothing
+    changes.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+
+
 def _run_in_process(task: Any) -> Any:
     if _PROCESS_WORKER is None:
         raise RuntimeError("worker process was not initialised")
@@ -214,7 +237,10 @@ class ProcessPool:
 
     def imap(self, tasks: Sequence[Any]) -> Iterator[tuple[int, Any]]:
         """Yield (task index, result) in order of completion."""
-        futures = {self.executor.submit(_run_in_process, task): i for i, task in enumerate(tasks)}
+        with _children_ignore_interrupts():  # a submit may spawn the pool's processes
+            futures = {
+                self.executor.submit(_run_in_process, task): i for i, task in enumerate(tasks)
+            }
         for future in as_completed(futures):
             yield futures[future], future.result()
 

@@ -8,12 +8,12 @@ from __future__ import annotations
 import json
 
 import yaml
-from scenario_texts import short_scenario
+from scenario_texts import scenario_text
 
 from twin_cosim import cli
 
 MOVES = {"speed": 0.02, "acceleration": 0.2, "move": 1.0, "stop": 0.2, "dwell": 0.3}
-SHORT = short_scenario(**MOVES)
+SHORT = scenario_text(**MOVES)
 
 
 def test_simulate_on_a_virtual_machine_reports_the_prediction_error(tmp_path, capsys):
@@ -41,7 +41,7 @@ def test_simulate_on_a_virtual_machine_reports_the_prediction_error(tmp_path, ca
 
 def test_optimize_with_plant_parameters_and_two_scenarios(tmp_path, capsys):
     (tmp_path / "a.yaml").write_text(SHORT)
-    (tmp_path / "b.yaml").write_text(short_scenario("b", **MOVES))
+    (tmp_path / "b.yaml").write_text(scenario_text("b", **MOVES))
     calibrated = tmp_path / "plant.yaml"
     calibrated.write_text(
         yaml.safe_dump({"model": "drive2mass", "parameters": {"backlash": 20e-6}})

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from scenario_texts import short_scenario
+from scenario_texts import scenario_text
 
 from twin_cosim import paper
 from twin_cosim.cosim import run_scenario
@@ -16,7 +16,7 @@ from twin_cosim.plant import Plant
 from twin_cosim.plant_parameters import PlantParameters, write_plant_parameters
 from twin_cosim.scenario import load_scenario
 
-SHORT = short_scenario(speed=0.01, acceleration=0.1, move=0.4)
+SHORT = scenario_text(speed=0.01, acceleration=0.1, move=0.4)
 
 
 @pytest.fixture()

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from scenario_texts import short_scenario
+from scenario_texts import scenario_text
 
 from twin_cosim import cli
 from twin_cosim.gap import settings as diagnosis_settings
@@ -27,7 +27,7 @@ from twin_cosim.scenario import ScenarioError, load_scenario
 
 NOMINAL_COULOMB = 0.625  # N.m, Table 1 (models/drive2mass/variables.yaml)
 # A short excitation: two back-and-forth moves at 20 mm/s with dwells (about 6 s).
-SHORT_EXCITATION = short_scenario(
+SHORT_EXCITATION = scenario_text(
     "short-excitation", speed=0.02, acceleration=0.2, move=1.0, stop=0.2, dwell=0.3, repeat=2
 )
 HIDDEN = ("coulomb_change:delta_coulomb=0.2", "plant:noise_amplitude_1=3e-7,noise_frequency_1=37")

@@ -7,18 +7,19 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from scenario_texts import short_scenario
+from scenario_texts import scenario_text
 
 from twin_cosim.optimize.objective import ObjectiveSpec
 from twin_cosim.workers import ProcessPool, command_temp_folder, make_pool
 
 ROOT = Path(__file__).resolve().parents[2]
-SHORT = short_scenario(back=False)
+SHORT = scenario_text(back=False)
 FINE_TUNE = np.array([66.667, 0.5, 0.01, 1.0, 0.01, 0.1])
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
@@ -81,6 +82,57 @@ def test_serial_pool_removes_its_extracted_fmu(short_scenario, private_tmp):
 def test_pool_refuses_a_worker_count_below_one(workers):
     with pytest.raises(ValueError, match="workers: expected a whole number >= 1"):
         ProcessPool(ObjectiveSpec("unused.yaml", None, None), workers)
+
+
+class PidWorker:
+    """A worker that answers every task with its process id."""
+
+    def __call__(self, task: object) -> int:
+        return os.getpid()
+
+    def close(self) -> None:
+        pass
+
+
+class SlowToStart:
+    """A worker factory that, unpickled in a starting worker (before the pool's initializer),
+    writes the process id to ``folder/pid`` and waits until ``folder/sent`` exists."""
+
+    def __init__(self, folder: str) -> None:
+        self.folder = folder
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        folder = Path(self.folder)
+        (folder / "pid.partial").write_text(str(os.getpid()))
+        (folder / "pid.partial").replace(folder / "pid")
+        deadline = time.monotonic() + 30.0
+        while not (folder / "sent").exists() and time.monotonic() < deadline:
+            time.sleep(0.02)
+
+    def build(self) -> PidWorker:
+        return PidWorker()
+
+
+def test_a_worker_ignores_ctrl_c_while_it_starts(tmp_path, private_tmp, capfd):
+    def interrupt_the_starting_worker() -> None:
+        deadline = time.monotonic() + 30.0
+        while not (tmp_path / "pid").exists() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        os.kill(int((tmp_path / "pid").read_text()), signal.SIGINT)
+        time.sleep(0.2)  # the signal is delivered while the worker still starts
+        (tmp_path / "sent").touch()
+
+    pool = ProcessPool(SlowToStart(str(tmp_path)), 1)
+    sender = threading.Thread(target=interrupt_the_starting_worker)
+    sender.start()
+    try:
+        results = list(pool.imap(["task"]))
+    finally:
+        sender.join()
+        pool.close()
+    assert results == [(0, int((tmp_path / "pid").read_text()))]
+    assert "KeyboardInterrupt" not in capfd.readouterr().err
 
 
 def test_stale_pool_folder_of_a_dead_process_is_removed(short_scenario, private_tmp):

@@ -11,13 +11,13 @@ import time
 from pathlib import Path
 
 import pytest
-from scenario_texts import short_scenario
+from scenario_texts import scenario_text
 
 from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
 from twin_cosim.optimize.comparison import load_comparison, run_comparison
 
 ROOT = Path(__file__).resolve().parents[3]
-SHORT = short_scenario(
+SHORT = scenario_text(
     optimize="bounds: {Kp_pos: [20.0, 3000.0]}   # wide enough to hold runaway candidates\n"
     "abort_error_um: 50.0               # ... which the abort band stops early"
 )

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from scenario_texts import short_scenario
+from scenario_texts import scenario_text
 
 from twin_cosim.cli import main
 from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, load_spec, run_campaign
@@ -18,7 +18,7 @@ from twin_cosim.optimize.folder_lock import FolderLock
 
 pytestmark = pytest.mark.usefixtures("keep_sigterm")
 
-SHORT = short_scenario(move=0.2, back=False, optimize="abort_error_um: 50.0")
+SHORT = scenario_text(move=0.2, back=False, optimize="abort_error_um: 50.0")
 
 
 @pytest.fixture()
@@ -35,7 +35,7 @@ def run(scenario: Path, out: Path, budget: int = 10, **options) -> object:
 
 def test_resume_refuses_an_edited_scenario(scenario, tmp_path):
     run(scenario, tmp_path / "c")
-    scenario.write_text(short_scenario(move=0.2, back=False, optimize="abort_error_um: 60.0"))
+    scenario.write_text(scenario_text(move=0.2, back=False, optimize="abort_error_um: 60.0"))
     spec = load_spec(tmp_path / "c")
     with pytest.raises(CampaignError, match=r"scenario .*short.yaml.* changed"):
         run_campaign(spec, tmp_path / "c", workers=1, resume=True, progress=False)
@@ -63,7 +63,7 @@ def test_resume_refuses_another_plant_fmu(scenario, tmp_path, fmu_path):
 def test_cli_resume_checks_the_given_scenario(scenario, tmp_path, capsys):
     run(scenario, tmp_path / "c")
     other = tmp_path / "other.yaml"
-    other.write_text(short_scenario(move=0.3, back=False, optimize="abort_error_um: 50.0"))
+    other.write_text(scenario_text(move=0.3, back=False, optimize="abort_error_um: 50.0"))
     status = main(["optimize", str(other), "--resume", str(tmp_path / "c"), "--quiet"])
     assert status == 2
     assert f"scenario {other}" in capsys.readouterr().err

@@ -6,20 +6,20 @@ import json
 import shutil
 
 import pytest
-from scenario_texts import short_scenario
+from scenario_texts import scenario_text
 
 from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
 from twin_cosim.plant_parameters import PlantParameters, write_plant_parameters
 
 SMALL_CE = "methods: {ce: {population_size: 10, elite_fraction: 0.2}}"
-SHORT = short_scenario(optimize=SMALL_CE)
+SHORT = scenario_text(optimize=SMALL_CE)
 
 
 @pytest.fixture()
 def files(tmp_path):
     first, second = tmp_path / "a.yaml", tmp_path / "b.yaml"
     first.write_text(SHORT)
-    second.write_text(short_scenario("b", acceleration=0.1, optimize=SMALL_CE))
+    second.write_text(scenario_text("b", acceleration=0.1, optimize=SMALL_CE))
     plant = write_plant_parameters(
         tmp_path / "plant.yaml",
         PlantParameters("drive2mass", {"backlash": 15e-6, "stribeck_friction": 0.1}),

@@ -6,18 +6,18 @@ import json
 
 import pytest
 import yaml
-from scenario_texts import short_scenario
+from scenario_texts import scenario_text
 
 from twin_cosim.optimize.comparison import load_comparison, run_comparison
 from twin_cosim.scenario import ScenarioError
 
-SHORT = short_scenario()
+SHORT = scenario_text()
 
 
 @pytest.fixture()
 def folder(tmp_path):
     (tmp_path / "a.yaml").write_text(SHORT)
-    (tmp_path / "b.yaml").write_text(short_scenario("held"))
+    (tmp_path / "b.yaml").write_text(scenario_text("held"))
     (tmp_path / "plant.yaml").write_text(
         yaml.safe_dump({"model": "drive2mass", "parameters": {"backlash": 18e-6}})
     )
@@ -30,7 +30,7 @@ def test_robust_comparison_reports_held_out_scenarios(folder):
         "robust: {scenarios: [b.yaml], tolerance: 0.03, samples: 2, objective: mean}\n"
         "holdout: [b.yaml, fast.yaml]\n"
     )
-    (folder / "fast.yaml").write_text(short_scenario("fast", acceleration=0.2))
+    (folder / "fast.yaml").write_text(scenario_text("fast", acceleration=0.2))
     comparison = load_comparison(folder / "c.yaml")
     assert comparison.robust["scenarios"] == [str(folder / "b.yaml")]
     assert comparison.robust["aggregate"] == "mean"

@@ -12,14 +12,14 @@ import time
 from pathlib import Path
 
 import pytest
-from scenario_texts import short_scenario
+from scenario_texts import scenario_text
 
 from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
 from twin_cosim.optimize.evaluators import SchedulerError
 
 distributed = pytest.importorskip("distributed")
 
-SHORT = short_scenario(move=0.2, back=False)
+SHORT = scenario_text(move=0.2, back=False)
 
 
 @pytest.fixture(scope="module")

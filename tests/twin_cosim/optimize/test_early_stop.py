@@ -7,13 +7,13 @@ import math
 
 import numpy as np
 import pytest
-from scenario_texts import short_scenario
+from scenario_texts import scenario_text
 
 from twin_cosim.optimize.algorithms import make_optimizer
 from twin_cosim.optimize.campaign import CampaignSpec, run_campaign
 from twin_cosim.optimize.early_stop import elite_cutoff, lower_bound_above, window_spans_run
 
-SHORT = short_scenario(optimize="methods: {ce: {population_size: 10, elite_fraction: 0.2}}")
+SHORT = scenario_text(optimize="methods: {ce: {population_size: 10, elite_fraction: 0.2}}")
 
 
 def test_elite_cutoff_is_the_elite_count_th_best_known():

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scenario_texts import short_scenario
+from scenario_texts import scenario_text
 
 from twin_cosim.controller import TunedParameters
 from twin_cosim.cosim import run_scenario
@@ -57,7 +57,7 @@ def test_refused_parameters_are_a_failure(objective):
     assert "PP3 must be > 0" in result["reason"]
 
 
-SHORT = short_scenario(speed=0.01, acceleration=0.1, move=0.4)
+SHORT = scenario_text(speed=0.01, acceleration=0.1, move=0.4)
 SAMPLES = ({}, {"backlash": 1.5, "coulomb_friction": 1.2}, {"load_inertia": 0.8})
 
 
@@ -65,7 +65,7 @@ SAMPLES = ({}, {"backlash": 1.5, "coulomb_friction": 1.2}, {"load_inertia": 0.8}
 def two_scenarios(tmp_path_factory):
     folder = tmp_path_factory.mktemp("robust")
     (folder / "a.yaml").write_text(SHORT)
-    (folder / "b.yaml").write_text(short_scenario("b", speed=0.01, acceleration=0.3, move=0.4))
+    (folder / "b.yaml").write_text(scenario_text("b", speed=0.01, acceleration=0.3, move=0.4))
     return str(folder / "a.yaml"), str(folder / "b.yaml")
 
 
