@@ -148,15 +148,14 @@ def _simulate(args: argparse.Namespace) -> int:
     from twin_cosim.cosim import run_scenario
     from twin_cosim.metrics import compute_metrics
     from twin_cosim.plant import Plant
-    from twin_cosim.plant_parameters import with_plant_parameters
     from twin_cosim.plots import plot_run
-    from twin_cosim.scenario import load_scenario, load_tuned_parameters
+    from twin_cosim.scenario import load_scenario, load_tuned_parameters, with_plant_parameters
 
     scenario = with_plant_parameters(
         load_scenario(args.scenario), args.plant_parameters, args.plant
     )
     tuned = load_tuned_parameters(args.params) if args.params else scenario.tuned
-    fmu = Path(args.plant) if args.plant else scenario.fmu
+    fmu = scenario.plant_fmu(args.plant)
     mismatch = warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
     out = out_folder(args.out, Path("out") / scenario.name)
     out.mkdir(parents=True, exist_ok=True)
@@ -246,7 +245,7 @@ def _table3(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     sets = {name.upper(): tuned for name, tuned in paper.TABLE3.items()}
     first = next(iter(scenarios.values()))
-    with Plant(Path(args.plant) if args.plant else first.fmu) as plant:
+    with Plant(first.plant_fmu(args.plant)) as plant:
         table, records = evaluate_sets(plant, scenarios, sets)
     table.to_csv(out / "table3.csv")
     flat = table.reset_index().set_index("set")
@@ -390,7 +389,7 @@ def _emps_gains(scenario, follow, fmu) -> dict[str, float]:
     scalars = measured.extra if measured else {}
     if all(k in scalars for k in ("kp", "kv", "gtau")):
         return {k: float(scalars[k]) for k in ("kp", "kv", "gtau")}
-    with Plant(Path(fmu) if fmu else scenario.fmu) as plant:
+    with Plant(scenario.plant_fmu(fmu)) as plant:
         gtau = plant.start_values().get("drive_gain", 1.0)
     tuned, settings = scenario.tuned, scenario.settings
     return {
@@ -561,12 +560,8 @@ def _write_calibration(
     args: argparse.Namespace, scenario, summary: dict[str, Any], out: Path
 ) -> dict[str, str]:
     """DIR/plant.yaml (noise, accepted effects, calibration correction), DIR/calibrated.yaml."""
-    from twin_cosim.plant_parameters import (
-        calibrated_scenario,
-        fmu_model,
-        from_diagnosis,
-        write_plant_parameters,
-    )
+    from twin_cosim.gap.calibrated_plant import calibrated_scenario, from_diagnosis
+    from twin_cosim.scenario.plant_file import write_plant_parameters
 
     runs = [f"--measured {m}" for m in args.measured] + [
         f"--holdout {h}" for h in args.holdout or []
@@ -575,7 +570,7 @@ def _write_calibration(
         "command": " ".join(["twin diagnose", str(args.scenario), *runs]),
         "version": versions()["twin-cosim"],
     }
-    model = fmu_model(args.plant or scenario.fmu)
+    model = scenario.model_name(args.plant)
     plant = from_diagnosis(summary, model, made_by, scenario.plant_parameters)
     plant_file = write_plant_parameters(out / "plant.yaml", plant)
     calibrated = calibrated_scenario(scenario.source, plant, out / "calibrated.yaml")

@@ -33,14 +33,13 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from fmu_build.build import DEFAULT_MODEL
-from twin_cosim.plant_facts import drive_facts, model_start_values
+from twin_cosim.plant_model import plant_model
 
 TUNED_NAMES = ("Kp_pos", "Kp_vel", "Ki_vel", "PP2", "PP3", "f_H")
 TUNED_UNITS = ("1/s", "A/(rad/s)", "A/(rad/s)", "rad/s", "s", "rad/s")
 
-# The plant facts of the default settings: the default plant model's start values.
-_DEFAULT_FACTS = drive_facts(model_start_values(DEFAULT_MODEL))
+# The plant facts of the default settings: the default plant model's card at its start values.
+_DEFAULT_FACTS = plant_model().drive_facts()
 
 # Indices into the parameter vector built by ControllerConfig.vector().
 KP_POS, KP_VEL, KI_VEL, PP2, PP3, F_H = range(6)
@@ -114,9 +113,10 @@ class TunedParameters:
 class ControllerSettings:
     """Fixed (not tuned) settings of the controller.
 
-    The plant facts (travel_per_rad, inertia, torque_constant, friction_torque) default to those
-    of the drive2mass model's start values (:mod:`twin_cosim.plant_facts`); a scenario takes
-    them from its own plant model and parameters.
+    The plant facts (travel_per_rad, inertia, torque_constant, friction_torque, speed_period)
+    default to those of the default plant model (drive2mass) at its start values, as its card
+    states them (:mod:`twin_cosim.plant_model`); a scenario takes them from its own plant model
+    and parameters.
 
     Attributes
     ----------
@@ -137,7 +137,8 @@ class ControllerSettings:
     position_period : float
         Position-loop period, s.
     speed_period : float
-        Speed-loop period, s; must divide position_period.
+        Speed-loop period, s; must divide position_period. The plant model's sample period (the
+        FMU is stepped at it).
     """
 
     travel_per_rad: float = _DEFAULT_FACTS["travel_per_rad"]
@@ -148,7 +149,7 @@ class ControllerSettings:
     friction_torque: float = _DEFAULT_FACTS["friction_torque"]
     current_limit: float = 20.0
     position_period: float = 250e-6
-    speed_period: float = 62.5e-6
+    speed_period: float = _DEFAULT_FACTS["speed_period"]
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -23,7 +23,9 @@ import pandas as pd
 from twin_cosim.controller import TunedParameters
 from twin_cosim.metrics import Metrics, compute_metrics
 from twin_cosim.plant import Plant
-from twin_cosim.scenario import Scenario, load_scenario, load_yaml
+from twin_cosim.scenario import Scenario, load_scenario
+from twin_cosim.scenario.plant_file import read_plant_parameters
+from twin_cosim.schema import load_yaml
 
 MEASURED_SUFFIXES = (".csv", ".mat")
 JUDGED = ("E_pk_um", "ITAE", "IAU")
@@ -34,14 +36,12 @@ def machine_scenario(scenario: Scenario, machine: Path) -> Scenario:
     data = load_yaml(machine)
     if isinstance(data, dict) and "reference" in data:
         plant = load_scenario(machine)
-        fmu, parameters = plant.fmu, dict(plant.plant_parameters)
+        fmu, model, parameters = plant.fmu, plant.model, dict(plant.plant_parameters)
     else:
-        from twin_cosim.plant_parameters import fmu_model, read_plant_parameters
-
-        fmu = scenario.fmu
-        parameters = read_plant_parameters(machine, fmu_model(fmu)).parameters
+        fmu, model = scenario.fmu, scenario.model
+        parameters = read_plant_parameters(machine, scenario.model_name()).parameters
     parameters["load_position_start"] = scenario.plant_parameters["load_position_start"]
-    return dataclasses.replace(scenario, fmu=fmu, plant_parameters=parameters)
+    return dataclasses.replace(scenario, fmu=fmu, model=model, plant_parameters=parameters)
 
 
 def machine_metrics(
@@ -66,7 +66,7 @@ def machine_metrics(
         record = pd.DataFrame({"t": run.t, "error": run.x_ref - run.x, "current": run.current})
         return compute_metrics(record, scenario.metrics_window), "measured run"
     judged = machine_scenario(scenario, machine)
-    with Plant(judged.fmu) as plant:
+    with Plant(judged.plant_fmu()) as plant:
         record = run_scenario(plant, judged, tuned)
     return compute_metrics(record, scenario.metrics_window), "virtual machine"
 

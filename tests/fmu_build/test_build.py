@@ -19,6 +19,7 @@ from fmpy.validation import validate_fmu
 from fmu_build import build, generate
 from fmu_build.variable_table import VariableTable, load_variable_table
 from twin_cosim.plant import Plant
+from twin_cosim.plant_model import plant_model
 
 
 def test_fmu_layout(model_fmu):
@@ -124,7 +125,7 @@ def test_simulates_in_fmpy_simulate_fmu(fmu_path):
         output_interval=0.01,
         start_values={"current_cmd": current},
     )
-    travel = 0.010 / (2 * np.pi) / 1.5
+    travel = plant_model("drive2mass").drive_facts()["travel_per_rad"]
     speed = result["load_speed"] / travel
     late = result["time"] >= 0.2
     slope = np.polyfit(result["time"][late], speed[late], 1)[0]

@@ -117,7 +117,7 @@ def test_a_bad_signal_convention_is_named(tmp_path, convention, message):
 def test_replay_reproduces_the_published_position_gap():
     scenario = load_scenario(ROOT / "scenarios" / "emps.yaml")
     run = read_measured(scenario.measured)
-    with Plant(scenario.fmu) as plant:
+    with Plant(scenario.plant_fmu()) as plant:
         record = run_scenario(plant, scenario)
     figures = compare_with_measured(record, run.t, run.x, run.current)
     assert figures["position_rms_gap_um"] == pytest.approx(2.58, rel=0.05)  # published: 2.58 um
@@ -159,7 +159,7 @@ def twin_mat(tmp_path: Path, name: str, frequency: float, pulses: bool) -> Path:
         .replace("../../shared/data/emps/DATA_EMPS.mat", name)
     )
     scenario = load_scenario(scenario_file)
-    with Plant(scenario.fmu) as plant:
+    with Plant(scenario.plant_fmu()) as plant:
         record = run_scenario(plant, scenario, plant_overrides={"load_position_start": 0.0})
     savemat(
         path,

@@ -13,8 +13,8 @@ from twin_cosim.gap.synth import synthesize
 from twin_cosim.machine import machine_metrics, prediction
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.plant import Plant
-from twin_cosim.plant_parameters import PlantParameters, write_plant_parameters
 from twin_cosim.scenario import load_scenario
+from twin_cosim.scenario.plant_file import PlantParameters, write_plant_parameters
 
 SHORT = scenario_text(speed=0.01, acceleration=0.1, move=0.4)
 
@@ -27,7 +27,7 @@ def scenario(tmp_path):
 
 
 def twin_metrics(scenario):
-    with Plant(scenario.fmu) as plant:
+    with Plant(scenario.plant_fmu()) as plant:
         return compute_metrics(run_scenario(plant, scenario, paper.FINE_TUNE))
 
 

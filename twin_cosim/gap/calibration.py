@@ -1,18 +1,18 @@
 """The calibration floor: how much of a held-out residual calibration error alone can explain.
 
-The nominal values of the calibrated parameters (:data:`twin_cosim.gap.effects.CALIBRATED`)
-are known only to ``calibration_tolerance`` (3 %). Each is moved by +/- that tolerance and the
-held-out runs replayed; half the difference of the two replays is its *calibration direction*,
-the change of the twin's output per tolerance. The best calibration correction of a residual r
-is the combination sum a_j c_j with every |a_j| <= 1 (bounded linear least squares,
-``scipy.optimize.lsq_linear``) closest to r; what it leaves is the part of the gap that
-calibration error cannot explain, and an effect is accepted only when it shrinks that part too.
-The correction is fitted on the held-out data themselves: calibration error gets every benefit
-of the doubt, bounded by the tolerance.
+The nominal values of the calibrated parameters (``calibrated`` in the model's card,
+:mod:`twin_cosim.plant_model`) are known only to ``calibration_tolerance`` (3 %). Each is moved by
++/- that tolerance and the held-out runs replayed; half the difference of the two replays is its
+*calibration direction*, the change of the twin's output per tolerance. The best calibration
+correction of a residual r is the combination sum a_j c_j with every |a_j| <= 1 (bounded linear
+least squares, ``scipy.optimize.lsq_linear``) closest to r; what it leaves is the part of the gap
+that calibration error cannot explain, and an effect is accepted only when it shrinks that part too.
+The correction is fitted on the held-out data themselves: calibration error gets every benefit of
+the doubt, bounded by the tolerance.
 
 Residual vectors here are normalised: position residual / sigma_x and current residual / sigma_i
-over the held-out samples, scaled by 1 / sqrt(2 N), so that the norm is the normalised RMS
-(1 for noise at the floors).
+over the held-out samples, scaled by 1 / sqrt(2 N), so that the norm is the normalised RMS (1 for
+noise at the floors).
 """
 
 from __future__ import annotations

@@ -20,6 +20,7 @@ from twin_cosim.gap.residuals import Residuals, residuals_of
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.measured import MeasuredRun, check_against_reference, current_warnings
 from twin_cosim.plant import Plant
+from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario import Scenario, for_measured_run
 
 # Parameters every scenario sets for its own run (twin_cosim.scenario.for_measured_run); the
@@ -44,8 +45,8 @@ class DiagnosisContext:
         itself (:data:`PER_RUN_PARAMETERS`: a held-out run starts where it was measured).
     ranges : dict
         (min, max) of every FMU parameter, from the variable table.
-    gear_ratio : float
-        Motor revolutions per screw revolution (1 for a model without gear).
+    motor_per_screw : float
+        Motor radians per screw radian (the model card's ``motor_per_screw``; 1 without gear).
     dt : float
         Sample period of the measured runs, s.
     measured, holdout : list of str
@@ -76,7 +77,7 @@ class DiagnosisContext:
     model: str
     nominal: dict[str, float]
     ranges: dict[str, tuple[float, float]]
-    gear_ratio: float
+    motor_per_screw: float
     dt: float
     measured: list[str]
     holdout: list[str]
@@ -89,6 +90,10 @@ class DiagnosisContext:
     train_end: float
     split: str
     warnings: list[str]
+
+    def screw_angle(self, motor_angle: np.ndarray) -> np.ndarray:
+        """The screw angle (rad) of motor angles (rad)."""
+        return motor_angle / self.motor_per_screw
 
 
 def variable_ranges(plant: Plant) -> dict[str, tuple[float, float]]:
@@ -133,7 +138,7 @@ def build_context(
     settings: DiagnosisSettings,
 ) -> DiagnosisContext:
     """Stage 1: the runs checked and split, the plant model and its ranges."""
-    with Plant(Path(fmu) if fmu else scenario.fmu) as plant:
+    with Plant(scenario.plant_fmu(fmu)) as plant:
         fmu_path = plant.fmu_path
         model = plant.description.coSimulation.modelIdentifier
         library_for(model)  # an unknown model is refused here, before any work
@@ -168,7 +173,7 @@ def build_context(
         model,
         nominal,
         ranges,
-        float(nominal.get("gear_ratio", 1.0)),
+        float(plant_model(model).motor_per_screw(nominal)),
         measured[0].period,
         [r.source for r in measured],
         [r.source for r in holdout],

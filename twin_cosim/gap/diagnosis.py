@@ -368,7 +368,7 @@ def diagnose(
             joined([train0, hold0]),
             floors.sigma_position_m,
             floors.sigma_current,
-            context.gear_ratio,
+            context.screw_angle,
             context.dt,
             settings,
         )
@@ -459,7 +459,7 @@ def _verdict_stage(
         hold_final,
         floors.sigma_position_m,
         floors.sigma_current,
-        context.gear_ratio,
+        context.screw_angle,
         context.dt,
         settings,
     )

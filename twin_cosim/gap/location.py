@@ -19,6 +19,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -230,7 +231,7 @@ def locate(
     res: Residuals,
     sigma_x: float,
     sigma_i: float,
-    gear_ratio: float,
+    screw_angle: Callable[[np.ndarray], np.ndarray],
     dt: float,
     settings: DiagnosisSettings,
 ) -> Location:
@@ -240,7 +241,7 @@ def locate(
     for signal, residual in (("position", res.position), ("current", res.current)):
         for angle_name, angle in (
             ("motor", res.motor_angle),
-            ("screw", res.motor_angle / gear_ratio),
+            ("screw", screw_angle(res.motor_angle)),
         ):
             verdict = spectra.periodicity(residual, angle, dt, groups)
             periodicity[f"{signal}_vs_{angle_name}_angle"] = _jsonable_periodicity(verdict)

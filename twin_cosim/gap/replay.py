@@ -30,7 +30,8 @@ import pandas as pd
 from scipy.optimize import differential_evolution, least_squares
 
 from twin_cosim.cosim import RunAborted, run_scenario
-from twin_cosim.gap.effects import Hypothesis, library_for, scan_values
+from twin_cosim.gap.effects import library_for
+from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.scenario import Scenario
@@ -265,7 +266,7 @@ class Replayer:
         )
 
         if hypothesis.kind == "scan":
-            candidates = scan_values(hypothesis, task.context)
+            candidates = hypothesis.scan_values(task.context)
             if not candidates:
                 return FitResult(task.hypothesis, {}, {}, float("inf"), 0, "no candidate value")
             costs = [cost(values) for values in candidates]

@@ -89,7 +89,6 @@ def plot_regimes(d: Diagnosis, path: Path) -> Path:
 def plot_spectra(d: Diagnosis, path: Path) -> Path:
     """Residual spectra: in Hz, and in orders of the motor and screw angle (constant velocity)."""
     res = d.train_before
-    gear_ratio = d.context.gear_ratio
     dt = float(np.median(np.diff(res.t)))
     stretches = regime_model.segments(res.regimes, regime_model.REGIMES.index("constant_velocity"))
     fig, axes = plt.subplots(3, 2, figsize=(11, 9))
@@ -100,7 +99,7 @@ def plot_spectra(d: Diagnosis, path: Path) -> Path:
         axes[0, column].semilogy(f[1:], a[1:] + 1e-12, lw=0.7)
         axes[0, column].set_xlabel("frequency [Hz]")
         for row, (angle_name, angle) in enumerate(
-            (("motor", res.motor_angle), ("screw", res.motor_angle / gear_ratio)), start=1
+            (("motor", res.motor_angle), ("screw", d.context.screw_angle(res.motor_angle))), start=1
         ):
             orders, amplitude = spectra.order_spectrum(values, angle, stretches)
             if len(orders):

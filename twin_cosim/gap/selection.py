@@ -46,13 +46,15 @@ from twin_cosim.gap.calibration import (
     normalised_vector,
 )
 from twin_cosim.gap.context import DiagnosisContext, training_residuals
-from twin_cosim.gap.effects import CALIBRATED, DEFAULT_CONTEXT, Hypothesis, library_for
+from twin_cosim.gap.effects import DEFAULT_CONTEXT, library_for
 from twin_cosim.gap.floors import Floors, MetricComparison, compare_metrics, is_significant
 from twin_cosim.gap.location import dominant_order
 from twin_cosim.gap.replay import FitResult, FitTask, Replays, SimulateTask
 from twin_cosim.gap.residuals import Residuals, residuals_of, rms
 from twin_cosim.gap.settings import DiagnosisSettings
+from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.measured import MeasuredRun
+from twin_cosim.plant_model import plant_model
 from twin_cosim.reference import ReferenceGrid
 
 EFFECTIVE_SAMPLE_SPACING_S = 0.01  # residuals are correlated: one independent sample per 10 ms
@@ -243,10 +245,9 @@ class Selector:
         self.pool = pool
         self.run_context = context
         self.library: dict[str, Hypothesis] = {h.name: h for h in library_for(context.model)}
-        self.calibrated = [n for n in CALIBRATED.get(context.model, ()) if n in nominal]
+        self.calibrated = [n for n in plant_model(context.model).calibrated if n in nominal]
         self.nominal = nominal
         self.judging = judging
-        self.gear_ratio = context.gear_ratio
         self.train_seconds = sum(float(r.t[-1] - r.t[0]) for r in context.train)
         self.settings = settings
         self.base_context = hypothesis_context
@@ -283,7 +284,10 @@ class Selector:
         """Orders of the periodic hypotheses read off the training residual left."""
         context = dict(self.base_context)
         angle = training_residual.motor_angle
-        for key, signal_angle in (("motor_order", angle), ("screw_order", angle / self.gear_ratio)):
+        for key, signal_angle in (
+            ("motor_order", angle),
+            ("screw_order", self.run_context.screw_angle(angle)),
+        ):
             order = dominant_order(training_residual, training_residual.current, signal_angle)
             context[key] = order if order is not None else DEFAULT_CONTEXT[key]
         return context

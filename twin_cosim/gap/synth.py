@@ -1,18 +1,18 @@
 """The virtual machine: the twin with unmodelled effects switched on, calibration error and
 measurement noise, writing a measured-run CSV whose answer is known.
 
-Effects are given as ``NAME:param=value,...`` with NAME from the hypothesis library
-(:mod:`twin_cosim.gap.effects`) and either all of that hypothesis' parameters (as the diagnosis
-reports them, e.g. ``inertia_change:relative_change=0.2``) or FMU parameters of its block (e.g.
-``torque_ripple:ripple_amplitude=0.05,ripple_order=8``); ``plant:NAME=value,...`` sets any FMU
-parameter (effects outside the library: ``plant:pitch_error_amplitude_3=2e-6``,
+Effects are given as ``NAME:param=value,...`` with NAME from the hypothesis library (the ``effects``
+of the model's card, :mod:`twin_cosim.plant_model`) and either all of that hypothesis' parameters
+(as the diagnosis reports them, e.g. ``inertia_change:relative_change=0.2``) or FMU parameters of
+its block (e.g. ``torque_ripple:ripple_amplitude=0.05,ripple_order=8``); ``plant:NAME=value,...``
+sets any FMU parameter (effects outside the library: ``plant:pitch_error_amplitude_3=2e-6``,
 ``plant:lugre_stiffness=2000``, ``plant:thermal_expansion_rate=1e-4``).
 
-Calibration error: each calibrated parameter of the plant model
-(:data:`twin_cosim.gap.effects.CALIBRATED`) is multiplied by (1 + u), u uniform in
-[-perturb, perturb]. Measurement noise: white, Gaussian, on the position (m) and the current (A),
-on top of the scenario's noise harmonics; with an encoder resolution set, the noisy position is
-quantised again, as an encoder's readings stay on its grid.
+Calibration error: each calibrated parameter of the plant model (``calibrated`` of its card,
+:mod:`twin_cosim.plant_model`) is multiplied by (1 + u), u uniform in [-perturb, perturb].
+Measurement noise: white, Gaussian, on the position (m) and the current (A), on top of the
+scenario's noise harmonics; with an encoder resolution set, the noisy position is quantised again,
+as an encoder's readings stay on its grid.
 """
 
 from __future__ import annotations
@@ -25,8 +25,9 @@ import numpy as np
 import pandas as pd
 
 from twin_cosim.cosim import run_scenario
-from twin_cosim.gap.effects import CALIBRATED, DEFAULT_CONTEXT, LIBRARIES, library_for
+from twin_cosim.gap.effects import DEFAULT_CONTEXT, library_for
 from twin_cosim.plant import Plant
+from twin_cosim.plant_model import model_names, plant_model
 from twin_cosim.scenario import Scenario
 
 
@@ -41,7 +42,7 @@ class EffectSpec:
 def parse_effect(text: str) -> EffectSpec:
     """Parse ``NAME:param=value,param=value``; ValueError says what was expected."""
     name, _, body = text.partition(":")
-    known = sorted({h.name for library in LIBRARIES.values() for h in library})
+    known = sorted({h.name for model in model_names() for h in plant_model(model).hypotheses})
     if name != "plant" and name not in known:
         raise ValueError(
             f"--effect {text!r}: unknown effect {name!r}; expected 'plant' or one of {known}"
@@ -129,10 +130,10 @@ def synthesize(
     if noise_position < 0 or noise_current < 0:
         raise ValueError("noise standard deviations must be >= 0")
     rng = np.random.default_rng(seed)
-    with Plant(fmu or scenario.fmu) as plant:
+    with Plant(scenario.plant_fmu(fmu)) as plant:
         nominal = {**plant.start_values(), **scenario.plant_parameters}
         model = plant.description.coSimulation.modelIdentifier
-        calibrated = CALIBRATED.get(model, ())
+        calibrated = plant_model(model).calibrated if model in model_names() else ()
         factors = {name: 1.0 + rng.uniform(-perturb, perturb) for name in calibrated}
         parameters = {**nominal, **{k: nominal[k] * f for k, f in factors.items()}}
         fmu_parameters = set(plant.parameter_names())

@@ -60,9 +60,8 @@ from twin_cosim.optimize.fingerprints import (
 )
 from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
 from twin_cosim.optimize.objective import AGGREGATES, EvaluationTask, Objective, ObjectiveSpec
-from twin_cosim.plant import default_fmu
-from twin_cosim.plant_parameters import fmu_model, read_plant_parameters, with_plant_parameters
-from twin_cosim.scenario import Scenario, find_scenario, load_scenario
+from twin_cosim.scenario import Scenario, find_scenario, load_scenario, with_plant_parameters
+from twin_cosim.scenario.plant_file import read_plant_parameters
 from twin_cosim.workers import check_workers
 
 LOG = logging.getLogger(__name__)
@@ -155,7 +154,7 @@ def _robust_settings(spec: CampaignSpec, scenario: Scenario) -> dict[str, Any]:
     check_uncertainty(spec.tolerance, spec.samples)
     if spec.samples > 1 and spec.tolerance == 0.0:
         raise ValueError("--samples above 1 needs a --tolerance above 0 (e.g. 0.03)")
-    model = fmu_model(spec.fmu or scenario.fmu)
+    model = scenario.model_name(spec.fmu)
     calibrated = (
         read_plant_parameters(spec.plant_parameters, model).parameters
         if spec.plant_parameters
@@ -245,7 +244,7 @@ def fingerprints(
     spec: CampaignSpec, scenario: Scenario, config: OptimizeConfig, settings: dict[str, Any]
 ) -> dict[str, str]:
     """Content fingerprints of the campaign's scenario, plant FMU and settings."""
-    fmu = Path(spec.fmu) if spec.fmu else (scenario.fmu or default_fmu())
+    fmu = scenario.plant_fmu(spec.fmu)
     if not fmu.is_file() or not zipfile.is_zipfile(fmu):
         raise CampaignError(f"{fmu}: plant FMU not found or not an FMU (zip archive)")
     chosen = {"method": spec.method, "seed": spec.seed, "settings": settings}

@@ -43,10 +43,10 @@ from twin_cosim.optimize.config import check_uncertainty
 from twin_cosim.optimize.objective import AGGREGATES
 from twin_cosim.optimize.outputs import plot_convergence
 from twin_cosim.plant import Plant
-from twin_cosim.plant_parameters import with_plant_parameters
 from twin_cosim.plots import plot_error_comparison
 from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table
-from twin_cosim.scenario import ScenarioError, load_scenario, load_yaml
+from twin_cosim.scenario import ScenarioError, load_scenario, with_plant_parameters
+from twin_cosim.schema import load_yaml
 
 KEYS = {
     "name",
@@ -192,7 +192,7 @@ def run_comparison(
     for path in comparison.holdout:
         held = with_plant_parameters(load_scenario(path), calibrated)
         scenarios[f"holdout {held.name}"] = held
-    with Plant(scenario.fmu) as plant:
+    with Plant(scenario.plant_fmu()) as plant:
         table, records = evaluate_sets(plant, scenarios, sets)
     params = pd.DataFrame({name: tuned.as_dict() for name, tuned in sets.items()}).T[
         list(TUNED_NAMES)

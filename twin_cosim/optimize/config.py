@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from twin_cosim.controller import TUNED_NAMES, TunedParameters
+from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario import Scenario, ScenarioError
 
 DEFAULT_BOUNDS: dict[str, tuple[float, float]] = {
@@ -221,11 +222,9 @@ class UncertaintySet:
 def uncertain_parameters(model: str, calibrated: dict[str, float]) -> tuple[str, ...]:
     """Default uncertain parameters: the model's calibrated ones and the non-zero real values of
     a plant parameter file (noise harmonics excepted)."""
-    from twin_cosim.gap.effects import CALIBRATED
-    from twin_cosim.plant_parameters import model_parameters
-
-    variables = model_parameters(model)
-    names = list(CALIBRATED.get(model, ()))
+    card = plant_model(model)
+    variables = card.parameters
+    names = list(card.calibrated)
     for name, value in calibrated.items():
         real = variables[name].type == "Real"
         if real and value != 0.0 and not name.startswith("noise_") and name not in names:

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -38,8 +37,7 @@ from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.config import OptimizeConfig, load_config
 from twin_cosim.optimize.early_stop import lower_bound_above, window_spans_run
 from twin_cosim.plant import Plant, PlantError
-from twin_cosim.plant_parameters import with_plant_parameters
-from twin_cosim.scenario import Scenario, load_scenario
+from twin_cosim.scenario import Scenario, load_scenario, with_plant_parameters
 
 AGGREGATES = ("worst", "mean")
 
@@ -114,7 +112,7 @@ class Objective:
         self.spec = spec
         self.scenario: Scenario = self._load(spec.scenario)
         self.config: OptimizeConfig = load_config(self.scenario)
-        fmu = Path(spec.fmu) if spec.fmu else self.scenario.fmu
+        fmu = self.scenario.plant_fmu(spec.fmu)
         self.plant = Plant(fmu)
         start = self.plant.start_values()
         samples = spec.samples or ({},)

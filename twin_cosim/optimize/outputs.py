@@ -16,9 +16,8 @@ from twin_cosim.cosim import run_scenario  # noqa: E402
 from twin_cosim.metrics import compute_metrics  # noqa: E402
 from twin_cosim.optimize.campaign import convergence, load_spec  # noqa: E402
 from twin_cosim.plant import Plant  # noqa: E402
-from twin_cosim.plant_parameters import with_plant_parameters  # noqa: E402
 from twin_cosim.plots import plot_error_comparison  # noqa: E402
-from twin_cosim.scenario import load_scenario  # noqa: E402
+from twin_cosim.scenario import load_scenario, with_plant_parameters  # noqa: E402
 
 
 def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
@@ -46,7 +45,7 @@ def write_campaign_plots(out_dir: Path) -> None:
     result = json.loads((out_dir / "result.json").read_text())
     plot_convergence({spec.method: out_dir}, out_dir / "convergence.png")
     scenario = with_plant_parameters(load_scenario(spec.scenario), spec.plant_parameters, spec.fmu)
-    with Plant(Path(spec.fmu) if spec.fmu else scenario.fmu) as plant:
+    with Plant(scenario.plant_fmu(spec.fmu)) as plant:
         runs = {
             "scenario set": run_scenario(plant, scenario),
             f"best {spec.method}": run_scenario(

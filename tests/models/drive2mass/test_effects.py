@@ -16,15 +16,17 @@ from fmpy.fmi1 import FMICallException
 
 from twin_cosim.cosim import run_scenario
 from twin_cosim.plant import PlantError
+from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario import load_scenario
 
 J_M, J_L = 2.9e-4, 4.2e-4  # kg.m2, Table 1
 K_T, F_C = 0.74, 0.625  # N.m/A, N.m
-GEAR = 1.5  # motor revolutions per leadscrew revolution
-TRAVEL = 0.010 / (2 * math.pi) / GEAR  # m per motor rad
+CARD = plant_model("drive2mass")
+GEAR = CARD.motor_per_screw(CARD.start_values())  # motor revolutions per leadscrew revolution
+TRAVEL = CARD.drive_facts()["travel_per_rad"]  # m per motor rad
 W_01 = 2 * math.pi * 70.0  # rad/s
 STIFFNESS = J_L * W_01**2  # N.m/rad, eq. (1)
-H = 62.5e-6  # s, the twin's speed-loop period
+H = CARD.drive_facts()["speed_period"]  # s, the twin's speed-loop period
 LOSSLESS = {"backlash": 0.0, "coulomb_friction": 0.0, "viscous_friction": 0.0, "damping_ratio": 0.0}
 SCENARIO = Path(__file__).resolve().parents[3] / "scenarios" / "reference1.yaml"
 

@@ -11,11 +11,13 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
+from twin_cosim.plant_model import plant_model
+
 J_M, J_L = 2.9e-4, 4.2e-4  # kg.m2, Table 1
 F_01, D_1 = 70.0, 0.15  # Hz, 1
 K_T, F_C = 0.74, 0.625  # N.m/A, N.m
 BACKLASH = 12.2e-6  # m
-TRAVEL = 0.010 / (2 * math.pi) / 1.5  # m per motor rad
+TRAVEL = plant_model("drive2mass").drive_facts()["travel_per_rad"]  # m per motor rad
 W_01 = 2 * math.pi * F_01
 STIFFNESS = J_L * W_01**2  # N.m/rad, eq. (1)
 W_02 = W_01 * math.sqrt(1 + J_L / J_M)

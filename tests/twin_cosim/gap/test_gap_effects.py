@@ -7,7 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from twin_cosim.gap.effects import BY_NAME, LIBRARY, estimate_resolution
+from twin_cosim.gap.effects import estimate_resolution
+from twin_cosim.plant_model import plant_model
+
+LIBRARY = plant_model("drive2mass").hypotheses
+BY_NAME = {h.name: h for h in LIBRARY}
 
 NOMINAL = {
     "coulomb_friction": 0.625,
@@ -20,7 +24,7 @@ CONTEXT = {"motor_order": 6.0, "screw_order": 1.0, "position_resolution": 0.0}
 
 
 def test_library_names_and_units():
-    assert len(LIBRARY) == 12
+    assert len(LIBRARY) == len(BY_NAME) > 0  # names are unique
     for hypothesis in LIBRARY:
         assert 1 <= len(hypothesis.parameters) <= 4
         u = hypothesis.initial_unit()

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from twin_cosim.gap.effects import LIBRARY
 from twin_cosim.gap.replay import bounded, clipped
 from twin_cosim.gap.synth import DEFAULT_CONTEXT
+from twin_cosim.plant_model import plant_model
 
-BY_NAME = {h.name: h for h in LIBRARY}
+BY_NAME = {h.name: h for h in plant_model("drive2mass").hypotheses}
 
 
 def test_position_friction_at_its_fit_bounds_is_clipped_to_the_fmu_range(plant):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from twin_cosim.cosim import run_scenario
-from twin_cosim.gap.effects import CALIBRATED
 from twin_cosim.gap.synth import parse_effect, synthesize
+from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario import load_scenario
 
 REFERENCE1 = Path(__file__).resolve().parents[3] / "scenarios" / "reference1.yaml"
@@ -47,7 +47,7 @@ def test_synthetic_run_format_and_truth(plant):
     )
     assert list(result.run.columns) == ["t", "x_ref", "x", "current", "motor_speed"]
     factors = result.truth["calibration_factors"]
-    assert set(factors) == set(CALIBRATED["drive2mass"])
+    assert set(factors) == set(plant_model("drive2mass").calibrated)
     assert all(abs(f - 1) <= 0.03 for f in factors.values())
     assert result.truth["plant_parameters"]["backlash"] == pytest.approx(
         12.2e-6 * factors["backlash"] + 5e-6

@@ -9,7 +9,7 @@ import pytest
 from scenario_texts import scenario_text
 
 from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
-from twin_cosim.plant_parameters import PlantParameters, write_plant_parameters
+from twin_cosim.scenario.plant_file import PlantParameters, write_plant_parameters
 
 SMALL_CE = "methods: {ce: {population_size: 10, elite_fraction: 0.2}}"
 SHORT = scenario_text(optimize=SMALL_CE)

@@ -13,17 +13,15 @@ from scenario_texts import scenario_text
 
 from twin_cosim import cli
 from twin_cosim.gap import settings as diagnosis_settings
+from twin_cosim.gap.calibrated_plant import calibrated_scenario, from_diagnosis
 from twin_cosim.gap.synth import parse_effect, synthesize
-from twin_cosim.plant_parameters import (
+from twin_cosim.scenario import ScenarioError, load_scenario, with_plant_parameters
+from twin_cosim.scenario.plant_file import (
     PlantParameters,
     PlantParametersError,
-    calibrated_scenario,
-    from_diagnosis,
     read_plant_parameters,
-    with_plant_parameters,
     write_plant_parameters,
 )
-from twin_cosim.scenario import ScenarioError, load_scenario
 
 NOMINAL_COULOMB = 0.625  # N.m, Table 1 (models/drive2mass/variables.yaml)
 # A short excitation: two back-and-forth moves at 20 mm/s with dwells (about 6 s).
@@ -187,3 +185,14 @@ def test_the_calibration_correction_of_the_last_round_is_applied():
     summary["rounds"][-1]["accepted"] = ["backlash_change"]
     plant = from_diagnosis(summary, "drive2mass")
     assert plant.parameters == {"coulomb_friction": 0.5}
+
+
+def test_a_hand_edited_plant_file_reads_as_a_scenario_does(tmp_path):
+    """One loader: 2e-5 (no dot) is a number in plant.yaml as in a scenario, and a malformed
+    file fails with the scenarios' error, naming the file."""
+    path = tmp_path / "plant.yaml"
+    path.write_text("model: drive2mass\nparameters:\n  backlash: 2e-5\n  stribeck_speed: 1e0\n")
+    assert read_plant_parameters(path).parameters == {"backlash": 2e-5, "stribeck_speed": 1.0}
+    path.write_text("model: drive2mass\nparameters: {backlash: [\n")
+    with pytest.raises(ScenarioError, match=rf"^{path}: malformed YAML"):
+        read_plant_parameters(path)

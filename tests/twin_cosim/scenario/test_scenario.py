@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from fmu_build.build import CACHE_ENV
 from twin_cosim import paper
 from twin_cosim.environment import DATA_ENV
 from twin_cosim.scenario import (
@@ -19,7 +20,7 @@ from twin_cosim.scenario import (
     plant_mismatch,
 )
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
 BASE = """
 name: t
 reference:
@@ -179,3 +180,15 @@ def test_a_plant_of_another_model_is_a_mismatch(fmu_path, tmp_path):
     warning = plant_mismatch(scenario, build_fmu("emps"))
     assert "made for the plant model 'drive2mass'" in warning
     assert "is model 'emps'" in warning
+
+
+def test_loading_a_scenario_never_compiles(tmp_path, monkeypatch):
+    """A scenario of a model whose FMU is not built loads without building it; the FMU is built
+    when a run first asks for it."""
+    cache = tmp_path / "cache"
+    monkeypatch.setenv(CACHE_ENV, str(cache))
+    scenario = load_scenario("reference1")
+    assert scenario.fmu is None and scenario.model == "drive2mass"
+    assert not cache.exists() or not any(cache.rglob("*.fmu"))
+    assert scenario.plant_fmu().is_file()
+    assert scenario.plant_fmu().is_relative_to(cache)

@@ -1,0 +1,297 @@
+"""Everything the Python side knows about a plant model, read from its folder in ``models/``.
+
+A plant model is a folder ``models/<model>/`` with its C sources, its variable table
+``variables.yaml`` (names, units, ranges, start values: the single source of the C header and of
+``modelDescription.xml``) and its card ``card.yaml``:
+
+- ``drive``: what the drive assumes about the plant (``travel_per_rad`` [m/rad], ``inertia``
+  [kg.m2], ``torque_constant`` [N.m/A], ``friction_torque`` [N.m], ``speed_period`` [s]) as
+  formulas of the plant parameters;
+- ``motor_per_screw``: motor radians per screw radian (the screw angle of periodic effects);
+- ``calibrated``: parameters known only to the calibration tolerance;
+- ``effects``: the hypotheses of the gap diagnosis (:mod:`twin_cosim.hypotheses`).
+
+:func:`plant_model` reads and checks both files once per process. Adding an effect to a model's
+library touches its folder (the FMU block in ``model.c`` and ``variables.yaml``, its entry in
+``card.yaml``, its README) and its test, nothing else.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from fmu_build.build import COMMON_DIR, DEFAULT_MODEL, MODELS_DIR, available_models
+from fmu_build.variable_table import Variable, VariableTable, load_variable_table
+from twin_cosim.card_expressions import Formula, FormulaError
+from twin_cosim.hypotheses import SCAN_TEXT, SCANS, Hypothesis, HypothesisParameter, RelativeSize
+from twin_cosim.schema import Checker, load_yaml
+
+# What the drive assumes about the plant, each a formula of the plant parameters in the card.
+DRIVE_FACTS = ("travel_per_rad", "inertia", "torque_constant", "friction_torque", "speed_period")
+CARD_KEYS = {"model", "drive", "motor_per_screw", "calibrated", "effects"}
+EFFECT_KEYS = {"signature", "parameters", "sets", "relative_size", "scan", "periodic_in"}
+PARAMETER_KEYS = {"name", "unit", "initial", "lower", "upper", "log"}
+PERIODIC_ANGLES = {"motor": "motor_order", "screw": "screw_order"}
+# Values the diagnosis reads from the data and hands to the formulas as context.NAME.
+CONTEXT_NAMES = frozenset({"motor_order", "screw_order", "position_resolution", "dead_time_steps"})
+
+
+class PlantModelError(ValueError):
+    """A plant model is unknown, or its card is invalid (the message names the file and key)."""
+
+
+@dataclass(frozen=True)
+class PlantModel:
+    """One plant model: its variable table and its card.
+
+    Attributes
+    ----------
+    name : str
+        The model (a folder of ``models/``, the FMU's model identifier).
+    table : VariableTable
+        The variable table (``variables.yaml``).
+    drive : dict
+        Fact name (:data:`DRIVE_FACTS`) -> formula of the plant parameters.
+    motor_per_screw : Formula
+        Motor radians per screw radian, a formula of the plant parameters.
+    calibrated : tuple of str
+        Parameters known only to the calibration tolerance.
+    hypotheses : tuple of Hypothesis
+        The effect library of the gap diagnosis, in the card's order.
+    """
+
+    name: str
+    table: VariableTable
+    drive: dict[str, Formula]
+    motor_per_screw: Formula
+    calibrated: tuple[str, ...]
+    hypotheses: tuple[Hypothesis, ...]
+
+    @property
+    def parameters(self) -> dict[str, Variable]:
+        """The model's parameters by name."""
+        return {v.name: v for v in self.table.variables if v.causality == "parameter"}
+
+    @property
+    def variable_names(self) -> set[str]:
+        """Names of all the model's variables."""
+        return {v.name for v in self.table.variables}
+
+    def start_values(self) -> dict[str, float]:
+        """Start values of the parameters (SI units of the variable table)."""
+        return {name: float(v.start) for name, v in self.parameters.items() if v.start is not None}
+
+    def drive_facts(self, parameters: Mapping[str, float] | None = None) -> dict[str, float]:
+        """What the drive assumes about this plant (:data:`DRIVE_FACTS`, SI units).
+
+        Parameters
+        ----------
+        parameters
+            Plant parameter values on top of the start values.
+        """
+        values = {**self.start_values(), **(parameters or {})}
+        return {name: formula(values) for name, formula in self.drive.items()}
+
+    def screw_angle(self, motor_angle: Any, parameters: Mapping[str, float] | None = None) -> Any:
+        """The screw angle (rad) of a motor angle (rad, a number or an array)."""
+        values = {**self.start_values(), **(parameters or {})}
+        return motor_angle / self.motor_per_screw(values)
+
+    def hypothesis(self, name: str) -> Hypothesis:
+        """The hypothesis of that name; PlantModelError lists the library when there is none."""
+        for hypothesis in self.hypotheses:
+            if hypothesis.name == name:
+                return hypothesis
+        raise PlantModelError(
+            f"effect {name!r}: not an effect of plant model {self.name!r}; expected one of "
+            f"{[h.name for h in self.hypotheses]}"
+        )
+
+
+def model_names() -> list[str]:
+    """The project's plant models (folders of ``models/`` with a variable table)."""
+    return available_models()
+
+
+@functools.cache
+def plant_model(name: str = DEFAULT_MODEL) -> PlantModel:
+    """The plant model ``models/<name>``, read and checked once per process.
+
+    Raises
+    ------
+    PlantModelError
+        For a model that is not one of ``models/``, or an invalid card.
+    """
+    if name not in available_models():
+        raise PlantModelError(f"unknown plant model {name!r}: expected one of {available_models()}")
+    table = load_variable_table(MODELS_DIR / name / "variables.yaml", COMMON_DIR / "units.yaml")
+    return read_card(MODELS_DIR / name / "card.yaml", name, table)
+
+
+def read_card(path: Path, name: str, table: VariableTable) -> PlantModel:
+    """Read and check the card ``path`` of model ``name`` with its variable table.
+
+    Raises
+    ------
+    PlantModelError
+        Naming the file and the key on malformed YAML, unknown keys, a formula that uses a name
+        or an operation it may not, a parameter that is not the model's, or bad bounds.
+    """
+    check = Checker(path, PlantModelError)
+    data = check.mapping(load_yaml(path, PlantModelError), "(top level)", CARD_KEYS)
+    if data.get("model") != name:
+        raise check.fail("model", f"{name!r}, the model's folder", data.get("model"))
+    parameters = tuple(v.name for v in table.variables if v.causality == "parameter")
+    known = frozenset(parameters)
+    drive = check.mapping(data.get("drive"), "drive", set(DRIVE_FACTS))
+    missing = [fact for fact in DRIVE_FACTS if fact not in drive]
+    if missing:
+        raise check.fail("drive", f"a formula for each of {list(DRIVE_FACTS)}; missing {missing}")
+    calibrated = check.names(data.get("calibrated", []), "calibrated")
+    stray = sorted(set(calibrated) - known)
+    if stray:
+        raise check.fail("calibrated", "parameters of variables.yaml", stray)
+    effects = check.mapping(data.get("effects"), "effects")
+    return PlantModel(
+        name=name,
+        table=table,
+        drive={k: _formula(check, f"drive.{k}", drive[k], parameters) for k in DRIVE_FACTS},
+        motor_per_screw=_formula(
+            check, "motor_per_screw", data.get("motor_per_screw", 1.0), parameters
+        ),
+        calibrated=calibrated,
+        hypotheses=tuple(
+            _hypothesis(check, f"effects.{key}", key, body, known) for key, body in effects.items()
+        ),
+    )
+
+
+def _formula(
+    check: Checker,
+    key: str,
+    text: Any,
+    names: tuple[str, ...],
+    nominal: frozenset[str] = frozenset(),
+    context: frozenset[str] = frozenset(),
+) -> Formula:
+    if isinstance(text, bool) or not isinstance(text, (str, int, float)):
+        raise check.fail(key, "a formula", text)
+    try:
+        return Formula(str(text), names, nominal, context)
+    except FormulaError as exc:
+        raise check.fail(key, "a formula of the names it may use", str(exc)) from None
+
+
+def _parameter(check: Checker, key: str, entry: Any) -> HypothesisParameter:
+    entry = check.mapping(entry, key, PARAMETER_KEYS)
+    if "name" not in entry or "unit" not in entry:
+        raise check.fail(key, "a name and a unit")
+    numbers = {k: check.number(entry.get(k), f"{key}.{k}") for k in ("initial", "lower", "upper")}
+    log = entry.get("log", False)
+    if not isinstance(log, bool):
+        raise check.fail(f"{key}.log", "true or false", log)
+    if not numbers["lower"] <= numbers["initial"] <= numbers["upper"]:
+        raise check.fail(key, "lower <= initial <= upper", numbers)
+    if log and numbers["lower"] <= 0:
+        raise check.fail(f"{key}.lower", "a number > 0 for a log-scaled parameter")
+    return HypothesisParameter(
+        check.text(entry["name"], f"{key}.name"),
+        str(entry["unit"]),
+        numbers["initial"],
+        numbers["lower"],
+        numbers["upper"],
+        log,
+    )
+
+
+def _hypothesis(
+    check: Checker, key: str, name: str, body: Any, known: frozenset[str]
+) -> Hypothesis:
+    body = check.mapping(body, key, EFFECT_KEYS)
+    entries = body.get("parameters")
+    if not isinstance(entries, list) or not 1 <= len(entries) <= 4:
+        raise check.fail(f"{key}.parameters", "a list of 1 to 4 fitted parameters", entries)
+    fitted = tuple(_parameter(check, f"{key}.parameters[{i}]", e) for i, e in enumerate(entries))
+    names = tuple(p.name for p in fitted)
+    sets = check.mapping(body.get("sets"), f"{key}.sets")
+    if not sets or not set(sets) <= known:
+        raise check.fail(
+            f"{key}.sets", "FMU parameters of variables.yaml", sorted(set(sets) - known)
+        )
+    scan = body.get("scan")
+    if scan is not None and scan not in SCANS:
+        raise check.fail(f"{key}.scan", f"one of {sorted(SCANS)}", scan)
+    periodic = body.get("periodic_in")
+    if periodic is not None and periodic not in PERIODIC_ANGLES:
+        raise check.fail(f"{key}.periodic_in", f"one of {sorted(PERIODIC_ANGLES)}", periodic)
+    size = body.get("relative_size")
+    return Hypothesis(
+        name=name,
+        parameters=fitted,
+        sets={
+            k: _formula(check, f"{key}.sets.{k}", v, names, known, CONTEXT_NAMES)
+            for k, v in sets.items()
+        },
+        kind="continuous" if scan is None else "scan",
+        signature=check.text(body.get("signature"), f"{key}.signature"),
+        relative_size=None
+        if size is None
+        else RelativeSize(_formula(check, f"{key}.relative_size", size, names, known), names),
+        scan=scan,
+        periodic_in=periodic,
+    )
+
+
+def fmu_identity(fmu: Path | str) -> tuple[str, set[str], dict[str, float]]:
+    """Model identifier, variable names and parameter start values of an FMU file."""
+    from fmpy import read_model_description  # fmpy is heavy; only commands with an FMU file
+
+    description = read_model_description(str(fmu), validate=False)
+    identifier = (
+        description.coSimulation.modelIdentifier
+        if description.coSimulation is not None
+        else description.modelName
+    )
+    starts = {
+        v.name: float(v.start)
+        for v in description.modelVariables
+        if v.causality == "parameter" and v.start is not None
+    }
+    return identifier, {v.name for v in description.modelVariables}, starts
+
+
+def model_of(fmu: Path | str | None) -> str:
+    """The plant model of an FMU file (its model identifier); the default model's when None.
+
+    Raises
+    ------
+    PlantModelError
+        When the FMU's model description cannot be read.
+    """
+    if fmu is None:
+        return DEFAULT_MODEL
+    try:
+        return fmu_identity(fmu)[0]
+    except Exception as exc:  # noqa: BLE001 - fmpy raises several kinds on a bad file
+        raise PlantModelError(f"{fmu}: cannot read the FMU's model description: {exc}") from exc
+
+
+def effects_table(name: str) -> str:
+    """The model's effect library as a Markdown table (generated into its README)."""
+    rows = [
+        "| effect | fitted parameters [unit] (bounds) | FMU parameters it sets | where it shows |",
+        "|---|---|---|---|",
+    ]
+    for h in plant_model(name).hypotheses:
+        fitted = ", ".join(
+            f"{p.name} [{p.unit}] ({p.lower:g} to {p.upper:g}{', log' if p.log else ''})"
+            for p in h.parameters
+        )
+        fitted += f"; scanned: {SCAN_TEXT[h.scan]}" if h.scan else ""
+        sets = ", ".join(f"`{k} = {f.text}`" for k, f in h.sets.items())
+        rows.append(f"| {h.name} | {fitted} | {sets} | {h.signature} |")
+    return "\n".join(rows) + "\n"

@@ -1,0 +1,33 @@
+"""Scenarios: one YAML file per run set-up (plant, controller, reference, run, optimize and
+diagnose sections), loaded and checked once into a typed :class:`Scenario`.
+
+- :mod:`~twin_cosim.scenario.loader`: the file, its sections, :func:`load_scenario`;
+- :mod:`~twin_cosim.scenario.plant_section`: the plant, the precedence of plant parameters
+  (model start values < scenario < plant.yaml < command line), the plant facts, the mismatch
+  warning;
+- :mod:`~twin_cosim.scenario.plant_file`: ``plant.yaml`` files;
+- :mod:`~twin_cosim.scenario.reference_section`: segments, CSV and measured references;
+- :mod:`~twin_cosim.scenario.tuned_section`: the six tuned parameters and ``--params``;
+- :mod:`~twin_cosim.scenario.resolved`: the :class:`Scenario` value, :func:`for_measured_run`;
+- :mod:`~twin_cosim.scenario.shipped`: shipped scenarios by name.
+
+The YAML loader and checker shared with every other input file are :mod:`twin_cosim.schema`.
+"""
+
+from twin_cosim.scenario.loader import load_scenario
+from twin_cosim.scenario.plant_section import plant_mismatch, with_plant_parameters
+from twin_cosim.scenario.resolved import Scenario, for_measured_run
+from twin_cosim.scenario.shipped import find_scenario
+from twin_cosim.scenario.tuned_section import load_tuned_parameters
+from twin_cosim.schema import ScenarioError
+
+__all__ = [
+    "Scenario",
+    "ScenarioError",
+    "find_scenario",
+    "for_measured_run",
+    "load_scenario",
+    "load_tuned_parameters",
+    "plant_mismatch",
+    "with_plant_parameters",
+]

@@ -1,0 +1,132 @@
+"""Loading a scenario file: every section read and checked once, resolved into a Scenario.
+
+Layout (every section but ``reference`` is optional)::
+
+    name: reference1
+    description: free text
+    plant: {...}                             # twin_cosim.scenario.plant_section
+    controller:
+      parameters: {Kp_pos: 66.667, ...}      # the six tuned parameters, or the name of a set of
+                                             # the paper's Table 3 (ft, ga, ce, sa); default: ft
+      settings: {current_limit: 20.0, ...}   # see twin_cosim.controller.ControllerSettings
+    reference: {...}                         # twin_cosim.scenario.reference_section
+    run:
+      metrics_window: [0.0, null]            # s; null: to the end
+      max_samples: 2400000                   # position-loop samples a run may have at most
+    optimize: {...}                          # see twin_cosim.optimize.config
+    diagnose: {...}                          # see twin_cosim.gap.settings.settings_from
+
+Every error names the file and the key path, and says what was expected. ``name`` (used as the
+default output folder) must be a plain file name. A scenario may name an FMU, which is native
+code that runs in this process: use scenario files from trusted sources only.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+from twin_cosim.controller import ControllerSettings
+from twin_cosim.plant_model import DRIVE_FACTS
+from twin_cosim.scenario.plant_section import PlantSection, drive_facts, plant_section
+from twin_cosim.scenario.reference_section import reference_section
+from twin_cosim.scenario.resolved import Scenario
+from twin_cosim.scenario.shipped import find_scenario
+from twin_cosim.scenario.tuned_section import tuned_section
+from twin_cosim.schema import Checker, ScenarioError, load_yaml
+
+TOP_KEYS = {
+    "name",
+    "description",
+    "plant",
+    "controller",
+    "reference",
+    "run",
+    "optimize",
+    "diagnose",
+}
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
+MAX_SAMPLES = 2_400_000  # position-loop samples of a run: 10 min at 250 us
+
+
+def load_scenario(path: Path | str) -> Scenario:
+    """Load and check a scenario file (a path or the name of a shipped scenario).
+
+    Raises
+    ------
+    ScenarioError
+        On malformed YAML, unknown keys, wrong types, non-finite or out-of-range values.
+    """
+    source = find_scenario(path)
+    check = Checker(source)
+    data = check.mapping(load_yaml(source), "(top level)", TOP_KEYS)
+    if "reference" not in data:
+        raise check.fail("reference", "a reference section")
+    name = str(data.get("name", source.stem))
+    if "name" in data and not NAME_PATTERN.fullmatch(name):
+        raise check.fail(
+            "name",
+            "a plain file name (letters, digits, '.', '_', '-'; at most 100; no folders), "
+            "used as the default output folder",
+            name,
+        )
+    plant = plant_section(check, data.get("plant"))
+    control = check.mapping(data.get("controller"), "controller", {"parameters", "settings"})
+    tuned = tuned_section(control.get("parameters", "ft"), f"{source}: controller.parameters")
+    settings = _settings(check, plant, control.get("settings"))
+    run = check.mapping(data.get("run"), "run", {"metrics_window", "max_samples"})
+    max_samples = check.number(run.get("max_samples", MAX_SAMPLES), "run.max_samples", minimum=2)
+    chosen = reference_section(check, data["reference"], settings.position_period, int(max_samples))
+    parameters = dict(plant.parameters)
+    parameters.setdefault(
+        "load_position_start", chosen.start if chosen.plant_start is None else chosen.plant_start
+    )
+    return Scenario(
+        name=name,
+        description=str(data.get("description", "")),
+        source=source,
+        fmu=plant.fmu,
+        plant_parameters=parameters,
+        tuned=tuned,
+        settings=settings,
+        reference=chosen.grid,
+        metrics_window=_metrics_window(check, run, chosen.grid.duration),
+        optimize=check.mapping(data.get("optimize"), "optimize"),
+        diagnose=check.mapping(data.get("diagnose"), "diagnose"),
+        measured=chosen.measured,
+        disturbance=chosen.disturbance,
+        disturbance_spec=chosen.disturbance_spec,
+        command_disturbance=chosen.command_disturbance,
+        disturbance_in_record=bool(chosen.disturbance_spec.get("in_recorded_command", False)),
+        model=plant.model,
+        plant_parameters_file=plant.parameters_file,
+    )
+
+
+def _settings(check: Checker, plant: PlantSection, raw: Any) -> ControllerSettings:
+    """Controller settings: the plant's drive facts, then ``controller.settings`` on top."""
+    given = check.mapping(raw, "controller.settings", {f.name for f in fields(ControllerSettings)})
+    facts = drive_facts(check, plant)
+    try:
+        return ControllerSettings(
+            **{name: facts[name] for name in DRIVE_FACTS if name in facts}
+            | {k: check.number(v, f"controller.settings.{k}") for k, v in given.items()}
+        )
+    except ValueError as exc:
+        raise ScenarioError(f"{check.source}: controller.settings: {exc}") from exc
+
+
+def _metrics_window(
+    check: Checker, run: dict[str, Any], duration: float
+) -> tuple[float, float | None]:
+    """``run.metrics_window`` checked against the reference's duration (s)."""
+    window = run.get("metrics_window", [0.0, None])
+    if not isinstance(window, list) or len(window) != 2:
+        raise check.fail("run.metrics_window", "[t0, tF] in s (tF may be null)", window)
+    t0 = check.number(window[0], "run.metrics_window[0]", minimum=0.0)
+    t_end = None if window[1] is None else check.number(window[1], "run.metrics_window[1]")
+    if t_end is not None and not t0 < t_end <= duration + 1e-9:
+        raise check.fail("run.metrics_window", f"0 <= t0 < tF <= {duration:g} s", window)
+    return t0, t_end

@@ -1,0 +1,183 @@
+"""Plant parameter files (``plant.yaml``): a calibrated plant that any scenario can take.
+
+``twin diagnose --out DIR`` writes ``DIR/plant.yaml``; ``--plant-parameters FILE`` on
+``simulate``, ``optimize`` and ``compare`` (or ``plant: {parameters_file: FILE}`` in a scenario)
+applies it, so that one excitation run calibrates the twin for every production trajectory::
+
+    model: drive2mass                     # the plant model (folder of models/)
+    parameters:                           # FMU parameters, SI units (models/<model>/variables.yaml)
+      stribeck_friction: 0.21             # N.m
+      backlash: 1.93e-05                  # m
+    provenance:                           # where each value came from
+      stribeck_friction: {source: "accepted effect stribeck (step 1)", holdout_reduction: 0.61}
+    created_by: {command: "twin diagnose ...", version: 0.1.0, measured: [...], holdout: ...}
+
+It is read with the scenarios' YAML loader and checker (:mod:`twin_cosim.schema`), so a value
+reads the same in both (``2e-5`` is a number). Reading checks the model, that every name is a
+parameter of the model's variable table, and that every value is finite and inside the table's
+range; errors name the file and the key.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from twin_cosim.plant_model import PlantModelError, plant_model
+from twin_cosim.schema import Checker, ScenarioError, load_yaml
+
+TOP_KEYS = {"model", "parameters", "provenance", "created_by"}
+
+
+class PlantParametersError(ScenarioError):
+    """A plant parameter file is invalid; the message names the file, the key and what was
+    expected."""
+
+
+@dataclass(frozen=True)
+class PlantParameters:
+    """A calibrated plant: FMU parameter values with their origin.
+
+    Attributes
+    ----------
+    model : str
+        Plant model name (a folder of ``models/``).
+    parameters : dict
+        FMU parameter values by name, in the SI units of the model's variable table.
+    provenance : dict
+        Per parameter name, a mapping with at least ``source`` (text).
+    created_by : dict
+        What made the file (command, version, measured and held-out runs).
+    source : Path or None
+        The file it was read from.
+    """
+
+    model: str
+    parameters: dict[str, float]
+    provenance: dict[str, dict[str, Any]] = field(default_factory=dict)
+    created_by: dict[str, Any] = field(default_factory=dict)
+    source: Path | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        """The file's content (YAML-ready)."""
+        return {
+            "model": self.model,
+            "parameters": dict(self.parameters),
+            "provenance": self.provenance,
+            "created_by": self.created_by,
+        }
+
+
+def check_values(
+    values: Mapping[str, Any], model: str, where: str, key: str = "parameters"
+) -> dict[str, float]:
+    """Check parameter values against the model's variable table; returns them as floats.
+
+    Parameters
+    ----------
+    values
+        Parameter name -> value.
+    model
+        Plant model name.
+    where
+        The file named in errors.
+    key
+        The key path named in errors.
+
+    Raises
+    ------
+    PlantParametersError
+        Naming the file, the key and the expected unit and range.
+    """
+    try:
+        known = plant_model(model).parameters
+    except PlantModelError as exc:
+        raise PlantParametersError(f"{where}: model: {exc}") from exc
+    checked = {}
+    for name, value in values.items():
+        at = f"{where}: {key}.{name}"
+        variable = known.get(str(name))
+        if variable is None:
+            raise PlantParametersError(
+                f"{at}: not a parameter of model {model!r}; see models/{model}/variables.yaml"
+            )
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise PlantParametersError(f"{at}: expected a number in {variable.unit}, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise PlantParametersError(f"{at}: expected a finite number, got {value!r}")
+        if variable.type == "Integer" and value != int(value):
+            raise PlantParametersError(f"{at}: expected an integer, got {value!r}")
+        low = variable.min if variable.min is not None else -math.inf
+        high = variable.max if variable.max is not None else math.inf
+        if not low <= value <= high or (variable.positive and value <= 0):
+            limits = f"[{low:g}, {high:g}]" + (", > 0" if variable.positive else "")
+            raise PlantParametersError(
+                f"{at}: {value!r} {variable.unit} outside the model's range {limits}"
+            )
+        checked[str(name)] = value
+    return checked
+
+
+def read_plant_parameters(path: Path | str, model: str | None = None) -> PlantParameters:
+    """Read and check a plant parameter file.
+
+    Parameters
+    ----------
+    path
+        The ``plant.yaml`` file.
+    model
+        The plant model it must be for (e.g. the scenario's); any when None.
+
+    Raises
+    ------
+    PlantParametersError
+        Naming the file and the key on malformed YAML, unknown keys or parameter names,
+        non-finite or out-of-range values, or a model other than ``model``.
+    """
+    path = Path(path)
+    check = Checker(path, PlantParametersError)
+    data = load_yaml(path, PlantParametersError)
+    if not isinstance(data, dict):
+        raise PlantParametersError(f"{path}: expected a mapping with keys {sorted(TOP_KEYS)}")
+    check.mapping(data, "(top level)", TOP_KEYS)
+    found = data.get("model")
+    if not isinstance(found, str):
+        raise check.fail("model", "a plant model name", found)
+    try:
+        plant_model(found)
+    except PlantModelError as exc:
+        raise PlantParametersError(f"{path}: model: {exc}") from exc
+    if model is not None and found != model:
+        raise PlantParametersError(
+            f"{path}: model: the file is for plant model {found!r}, the scenario's plant is "
+            f"{model!r}"
+        )
+    values = data.get("parameters")
+    if not isinstance(values, dict):
+        raise check.fail("parameters", "a mapping name -> value")
+    provenance = data.get("provenance") or {}
+    if not isinstance(provenance, dict) or not all(
+        isinstance(v, dict) and "source" in v for v in provenance.values()
+    ):
+        raise check.fail("provenance", "a mapping name -> {source: text, ...}")
+    stray = sorted(set(provenance) - set(values))
+    if stray:
+        raise PlantParametersError(f"{path}: provenance: names without a parameter value {stray}")
+    created_by = check.mapping(data.get("created_by"), "created_by")
+    return PlantParameters(
+        found, check_values(values, found, str(path)), provenance, created_by, path
+    )
+
+
+def write_plant_parameters(path: Path | str, plant: PlantParameters) -> Path:
+    """Write a plant parameter file (values are checked first; floats round-trip exactly)."""
+    check_values(plant.parameters, plant.model, str(path))
+    path = Path(path)
+    path.write_text(yaml.safe_dump(plant.as_dict(), sort_keys=False, width=100))
+    return path
