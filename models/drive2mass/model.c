@@ -130,10 +130,10 @@ static void derivatives(const ModelInstance *inst, const double x[], double dx[]
     double coupling = shaft_torque(s, x[MOTOR_ANGLE] - x[LOAD_ANGLE],
                                    x[MOTOR_SPEED] - x[LOAD_SPEED]);
     double lag = v->current_time_constant;   /* s */
-    double current = lag > 0.0 ? x[CURRENT_APPLIED] : s->command;   /* A */
+    double current = lag > 0.0 ? x[CURRENT_APPLIED] : s->command.acting;   /* A */
     dx[MOTOR_ANGLE] = x[MOTOR_SPEED];
     dx[MOTOR_SPEED] = (motor_torque(v, current, x[MOTOR_ANGLE]) - coupling) / v->motor_inertia;
-    dx[CURRENT_APPLIED] = lag > 0.0 ? (s->command - x[CURRENT_APPLIED]) / lag : 0.0;
+    dx[CURRENT_APPLIED] = lag > 0.0 ? (s->command.acting - x[CURRENT_APPLIED]) / lag : 0.0;
     load_derivatives(v, s, x, coupling, dx);
 }
 
@@ -188,7 +188,7 @@ static double friction_torque(const ModelVariables *v, const ModelState *s, cons
  * command of the last step after the dead time (current_cmd itself without dead time). */
 static double applied_current(const ModelVariables *v, const ModelState *s) {
     if (v->current_time_constant > 0.0) return s->current_applied;
-    return s->dead_time > 0.0 ? s->command : v->current_cmd;
+    return s->command.dead_time > 0.0 ? s->command.acting : v->current_cmd;
 }
 
 /* Lead-error harmonics (m) at a screw angle (rad): sum_k e_k sin(k theta_screw + phi_k). */
@@ -309,9 +309,7 @@ fmi2Status model_initialize(ModelInstance *inst) {
     s->bristle = 0.0;
     s->stuck = v->coulomb_friction + v->stribeck_friction > 0.0 && v->lugre_stiffness == 0.0;
     s->direction = 0;
-    s->command = 0.0;
-    s->dead_time = v->dead_time_steps * v->sample_period;
-    command_delay_reset(&s->delay);
+    command_delay_reset(&s->command, v->dead_time_steps * v->sample_period);
     derive_transmission(v, s);
     s->state_count = v->current_time_constant > 0.0 || v->lugre_stiffness > 0.0
                          ? STATE_COUNT : MECHANICAL_STATE_COUNT;
@@ -323,7 +321,7 @@ fmi2Status model_initialize(ModelInstance *inst) {
     slave_log_event(inst, "drive2mass: substep limit %g s (RK4 margin %g over the %g rad/s mode "
                     "and the %g 1/s decay); dead time %g s", RK4_STABILITY_MARGIN /
                     fmax(s->max_frequency, s->max_decay_rate), RK4_STABILITY_MARGIN,
-                    s->max_frequency, s->max_decay_rate, s->dead_time);
+                    s->max_frequency, s->max_decay_rate, s->command.dead_time);
     return fmi2OK;
 }
 
@@ -347,7 +345,6 @@ static int integrate_segment(void *context, double command, double start, double
         slave_log_event(inst, "drive2mass: t = %.9g s: the delayed current command changes to "
                         "%g A inside the step", start, command);
     }
-    s->command = command;
     for (k = 0; k < substeps; k++) {
         double previous_load_speed = x[LOAD_SPEED];
         rk4_step(derivatives, inst, x, s->state_count, substep);
@@ -388,14 +385,14 @@ fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
                         bristle_relaxation_rate(v, s));
         return fmi2Error;
     }
-    if (!command_delay_push(&s->delay, t, v->current_cmd, s->dead_time, tolerance)) {
+    if (!command_delay_push(&s->command, t, v->current_cmd, tolerance)) {
         slave_log_error(inst, "drive2mass: more than %d communication steps within the dead time "
                         "of %g s (use longer steps or a shorter dead time)",
-                        COMMAND_DELAY_CAPACITY, s->dead_time);
+                        COMMAND_DELAY_CAPACITY, s->command.dead_time);
         return fmi2Error;
     }
-    if (!command_delay_advance(&s->delay, t, h, s->dead_time, v->substeps, tolerance,
-                               integrate_segment, inst)) {
+    if (!command_delay_advance(&s->command, t, h, v->substeps, tolerance, integrate_segment,
+                               inst)) {
         return fmi2Error;
     }
     return fmi2OK;

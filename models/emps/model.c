@@ -37,7 +37,7 @@ static double coupling_force(const ModelState *s, const double x[]) {
 
 /* Drive force including the ripple of the motor angle (N). */
 static double drive_force(const ModelVariables *v, const ModelState *s, double position) {
-    double force = v->drive_gain * s->applied;
+    double force = v->drive_gain * s->command.acting;
     if (v->ripple_amplitude > 0.0) {
         force += v->ripple_amplitude * sin(v->ripple_order * position / v->lead_per_rad + v->ripple_phase);
     }
@@ -140,9 +140,7 @@ fmi2Status model_initialize(ModelInstance *inst) {
     s->speed = s->carriage_speed = 0.0;
     s->stuck = breakaway(v, 1.0) > 0.0 && breakaway(v, -1.0) > 0.0;
     s->direction = 0;
-    s->dead_time = v->dead_time_steps * v->sample_period;
-    command_delay_reset(&s->delay);
-    s->applied = 0.0;
+    command_delay_reset(&s->command, v->dead_time_steps * v->sample_period);
     for (i = 0; i < 3; i++) {
         s->encoder[i] = quantise(v, s->position);
         s->encoder_time[i] = i == 0 ? inst->start_time : NAN;   /* at rest before the start */
@@ -150,7 +148,7 @@ fmi2Status model_initialize(ModelInstance *inst) {
     s->estimate = 0.0;
     slave_log_event(inst, "emps: substep limit %g s (RK4 margin %g over the %g rad/s coupling "
                     "mode); dead time %g s", RK4_STABILITY_MARGIN / coupling_mode(v, s),
-                    RK4_STABILITY_MARGIN, coupling_mode(v, s), s->dead_time);
+                    RK4_STABILITY_MARGIN, coupling_mode(v, s), s->command.dead_time);
     return fmi2OK;
 }
 
@@ -167,7 +165,6 @@ static int integrate_segment(void *context, double command, double start, double
         slave_log_event(inst, "emps: t = %.9g s: the delayed drive command changes to %g V "
                         "inside the step", start, command);
     }
-    s->applied = command;
     for (k = 0; k < substeps; k++) {
         double previous = x[SPEED];
         rk4_step(derivatives, inst, x, STATE_COUNT, substep);
@@ -209,14 +206,14 @@ fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
                         "(increase substeps)", substep, omega);
         return fmi2Error;
     }
-    if (!command_delay_push(&s->delay, t, v->current_cmd, s->dead_time, tolerance)) {
+    if (!command_delay_push(&s->command, t, v->current_cmd, tolerance)) {
         slave_log_error(inst, "emps: more than %d communication steps within the dead time of "
                         "%g s (use longer steps or a shorter dead time)", COMMAND_DELAY_CAPACITY,
-                        s->dead_time);
+                        s->command.dead_time);
         return fmi2Error;
     }
-    if (!command_delay_advance(&s->delay, t, h, s->dead_time, v->substeps, tolerance,
-                               integrate_segment, inst)) {
+    if (!command_delay_advance(&s->command, t, h, v->substeps, tolerance, integrate_segment,
+                               inst)) {
         return fmi2Error;
     }
     sample_encoder(v, s, t + h);
