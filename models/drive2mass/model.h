@@ -39,7 +39,6 @@ typedef struct {
     double lugre_level_min;     /* N.m, lowest LuGre friction level g, for the bristle-rate check */
     double start_load_angle;    /* rad, load angle at the start, where the transmission error is 0 */
     double pitch_error_start;   /* m, lead-error harmonics at the start screw angle */
-    int state_count;            /* RK4 states in use: 4, or 6 with current lag or LuGre friction */
     int transmission_error;     /* 1 when a lead error or thermal drift is set */
     double noise_amplitude[NOISE_HARMONICS];    /* m */
     double noise_omega[NOISE_HARMONICS];        /* rad/s */
