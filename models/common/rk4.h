@@ -1,5 +1,5 @@
-/* One classical Runge-Kutta step, shared by the models. Inlined where it is used, so that the
- * model's derivative function is called directly. */
+/* One classical Runge-Kutta step, for the solver shared by the models (solver.h). Inlined where
+ * it is used, so that the model's derivative function is called directly. */
 #ifndef RK4_H
 #define RK4_H
 

@@ -7,7 +7,8 @@
  * dz is the dead zone of half-width b; in contact the coupling can only push (M_S keeps the sign
  * of the penetration). M_F is Coulomb + viscous friction with a hysteretic sign and a stuck mode
  * that holds the load while the torque on it stays within the static level. Fixed-step RK4 with
- * `substeps` substeps per communication step; the friction mode is updated between substeps.
+ * `substeps` substeps per communication step in the solver shared by the models
+ * (models/common/solver.h); the friction mode is updated between substeps (solver events).
  *
  * Effect blocks, all off by default: Stribeck, asymmetric and position-dependent friction levels,
  * LuGre friction (state z), lead error, thermal drift, scale quantisation, torque ripple, current
@@ -18,13 +19,10 @@
  */
 #include <math.h>
 
-#include "command_delay.h"
-#include "rk4.h"
 #include "slave.h"
+#include "solver.h"
 
 #define PI 3.14159265358979323846
-#define RK4_STABILITY_MARGIN 2.0 /* omega * h below this keeps RK4 well inside its limit 2.8 */
-#define TIME_TOLERANCE 1e-9      /* relative, for comparing command times with step ends */
 
 enum {
     MOTOR_ANGLE, MOTOR_SPEED, LOAD_ANGLE, LOAD_SPEED,  /* always integrated */
@@ -32,6 +30,7 @@ enum {
     STATE_COUNT
 };
 enum { MECHANICAL_STATE_COUNT = CURRENT_APPLIED };
+SOLVER_CHECK_STATE_COUNT(STATE_COUNT);
 
 static double sign_of(double x) { return (x > 0.0) - (x < 0.0); }
 
@@ -130,10 +129,10 @@ static void derivatives(const ModelInstance *inst, const double x[], double dx[]
     double coupling = shaft_torque(s, x[MOTOR_ANGLE] - x[LOAD_ANGLE],
                                    x[MOTOR_SPEED] - x[LOAD_SPEED]);
     double lag = v->current_time_constant;   /* s */
-    double current = lag > 0.0 ? x[CURRENT_APPLIED] : s->command;   /* A */
+    double current = lag > 0.0 ? x[CURRENT_APPLIED] : s->command.acting;   /* A */
     dx[MOTOR_ANGLE] = x[MOTOR_SPEED];
     dx[MOTOR_SPEED] = (motor_torque(v, current, x[MOTOR_ANGLE]) - coupling) / v->motor_inertia;
-    dx[CURRENT_APPLIED] = lag > 0.0 ? (s->command - x[CURRENT_APPLIED]) / lag : 0.0;
+    dx[CURRENT_APPLIED] = lag > 0.0 ? (s->command.acting - x[CURRENT_APPLIED]) / lag : 0.0;
     load_derivatives(v, s, x, coupling, dx);
 }
 
@@ -144,12 +143,16 @@ static double driving_torque(const ModelVariables *v, const ModelState *s, const
            v->disturbance_torque;
 }
 
-/* Stick/slip transitions after a substep ending at time t (s), then the hysteresis relay on the
- * load speed. Transitions are logged as events. */
-static void update_friction_mode(const ModelInstance *inst, ModelState *s, double x[],
-                                 double previous_load_speed, double t) {
+/* Stick/slip transitions after a substep from `before` to x ending at time t (s), then the
+ * hysteresis relay on the load speed; the solver's events. Transitions are logged as events.
+ * LuGre friction, when on, replaces all of it. */
+static void update_friction_mode(ModelInstance *inst, const double before[], double x[],
+                                 double t) {
     const ModelVariables *v = &inst->v;
-    double drive = driving_torque(v, s, x);
+    ModelState *s = &inst->s;
+    double drive;
+    if (v->lugre_stiffness > 0.0) return;
+    drive = driving_torque(v, s, x);
     if (s->stuck) {
         if (drive > static_friction(v, 1.0, x[LOAD_ANGLE]) ||
             -drive > static_friction(v, -1.0, x[LOAD_ANGLE])) {
@@ -161,7 +164,7 @@ static void update_friction_mode(const ModelInstance *inst, ModelState *s, doubl
         return;
     }
     if (v->coulomb_friction + v->stribeck_friction > 0.0 &&
-        previous_load_speed * x[LOAD_SPEED] <= 0.0 &&
+        before[LOAD_SPEED] * x[LOAD_SPEED] <= 0.0 &&
         drive <= static_friction(v, 1.0, x[LOAD_ANGLE]) &&
         -drive <= static_friction(v, -1.0, x[LOAD_ANGLE])) {
         s->stuck = 1;
@@ -188,7 +191,7 @@ static double friction_torque(const ModelVariables *v, const ModelState *s, cons
  * command of the last step after the dead time (current_cmd itself without dead time). */
 static double applied_current(const ModelVariables *v, const ModelState *s) {
     if (v->current_time_constant > 0.0) return s->current_applied;
-    return s->dead_time > 0.0 ? s->command : v->current_cmd;
+    return s->command.dead_time > 0.0 ? s->command.acting : v->current_cmd;
 }
 
 /* Lead-error harmonics (m) at a screw angle (rad): sum_k e_k sin(k theta_screw + phi_k). */
@@ -238,6 +241,66 @@ static double scale_reading(const ModelVariables *v, double position) {
     if (v->position_resolution == 0.0) return position;
     return v->position_resolution * round(position / v->position_resolution);
 }
+
+/* ---------------------------------------------------------------- the solver's table */
+
+/* States RK4 integrates: the mechanics, and i_a and z while current lag or LuGre is on. */
+static int state_count(const ModelInstance *inst) {
+    const ModelVariables *v = &inst->v;
+    return v->current_time_constant > 0.0 || v->lugre_stiffness > 0.0 ? STATE_COUNT
+                                                                        : MECHANICAL_STATE_COUNT;
+}
+
+/* The state into the solver's array and back: angles (rad), speeds (rad/s), i_a (A), z (rad). */
+static void load_state(const ModelInstance *inst, double x[]) {
+    const ModelState *s = &inst->s;
+    x[MOTOR_ANGLE] = s->motor_angle;
+    x[MOTOR_SPEED] = s->motor_speed;
+    x[LOAD_ANGLE] = s->load_angle;
+    x[LOAD_SPEED] = s->load_speed;
+    x[CURRENT_APPLIED] = s->current_applied;
+    x[BRISTLE] = s->bristle;
+}
+
+static void store_state(ModelInstance *inst, const double x[]) {
+    ModelState *s = &inst->s;
+    s->motor_angle = x[MOTOR_ANGLE];
+    s->motor_speed = x[MOTOR_SPEED];
+    s->load_angle = x[LOAD_ANGLE];
+    s->load_speed = x[LOAD_SPEED];
+    s->current_applied = x[CURRENT_APPLIED];
+    s->bristle = x[BRISTLE];
+}
+
+/* Fastest relaxation rate (1/s) of the LuGre bristles at the present load speed. */
+static double bristle_relaxation_rate(const ModelVariables *v, const ModelState *s) {
+    return v->lugre_stiffness * fabs(s->load_speed) / s->lugre_level_min;
+}
+
+/* Rates that bound the substep: the fastest mode and decay, and the LuGre bristles' relaxation
+ * at the present load speed while LuGre is on. */
+static int step_limits(const ModelInstance *inst, SolverLimit limit[]) {
+    const ModelVariables *v = &inst->v;
+    const ModelState *s = &inst->s;
+    limit[0] = (SolverLimit){s->max_frequency, "rad/s", "fastest mode"};
+    limit[1] = (SolverLimit){s->max_decay_rate, "1/s", "fastest decay"};
+    if (v->lugre_stiffness == 0.0) return 2;
+    limit[2] = (SolverLimit){bristle_relaxation_rate(v, s), "1/s",
+                             "LuGre bristles at the present load speed"};
+    return 3;
+}
+
+static const SolverModel kSolverModel = {
+    .name = "drive2mass",
+    .command = "current command",
+    .command_unit = "A",
+    .state_count = state_count,
+    .load_state = load_state,
+    .store_state = store_state,
+    .derivatives = derivatives,
+    .events = update_friction_mode,
+    .limits = step_limits,
+};
 
 /* Checks the effect parameters against each other and against the dead-time buffer. */
 static fmi2Status check_effect_parameters(ModelInstance *inst) {
@@ -309,106 +372,29 @@ fmi2Status model_initialize(ModelInstance *inst) {
     s->bristle = 0.0;
     s->stuck = v->coulomb_friction + v->stribeck_friction > 0.0 && v->lugre_stiffness == 0.0;
     s->direction = 0;
-    s->command = 0.0;
-    s->dead_time = v->dead_time_steps * v->sample_period;
-    command_delay_reset(&s->delay);
     derive_transmission(v, s);
-    s->state_count = v->current_time_constant > 0.0 || v->lugre_stiffness > 0.0
-                         ? STATE_COUNT : MECHANICAL_STATE_COUNT;
     if (!isfinite(s->load_angle) || !isfinite(s->half_gap) || !isfinite(s->stiffness) ||
         !isfinite(s->pitch_error_start)) {
         slave_log_error(inst, "drive2mass: parameters give a non-finite initial state");
         return fmi2Error;
     }
-    slave_log_event(inst, "drive2mass: substep limit %g s (RK4 margin %g over the %g rad/s mode "
-                    "and the %g 1/s decay); dead time %g s", RK4_STABILITY_MARGIN /
-                    fmax(s->max_frequency, s->max_decay_rate), RK4_STABILITY_MARGIN,
-                    s->max_frequency, s->max_decay_rate, s->dead_time);
+    solver_initialize(inst, &kSolverModel, &s->command, v->dead_time_steps * v->sample_period);
     return fmi2OK;
-}
-
-/* Fastest relaxation rate (1/s) of the LuGre bristles at the present load speed. */
-static double bristle_relaxation_rate(const ModelVariables *v, const ModelState *s) {
-    return v->lugre_stiffness * fabs(s->load_speed) / s->lugre_level_min;
-}
-
-/* Integrates the state in `substeps` RK4 substeps over [start, start + length] (s) with the
- * current command `command` (A) acting; a CommandSegment. */
-static int integrate_segment(void *context, double command, double start, double length,
-                             int substeps, int split) {
-    ModelInstance *inst = (ModelInstance *)context;
-    const ModelVariables *v = &inst->v;
-    ModelState *s = &inst->s;
-    double x[STATE_COUNT] = {s->motor_angle, s->motor_speed, s->load_angle, s->load_speed,
-                             s->current_applied, s->bristle};
-    double substep = length / substeps;
-    int k;
-    if (split) {
-        slave_log_event(inst, "drive2mass: t = %.9g s: the delayed current command changes to "
-                        "%g A inside the step", start, command);
-    }
-    s->command = command;
-    for (k = 0; k < substeps; k++) {
-        double previous_load_speed = x[LOAD_SPEED];
-        rk4_step(derivatives, inst, x, s->state_count, substep);
-        if (v->lugre_stiffness == 0.0) {
-            update_friction_mode(inst, s, x, previous_load_speed, start + (k + 1) * substep);
-        }
-    }
-    if (!isfinite(x[MOTOR_ANGLE] + x[MOTOR_SPEED] + x[LOAD_ANGLE] + x[LOAD_SPEED] +
-                  x[CURRENT_APPLIED] + x[BRISTLE])) {
-        slave_log_error(inst, "drive2mass: state became non-finite at t = %g s", start + length);
-        return 0;
-    }
-    s->motor_angle = x[MOTOR_ANGLE];
-    s->motor_speed = x[MOTOR_SPEED];
-    s->load_angle = x[LOAD_ANGLE];
-    s->load_speed = x[LOAD_SPEED];
-    s->current_applied = x[CURRENT_APPLIED];
-    s->bristle = x[BRISTLE];
-    return 1;
 }
 
 fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
-    const ModelVariables *v = &inst->v;
-    ModelState *s = &inst->s;
-    double substep = h / v->substeps;
-    double tolerance = TIME_TOLERANCE * (h + fabs(t));   /* s */
-    if (s->max_frequency * substep > RK4_STABILITY_MARGIN ||
-        s->max_decay_rate * substep > RK4_STABILITY_MARGIN) {
-        slave_log_error(inst, "drive2mass: substep %g s is too long for the %g rad/s mode or the "
-                        "%g 1/s decay (increase substeps)", substep, s->max_frequency,
-                        s->max_decay_rate);
-        return fmi2Error;
-    }
-    if (v->lugre_stiffness > 0.0 &&
-        bristle_relaxation_rate(v, s) * substep > RK4_STABILITY_MARGIN) {
-        slave_log_error(inst, "drive2mass: substep %g s is too long for the LuGre bristles at "
-                        "%g rad/s (rate %g 1/s; increase substeps)", substep, s->load_speed,
-                        bristle_relaxation_rate(v, s));
-        return fmi2Error;
-    }
-    if (!command_delay_push(&s->delay, t, v->current_cmd, s->dead_time, tolerance)) {
-        slave_log_error(inst, "drive2mass: more than %d communication steps within the dead time "
-                        "of %g s (use longer steps or a shorter dead time)",
-                        COMMAND_DELAY_CAPACITY, s->dead_time);
-        return fmi2Error;
-    }
-    if (!command_delay_advance(&s->delay, t, h, s->dead_time, v->substeps, tolerance,
-                               integrate_segment, inst)) {
-        return fmi2Error;
-    }
-    return fmi2OK;
+    return solver_do_step(inst, &kSolverModel, &inst->s.command, t, h, inst->v.substeps,
+                          inst->v.current_cmd);
 }
 
 void model_update_outputs(ModelInstance *inst, double t) {
     ModelVariables *v = &inst->v;
     const ModelState *s = &inst->s;
-    const double x[STATE_COUNT] = {s->motor_angle, s->motor_speed, s->load_angle, s->load_speed,
-                                   s->current_applied, s->bristle};
+    double x[STATE_COUNT];
     double current = applied_current(v, s);   /* A */
     double noise = 0.0;
     int k;
+    load_state(inst, x);
     for (k = 0; k < NOISE_HARMONICS; k++) {
         noise += s->noise_amplitude[k] * sin(s->noise_omega[k] * t + s->noise_phase[k]);
     }

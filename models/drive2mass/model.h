@@ -26,8 +26,8 @@ typedef struct {
     double bristle;             /* rad, LuGre bristle deflection z, a state while lugre_stiffness > 0 */
     int stuck;                  /* 1 while static friction holds the load at rest */
     int direction;              /* hysteretic sign of the load speed seen by Coulomb friction */
-    double command;             /* A, current command the drive acts on (after the dead time) */
-    CommandDelay delay;         /* A, current commands waiting out the dead time */
+    CommandDelay command;       /* A, current commands waiting out the dead time; `acting` is
+                                   the one the drive acts on */
 
     /* constants derived from the parameters by model_initialize */
     double stiffness;           /* N.m/rad, K = J_L omega_01^2 */
@@ -39,8 +39,6 @@ typedef struct {
     double lugre_level_min;     /* N.m, lowest LuGre friction level g, for the bristle-rate check */
     double start_load_angle;    /* rad, load angle at the start, where the transmission error is 0 */
     double pitch_error_start;   /* m, lead-error harmonics at the start screw angle */
-    double dead_time;           /* s, dead_time_steps * sample_period */
-    int state_count;            /* RK4 states in use: 4, or 6 with current lag or LuGre friction */
     int transmission_error;     /* 1 when a lead error or thermal drift is set */
     double noise_amplitude[NOISE_HARMONICS];    /* m */
     double noise_omega[NOISE_HARMONICS];        /* rad/s */

@@ -12,19 +12,19 @@
  * an output: the difference of the two-sample averages of the encoder position at the last three
  * communication points t0 > t1 > t2, over the time between the averages,
  *   v = ((q0 + q1)/2 - (q1 + q2)/2) / ((t0 + t1)/2 - (t1 + t2)/2) = (q0 - q2) / (t0 - t2),
- * which is (q0 - q2) / (2 h) at a constant step h. Fixed-step RK4 with `substeps` substeps.
+ * which is (q0 - q2) / (2 h) at a constant step h. Fixed-step RK4 with `substeps` substeps in
+ * the solver shared by the models (models/common/solver.h); the stick/slip mode is updated
+ * between substeps (solver events).
  */
 #include <math.h>
 
-#include "command_delay.h"
-#include "rk4.h"
 #include "slave.h"
+#include "solver.h"
 
 #define PI 3.14159265358979323846
-#define RK4_STABILITY_MARGIN 2.0
-#define TIME_TOLERANCE 1e-9      /* relative, for comparing command times with step ends */
 
 enum { POSITION, SPEED, CARRIAGE, CARRIAGE_SPEED, STATE_COUNT };
+SOLVER_CHECK_STATE_COUNT(STATE_COUNT);
 
 static double sign_of(double x) { return (x > 0.0) - (x < 0.0); }
 
@@ -37,7 +37,7 @@ static double coupling_force(const ModelState *s, const double x[]) {
 
 /* Drive force including the ripple of the motor angle (N). */
 static double drive_force(const ModelVariables *v, const ModelState *s, double position) {
-    double force = v->drive_gain * s->applied;
+    double force = v->drive_gain * s->command.acting;
     if (v->ripple_amplitude > 0.0) {
         force += v->ripple_amplitude * sin(v->ripple_order * position / v->lead_per_rad + v->ripple_phase);
     }
@@ -80,10 +80,12 @@ static void derivatives(const ModelInstance *inst, const double x[], double dx[]
 }
 
 
-/* Stick/slip transitions after a substep ending at time t (s); logged as events. */
-static void update_friction_mode(const ModelInstance *inst, ModelState *s, double x[],
-                                 double previous, double t) {
+/* Stick/slip transitions after a substep from `before` to x ending at time t (s), then the
+ * sliding direction; the solver's events. Transitions are logged as events. */
+static void update_friction_mode(ModelInstance *inst, const double before[], double x[],
+                                 double t) {
     const ModelVariables *v = &inst->v;
+    ModelState *s = &inst->s;
     double drive = driving_force(v, s, x);
     if (s->stuck) {
         if (fabs(drive) > breakaway(v, sign_of(drive))) {
@@ -94,7 +96,7 @@ static void update_friction_mode(const ModelInstance *inst, ModelState *s, doubl
         }
         return;
     }
-    if (previous * x[SPEED] <= 0.0 && breakaway(v, sign_of(drive)) > 0.0 &&
+    if (before[SPEED] * x[SPEED] <= 0.0 && breakaway(v, sign_of(drive)) > 0.0 &&
         fabs(drive) <= breakaway(v, sign_of(drive))) {
         s->stuck = 1;
         x[SPEED] = 0.0;
@@ -116,6 +118,49 @@ static double quantise(const ModelVariables *v, double position) {
                ? v->position_resolution * floor(position / v->position_resolution + 0.5)
                : position;
 }
+
+/* ---------------------------------------------------------------- the solver's table */
+
+/* States RK4 integrates: all four (a rigid axis carries the second mass along). */
+static int state_count(const ModelInstance *inst) {
+    (void)inst;
+    return STATE_COUNT;
+}
+
+/* The state into the solver's array and back: positions (m), speeds (m/s). */
+static void load_state(const ModelInstance *inst, double x[]) {
+    const ModelState *s = &inst->s;
+    x[POSITION] = s->position;
+    x[SPEED] = s->speed;
+    x[CARRIAGE] = s->carriage;
+    x[CARRIAGE_SPEED] = s->carriage_speed;
+}
+
+static void store_state(ModelInstance *inst, const double x[]) {
+    ModelState *s = &inst->s;
+    s->position = x[POSITION];
+    s->speed = x[SPEED];
+    s->carriage = x[CARRIAGE];
+    s->carriage_speed = x[CARRIAGE_SPEED];
+}
+
+/* The rate that bounds the substep: the coupling mode (0 for a rigid axis). */
+static int step_limits(const ModelInstance *inst, SolverLimit limit[]) {
+    limit[0] = (SolverLimit){coupling_mode(&inst->v, &inst->s), "rad/s", "coupling mode"};
+    return 1;
+}
+
+static const SolverModel kSolverModel = {
+    .name = "emps",
+    .command = "drive command",
+    .command_unit = "V",
+    .state_count = state_count,
+    .load_state = load_state,
+    .store_state = store_state,
+    .derivatives = derivatives,
+    .events = update_friction_mode,
+    .limits = step_limits,
+};
 
 fmi2Status model_initialize(ModelInstance *inst) {
     const ModelVariables *v = &inst->v;
@@ -140,48 +185,13 @@ fmi2Status model_initialize(ModelInstance *inst) {
     s->speed = s->carriage_speed = 0.0;
     s->stuck = breakaway(v, 1.0) > 0.0 && breakaway(v, -1.0) > 0.0;
     s->direction = 0;
-    s->dead_time = v->dead_time_steps * v->sample_period;
-    command_delay_reset(&s->delay);
-    s->applied = 0.0;
     for (i = 0; i < 3; i++) {
         s->encoder[i] = quantise(v, s->position);
         s->encoder_time[i] = i == 0 ? inst->start_time : NAN;   /* at rest before the start */
     }
     s->estimate = 0.0;
-    slave_log_event(inst, "emps: substep limit %g s (RK4 margin %g over the %g rad/s coupling "
-                    "mode); dead time %g s", RK4_STABILITY_MARGIN / coupling_mode(v, s),
-                    RK4_STABILITY_MARGIN, coupling_mode(v, s), s->dead_time);
+    solver_initialize(inst, &kSolverModel, &s->command, v->dead_time_steps * v->sample_period);
     return fmi2OK;
-}
-
-/* Integrates the state in `substeps` RK4 substeps over [start, start + length] (s) with the
- * drive command `command` (V) acting; a CommandSegment. */
-static int integrate_segment(void *context, double command, double start, double length,
-                             int substeps, int split) {
-    ModelInstance *inst = (ModelInstance *)context;
-    ModelState *s = &inst->s;
-    double x[STATE_COUNT] = {s->position, s->speed, s->carriage, s->carriage_speed};
-    double substep = length / substeps;
-    int k;
-    if (split) {
-        slave_log_event(inst, "emps: t = %.9g s: the delayed drive command changes to %g V "
-                        "inside the step", start, command);
-    }
-    s->applied = command;
-    for (k = 0; k < substeps; k++) {
-        double previous = x[SPEED];
-        rk4_step(derivatives, inst, x, STATE_COUNT, substep);
-        update_friction_mode(inst, s, x, previous, start + (k + 1) * substep);
-    }
-    if (!isfinite(x[POSITION] + x[SPEED] + x[CARRIAGE] + x[CARRIAGE_SPEED])) {
-        slave_log_error(inst, "emps: state became non-finite at t = %g s", start + length);
-        return 0;
-    }
-    s->position = x[POSITION];
-    s->speed = x[SPEED];
-    s->carriage = x[CARRIAGE];
-    s->carriage_speed = x[CARRIAGE_SPEED];
-    return 1;
 }
 
 /* Samples the encoder at time t (s) and updates the velocity estimate (q0 - q2) / (t0 - t2). */
@@ -199,35 +209,20 @@ static void sample_encoder(const ModelVariables *v, ModelState *s, double t) {
 }
 
 fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
-    const ModelVariables *v = &inst->v;
-    ModelState *s = &inst->s;
-    double substep = h / v->substeps;
-    double omega = coupling_mode(v, s);   /* rad/s */
-    double tolerance = TIME_TOLERANCE * (h + fabs(t));   /* s */
-    if (omega * substep > RK4_STABILITY_MARGIN) {
-        slave_log_error(inst, "emps: substep %g s is too long for the %g rad/s coupling mode "
-                        "(increase substeps)", substep, omega);
+    if (solver_do_step(inst, &kSolverModel, &inst->s.command, t, h, inst->v.substeps,
+                       inst->v.current_cmd) != fmi2OK) {
         return fmi2Error;
     }
-    if (!command_delay_push(&s->delay, t, v->current_cmd, s->dead_time, tolerance)) {
-        slave_log_error(inst, "emps: more than %d communication steps within the dead time of "
-                        "%g s (use longer steps or a shorter dead time)", COMMAND_DELAY_CAPACITY,
-                        s->dead_time);
-        return fmi2Error;
-    }
-    if (!command_delay_advance(&s->delay, t, h, s->dead_time, v->substeps, tolerance,
-                               integrate_segment, inst)) {
-        return fmi2Error;
-    }
-    sample_encoder(v, s, t + h);
+    sample_encoder(&inst->v, &inst->s, t + h);
     return fmi2OK;
 }
 
 void model_update_outputs(ModelInstance *inst, double t) {
     ModelVariables *v = &inst->v;
     const ModelState *s = &inst->s;
-    const double x[STATE_COUNT] = {s->position, s->speed, s->carriage, s->carriage_speed};
+    double x[STATE_COUNT];
     (void)t;
+    load_state(inst, x);
     v->motor_angle = s->position / v->lead_per_rad;
     v->motor_speed = s->estimate / v->lead_per_rad;
     v->load_position = s->encoder[0];

@@ -15,8 +15,8 @@ typedef struct {
     int direction;              /* sign of the sliding speed seen by Coulomb friction */
 
     /* discrete states of the drive and the velocity estimate */
-    CommandDelay delay;                 /* V, drive commands waiting out the dead time */
-    double applied;                     /* V, command acting at the end of the last step */
+    CommandDelay command;               /* V, drive commands waiting out the dead time;
+                                           `acting` is the one acting now */
     double encoder[3];                  /* m, encoder positions at the last three points */
     double encoder_time[3];             /* s, times of those points */
     double estimate;                    /* m/s, velocity estimate at the last point */
@@ -25,7 +25,6 @@ typedef struct {
     double driven_mass;         /* kg, mass minus second_mass */
     double stiffness;           /* N/m, coupling */
     double damping;             /* N.s/m, coupling */
-    double dead_time;           /* s, dead_time_steps * sample_period */
 } ModelState;
 
 #endif
