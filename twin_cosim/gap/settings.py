@@ -9,10 +9,10 @@ localisation in :mod:`twin_cosim.gap.location`.
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 from twin_cosim.scenario import Scenario
+from twin_cosim.schema import Checker
 
 
 @dataclass(frozen=True)
@@ -99,26 +99,12 @@ def settings_from(
         count below 1 or a split outside [0.1, 0.9].
     """
     allowed = {f.name for f in dataclasses.fields(DiagnosisSettings) if f.name != "hypotheses"}
-    section = dict(scenario.diagnose)
-    unknown = sorted(set(section) - allowed)
-    if unknown:
-        raise ValueError(
-            f"{scenario.source}: diagnose: unknown key(s) {unknown}; allowed: {sorted(allowed)}"
-        )
+    check = Checker(scenario.source)
+    section = dict(check.mapping(scenario.diagnose, "diagnose", allowed))
     for key, value in section.items():
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, (int, float))
-            or not math.isfinite(value)
-            or value < 0
-        ):
-            raise ValueError(
-                f"{scenario.source}: diagnose.{key}: expected a finite number >= 0, got {value!r}"
-            )
+        check.number(value, f"diagnose.{key}", minimum=0.0)
         if key in _INTEGER_FIELDS and (value != int(value) or value < 1):
-            raise ValueError(
-                f"{scenario.source}: diagnose.{key}: expected a whole number >= 1, got {value!r}"
-            )
+            raise check.fail(f"diagnose.{key}", "a whole number >= 1", value)
     if split is not None:
         section["split"] = split
     if max_effects is not None:

@@ -22,7 +22,6 @@ The objective is eq. (12): minimise E_pk (um) over the window, subject to the IA
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,7 +29,8 @@ import numpy as np
 
 from twin_cosim.controller import TUNED_NAMES, TunedParameters
 from twin_cosim.plant_model import plant_model
-from twin_cosim.scenario import Scenario, ScenarioError
+from twin_cosim.scenario import Scenario
+from twin_cosim.schema import Checker
 
 DEFAULT_BOUNDS: dict[str, tuple[float, float]] = {
     "Kp_pos": (20.0, 150.0),
@@ -96,14 +96,6 @@ class OptimizeConfig:
         }
 
 
-def _number(source: str, key: str, value: Any, positive: bool = True) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ScenarioError(f"{source}: optimize.{key}: expected a finite number, got {value!r}")
-    if positive and value <= 0:
-        raise ScenarioError(f"{source}: optimize.{key}: expected a number > 0, got {value!r}")
-    return float(value)
-
-
 def load_config(scenario: Scenario) -> OptimizeConfig:
     """Check the scenario's ``optimize`` section and fill in the defaults.
 
@@ -112,67 +104,60 @@ def load_config(scenario: Scenario) -> OptimizeConfig:
     ScenarioError
         Naming the file and key on unknown keys, bad bounds or values.
     """
-    source = str(scenario.source)
-    data = scenario.optimize
-    unknown = sorted(set(data) - KEYS)
-    if unknown:
-        raise ScenarioError(
-            f"{source}: optimize: unknown key(s) {unknown}; allowed: {sorted(KEYS)}"
-        )
+    check = Checker(scenario.source)
+    data = check.mapping(scenario.optimize, "optimize", KEYS)
     bounds = dict(DEFAULT_BOUNDS)
     raw_bounds = data.get("bounds") or {}
     if not isinstance(raw_bounds, dict):
-        raise ScenarioError(f"{source}: optimize.bounds: expected a mapping of {list(TUNED_NAMES)}")
+        raise check.fail("optimize.bounds", f"a mapping of {list(TUNED_NAMES)}")
     for name, pair in raw_bounds.items():
         if name not in bounds:
-            raise ScenarioError(
-                f"{source}: optimize.bounds: unknown parameter {name!r}; "
-                f"expected {list(TUNED_NAMES)}"
-            )
+            raise check.fail("optimize.bounds", f"{list(TUNED_NAMES)}; unknown parameter {name!r}")
         if not isinstance(pair, list) or len(pair) != 2:
-            raise ScenarioError(
-                f"{source}: optimize.bounds.{name}: expected [low, high], got {pair!r}"
-            )
-        low = _number(source, f"bounds.{name}[0]", pair[0], positive=False)
-        high = _number(source, f"bounds.{name}[1]", pair[1], positive=False)
+            raise check.fail(f"optimize.bounds.{name}", "[low, high]", pair)
+        low = check.number(pair[0], f"optimize.bounds.{name}[0]")
+        high = check.number(pair[1], f"optimize.bounds.{name}[1]")
         if not low < high:
-            raise ScenarioError(
-                f"{source}: optimize.bounds.{name}: expected low < high, got {pair}"
-            )
+            raise check.fail(f"optimize.bounds.{name}", "low < high", pair)
         bounds[name] = (low, high)
     lower = np.array([bounds[n][0] for n in TUNED_NAMES])
     upper = np.array([bounds[n][1] for n in TUNED_NAMES])
     for name, low in zip(TUNED_NAMES, lower, strict=True):
         positive_only = name in ("Kp_pos", "Kp_vel", "PP3")
         if low < 0 or (positive_only and low <= 0):
-            raise ScenarioError(
-                f"{source}: optimize.bounds.{name}: lower bound {low} allows invalid values "
-                f"(must be {'> 0' if positive_only else '>= 0'})"
+            raise check.fail(
+                f"optimize.bounds.{name}",
+                f"a lower bound {'> 0' if positive_only else '>= 0'}; lower bound {low} allows "
+                "invalid values",
             )
     window = data.get("window")
     if window is None:
         window = scenario.metrics_window
     else:
         if not isinstance(window, list) or len(window) != 2:
-            raise ScenarioError(
-                f"{source}: optimize.window: expected [t0, tF] in s, got {window!r}"
-            )
+            raise check.fail("optimize.window", "[t0, tF] in s", window)
         window = (
-            _number(source, "window[0]", window[0], positive=False),
-            None if window[1] is None else _number(source, "window[1]", window[1]),
+            check.number(window[0], "optimize.window[0]"),
+            None
+            if window[1] is None
+            else check.number(window[1], "optimize.window[1]", positive=True),
         )
     iau_cap = data.get("iau_cap", 1.05)
-    iau_cap = None if iau_cap is None else _number(source, "iau_cap", iau_cap)
+    iau_cap = None if iau_cap is None else check.number(iau_cap, "optimize.iau_cap", positive=True)
     methods = data.get("methods") or {}
     if not isinstance(methods, dict) or not all(isinstance(v, dict) for v in methods.values()):
-        raise ScenarioError(f"{source}: optimize.methods: expected a mapping method -> settings")
+        raise check.fail("optimize.methods", "a mapping method -> settings")
     return OptimizeConfig(
         lower=lower,
         upper=upper,
         window=window,
         iau_cap=iau_cap,
-        abort_error_um=_number(source, "abort_error_um", data.get("abort_error_um", 1000.0)),
-        penalty_um=_number(source, "penalty_um", data.get("penalty_um", 1.0e6)),
+        abort_error_um=check.number(
+            data.get("abort_error_um", 1000.0), "optimize.abort_error_um", positive=True
+        ),
+        penalty_um=check.number(
+            data.get("penalty_um", 1.0e6), "optimize.penalty_um", positive=True
+        ),
         methods=methods,
     )
 
