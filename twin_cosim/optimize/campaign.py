@@ -52,7 +52,8 @@ from twin_cosim.optimize.config import (
 )
 from twin_cosim.optimize.early_stop import EXACT_METHODS, elite_cutoff, window_spans_run
 from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
-from twin_cosim.optimize.evaluators import SchedulerError, make_evaluator
+from twin_cosim.optimize.evaluator_protocol import SchedulerError
+from twin_cosim.optimize.evaluators import make_evaluator
 from twin_cosim.optimize.fingerprints import (
     fmu_fingerprint,
     scenario_fingerprint,

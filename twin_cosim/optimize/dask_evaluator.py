@@ -23,7 +23,7 @@ from distributed import Client, Reschedule, WorkerPlugin, get_worker
 from distributed import as_completed as dask_completed
 from distributed.comm.core import CommClosedError
 
-from twin_cosim.optimize.evaluators import Result, SchedulerError
+from twin_cosim.optimize.evaluator_protocol import Result, SchedulerError
 from twin_cosim.optimize.objective import Objective, ObjectiveSpec
 
 LOG = logging.getLogger(__name__)

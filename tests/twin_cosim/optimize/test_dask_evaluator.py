@@ -15,7 +15,7 @@ import pytest
 from scenario_texts import scenario_text
 
 from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
-from twin_cosim.optimize.evaluators import SchedulerError
+from twin_cosim.optimize.evaluator_protocol import SchedulerError
 
 distributed = pytest.importorskip("distributed")
 
