@@ -40,9 +40,10 @@ def main() -> None:
     )
     args = parser.parse_args()
     workers = os.cpu_count() or 1
-    config = load_config(load_scenario(SCENARIO))
+    scenario = load_scenario(SCENARIO)
+    config = load_config(scenario)
     candidates = config.from_unit(np.random.default_rng(0).uniform(0.2, 0.8, (args.evaluations, 6)))
-    spec = ObjectiveSpec(SCENARIO, None, None)
+    spec = ObjectiveSpec((scenario,), None, None)
     serial = SerialPool(spec)
     timed_batch(serial, candidates[:2])  # compiled loop loaded
     t_serial = timed_batch(serial, candidates)

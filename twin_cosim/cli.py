@@ -270,7 +270,12 @@ def _table3(args: argparse.Namespace) -> int:
 
 
 def _optimize(args: argparse.Namespace) -> int:
-    from twin_cosim.optimize.campaign import CampaignSpec, load_spec, run_campaign
+    from twin_cosim.optimize.campaign import (
+        CampaignSpec,
+        campaign_scenarios,
+        load_spec,
+        run_campaign,
+    )
     from twin_cosim.optimize.outputs import write_campaign_plots
 
     if args.resume:
@@ -291,10 +296,6 @@ def _optimize(args: argparse.Namespace) -> int:
     else:
         if args.method is None:
             raise ValueError(f"--method is required ({method_list()}) unless --resume is given")
-        if args.plant:
-            from twin_cosim.scenario import load_scenario
-
-            warn_plant_mismatch(load_scenario(args.scenario[0]), Path(args.plant))
         robust = {k: v for k, v in _robust_options(args).items() if v is not None}
         spec = CampaignSpec(
             scenario=args.scenario[0],
@@ -305,6 +306,9 @@ def _optimize(args: argparse.Namespace) -> int:
             **robust,
         )
         out = out_folder(args.out, Path("out") / f"optimize-{spec.method}-seed{spec.seed}")
+    scenarios = campaign_scenarios(spec)
+    if not args.resume:
+        warn_plant_mismatch(scenarios[0], Path(args.plant) if args.plant else None)
     try:
         result = run_campaign(
             spec,
@@ -313,13 +317,14 @@ def _optimize(args: argparse.Namespace) -> int:
             scheduler=args.scheduler,
             resume=bool(args.resume),
             progress=not args.quiet,
+            scenarios=scenarios,
         )
     except KeyboardInterrupt as exc:
         if (out / "campaign.json").exists():
             scenarios = " ".join(args.scenario)
             exc.hint = f"; the log is intact: twin optimize {scenarios} --resume {out}"
         raise
-    write_campaign_plots(out)
+    write_campaign_plots(out, spec, scenarios[0])
     summary = {
         "best_params": result.best_params,
         "metrics": result.metrics,

@@ -62,8 +62,9 @@ from twin_cosim.optimize.fingerprints import (
 from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
 from twin_cosim.optimize.objective import AGGREGATES, EvaluationTask, Objective, ObjectiveSpec
 from twin_cosim.plant import default_fmu
-from twin_cosim.plant_parameters import fmu_model, read_plant_parameters, with_plant_parameters
-from twin_cosim.scenario import Scenario, find_scenario, load_scenario
+from twin_cosim.plant_parameters import fmu_model, read_plant_parameters
+from twin_cosim.resolved_scenario import resolve_scenario
+from twin_cosim.scenario import Scenario
 from twin_cosim.workers import check_workers
 
 LOG = logging.getLogger(__name__)
@@ -145,18 +146,22 @@ class CampaignResult:
         return asdict(self)
 
 
-def _scenario(spec: CampaignSpec, path: str) -> Scenario:
-    return with_plant_parameters(load_scenario(path), spec.plant_parameters, spec.fmu)
+def campaign_scenarios(spec: CampaignSpec) -> tuple[Scenario, ...]:
+    """The campaign's scenarios (``scenario`` first), resolved with its plant parameter file."""
+    return tuple(
+        resolve_scenario(path, spec.plant_parameters, spec.fmu)
+        for path in (spec.scenario, *spec.scenarios)
+    )
 
 
-def _robust_settings(spec: CampaignSpec, scenario: Scenario) -> dict[str, Any]:
+def _robust_settings(spec: CampaignSpec, scenarios: tuple[Scenario, ...]) -> dict[str, Any]:
     """The plant parameters, scenarios and plant samples of a campaign as its files are now."""
     if spec.aggregate not in AGGREGATES:
         raise CampaignError(f"objective {spec.aggregate!r}: expected one of {AGGREGATES}")
     check_uncertainty(spec.tolerance, spec.samples)
     if spec.samples > 1 and spec.tolerance == 0.0:
         raise ValueError("--samples above 1 needs a --tolerance above 0 (e.g. 0.03)")
-    model = fmu_model(spec.fmu or scenario.fmu)
+    model = fmu_model(spec.fmu or scenarios[0].fmu)
     calibrated = (
         read_plant_parameters(spec.plant_parameters, model).parameters
         if spec.plant_parameters
@@ -165,15 +170,12 @@ def _robust_settings(spec: CampaignSpec, scenario: Scenario) -> dict[str, Any]:
     uncertainty = UncertaintySet(
         spec.tolerance, spec.samples, spec.seed, uncertain_parameters(model, calibrated)
     )
-    files = [spec.scenario, *spec.scenarios]
     return {
         "plant_parameters": calibrated,
-        "scenarios": files,
-        "scenarios_sha256": [
-            hashlib.sha256(find_scenario(f).read_bytes()).hexdigest() for f in files
-        ],
+        "scenarios": [spec.scenario, *spec.scenarios],
+        "scenarios_sha256": [hashlib.sha256(s.source.read_bytes()).hexdigest() for s in scenarios],
         "scenario_plant_parameters": [  # with any plant.parameters_file folded in
-            (scenario if f == spec.scenario else _scenario(spec, f)).plant_parameters for f in files
+            s.plant_parameters for s in scenarios
         ],
         "uncertain_parameters": list(uncertainty.parameters),
         "samples": uncertainty.factors() if spec.samples > 1 else [],
@@ -181,7 +183,10 @@ def _robust_settings(spec: CampaignSpec, scenario: Scenario) -> dict[str, Any]:
 
 
 def case_references(
-    spec: CampaignSpec, config: OptimizeConfig, samples: list[dict[str, float]]
+    spec: CampaignSpec,
+    scenarios: tuple[Scenario, ...],
+    config: OptimizeConfig,
+    samples: list[dict[str, float]],
 ) -> list[dict[str, Any]]:
     """Each case's reference run, IAU limit and E_pk scale.
 
@@ -191,16 +196,7 @@ def case_references(
     candidate; its scale is 1, or for a relative objective the first case's reference E_pk over
     its own.
     """
-    probe = Objective(
-        ObjectiveSpec(
-            spec.scenario,
-            spec.fmu,
-            None,
-            spec.plant_parameters,
-            tuple(spec.scenarios),
-            samples=tuple(samples),
-        )
-    )
+    probe = Objective(ObjectiveSpec(scenarios, spec.fmu, None, samples=tuple(samples)))
     try:
         references = probe.reference_metrics()
     finally:
@@ -289,12 +285,12 @@ def _prepare(
     spec: CampaignSpec,
     out_dir: Path,
     resume: bool,
-    scenario: Scenario,
+    scenarios: tuple[Scenario, ...],
     config: OptimizeConfig,
     found: dict[str, str],
 ) -> dict[str, Any]:
     header_path = out_dir / "campaign.json"
-    robust = _robust_settings(spec, scenario)
+    robust = _robust_settings(spec, scenarios)
     if resume:
         header = _read_header(out_dir)
         _check_resume(out_dir, header, spec, found)
@@ -312,11 +308,11 @@ def _prepare(
         raise CampaignError(
             f"{out_dir}: already holds a campaign; use --resume {out_dir} or another --out"
         )
-    cases = case_references(spec, config, robust["samples"])
+    cases = case_references(spec, scenarios, config, robust["samples"])
     header = {
         "spec": asdict(spec),
         "config": config.as_dict(),
-        "reference": {"params": scenario.tuned.as_dict(), "metrics": cases[0]["reference"]},
+        "reference": {"params": scenarios[0].tuned.as_dict(), "metrics": cases[0]["reference"]},
         "iau_limit": cases[0]["iau_limit"],
         "fingerprints": found,
         "cases": cases,
@@ -360,6 +356,7 @@ def run_campaign(
     resume: bool = False,
     progress: bool = True,
     scheduler_timeout: float | None = None,
+    scenarios: tuple[Scenario, ...] | None = None,
 ) -> CampaignResult:
     """Run (or resume) a campaign and write its folder.
 
@@ -379,6 +376,9 @@ def run_campaign(
         Show a progress bar on stderr.
     scheduler_timeout
         Seconds to wait for the Dask scheduler to answer, and again for a worker to join.
+    scenarios
+        The spec's scenarios as :func:`campaign_scenarios` resolves them, when the caller has
+        them already; resolved here when None.
 
     Raises
     ------
@@ -388,7 +388,9 @@ def run_campaign(
     """
     out_dir = Path(out_dir)
     _check_arguments(spec, out_dir, workers, resume)
-    scenario = _scenario(spec, spec.scenario)
+    if scenarios is None:
+        scenarios = campaign_scenarios(spec)
+    scenario = scenarios[0]
     config = load_config(scenario)
     settings = {**config.methods.get(spec.method, {}), **spec.settings}
     if spec.budget is not None:
@@ -420,7 +422,7 @@ def run_campaign(
             scheduler,
             resume,
             progress,
-            scenario,
+            scenarios,
             config,
             optimizer,
             found,
@@ -437,7 +439,7 @@ def _run_locked(
     scheduler: str | None,
     resume: bool,
     progress: bool,
-    scenario: Scenario,
+    scenarios: tuple[Scenario, ...],
     config: OptimizeConfig,
     optimizer,
     found: dict[str, str],
@@ -445,22 +447,20 @@ def _run_locked(
 ) -> CampaignResult:
     log = evaluator = None
     try:
-        header = _prepare(spec, out_dir, resume, scenario, config, found)
+        header = _prepare(spec, out_dir, resume, scenarios, config, found)
         log = EvaluationLog(out_dir / "evaluations.jsonl")
         robust = header.get("robust") or {}
         cases = header.get("cases") or []
         objective_spec = ObjectiveSpec(
-            spec.scenario,
+            scenarios,
             spec.fmu,
             header["iau_limit"],
-            spec.plant_parameters,
-            tuple(spec.scenarios),
             tuple(c["iau_limit"] for c in cases),
             tuple(robust.get("samples") or ()),
             spec.aggregate,
             tuple(c["scale"] for c in cases),
         )
-        early_stop = spec.early_stop and _early_stop_exact(spec, config)
+        early_stop = spec.early_stop and _early_stop_exact(spec.method, scenarios)
         evaluator = make_evaluator(objective_spec, workers, scheduler, scheduler_timeout)
     except BaseException:
         optimizer.close()
@@ -547,16 +547,11 @@ def _run_locked(
     return result
 
 
-def _early_stop_exact(spec: CampaignSpec, config: OptimizeConfig) -> bool:
+def _early_stop_exact(method: str, scenarios: tuple[Scenario, ...]) -> bool:
     """Whether the method and every scenario's objective window allow exact early stopping."""
-    if spec.method not in EXACT_METHODS:
-        return False
-    for path in (spec.scenario, *spec.scenarios):
-        scenario = load_scenario(path)
-        window = config.window if path == spec.scenario else load_config(scenario).window
-        if not window_spans_run(window, scenario.reference.duration):
-            return False
-    return True
+    return method in EXACT_METHODS and all(
+        window_spans_run(load_config(s).window, s.reference.duration) for s in scenarios
+    )
 
 
 def _write_progress(out_dir: Path, optimizer, config: OptimizeConfig, elapsed: float) -> None:
