@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from twin_cosim.optimize.campaign import CampaignSpec, run_campaign
+from twin_cosim.optimize.campaign import run_campaign
+from twin_cosim.optimize.campaign_spec import CampaignSpec
 from twin_cosim.optimize.config import load_config
 from twin_cosim.optimize.objective import ObjectiveSpec
 from twin_cosim.scenario import load_scenario

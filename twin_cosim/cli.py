@@ -270,12 +270,10 @@ def _table3(args: argparse.Namespace) -> int:
 
 
 def _optimize(args: argparse.Namespace) -> int:
-    from twin_cosim.optimize.campaign import (
-        CampaignSpec,
-        campaign_scenarios,
-        load_spec,
-        run_campaign,
-    )
+    from twin_cosim.optimize.campaign import run_campaign
+    from twin_cosim.optimize.campaign_folder import load_spec
+    from twin_cosim.optimize.campaign_spec import CampaignSpec
+    from twin_cosim.optimize.cases import campaign_scenarios
     from twin_cosim.optimize.outputs import write_campaign_plots
 
     if args.resume:

@@ -38,7 +38,8 @@ from twin_cosim.controller import TUNED_NAMES, TunedParameters
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.motion_envelope import MARGIN, envelope_of, outside
 from twin_cosim.optimize.algorithms import ALGORITHMS
-from twin_cosim.optimize.campaign import CampaignSpec, run_campaign
+from twin_cosim.optimize.campaign import run_campaign
+from twin_cosim.optimize.campaign_spec import CampaignSpec
 from twin_cosim.optimize.config import check_uncertainty
 from twin_cosim.optimize.objective import AGGREGATES
 from twin_cosim.optimize.outputs import plot_convergence

@@ -14,7 +14,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 from twin_cosim.controller import TunedParameters  # noqa: E402
 from twin_cosim.cosim import run_scenario  # noqa: E402
 from twin_cosim.metrics import compute_metrics  # noqa: E402
-from twin_cosim.optimize.campaign import CampaignSpec, convergence  # noqa: E402
+from twin_cosim.optimize.campaign_folder import convergence  # noqa: E402
+from twin_cosim.optimize.campaign_spec import CampaignSpec  # noqa: E402
 from twin_cosim.plant import Plant  # noqa: E402
 from twin_cosim.plots import plot_error_comparison  # noqa: E402
 from twin_cosim.scenario import Scenario  # noqa: E402

@@ -14,7 +14,8 @@ from pathlib import Path
 import pytest
 from scenario_texts import scenario_text
 
-from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
+from twin_cosim.optimize.campaign import run_campaign
+from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
 from twin_cosim.optimize.evaluator_protocol import SchedulerError
 from twin_cosim.scenario import load_scenario
 
