@@ -92,13 +92,7 @@ def run_campaign(
     settings = _method_settings(spec, config)
     optimizer = _make_optimizer(spec, config, scenarios[0], settings)
     found = fingerprints(spec, scenarios[0], config, settings)
-    if scheduler:  # Dask is an optional extra: imported only when asked for
-        from twin_cosim.optimize.dask_evaluator import check_scheduler
-
-        check_scheduler(scheduler, scheduler_timeout)
-    start_evaluator = partial(
-        make_evaluator, workers=workers, scheduler=scheduler, scheduler_timeout=scheduler_timeout
-    )
+    start_evaluator = _evaluators(workers, scheduler, scheduler_timeout)
     out_dir.mkdir(parents=True, exist_ok=True)
     lock = FolderLock(out_dir)
     try:
@@ -134,6 +128,19 @@ def _check_arguments(
     stored = read_header(out_dir)
     check_same_options(out_dir, stored, spec)
     return stored
+
+
+def _evaluators(
+    workers: int | None, scheduler: str | None, scheduler_timeout: float | None
+) -> Callable[[ObjectiveSpec], Evaluator]:
+    """What starts the campaign's evaluator; a Dask scheduler is checked here, at once."""
+    if scheduler:  # Dask is an optional extra: imported only when asked for
+        from twin_cosim.optimize.dask_evaluator import check_scheduler
+
+        check_scheduler(scheduler, scheduler_timeout)
+    return partial(
+        make_evaluator, workers=workers, scheduler=scheduler, scheduler_timeout=scheduler_timeout
+    )
 
 
 def _method_settings(spec: CampaignSpec, config: OptimizeConfig) -> dict[str, Any]:
