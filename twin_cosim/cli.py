@@ -11,7 +11,6 @@ import argparse
 import dataclasses
 import json
 import os
-import platform
 import signal
 import sys
 import time
@@ -54,19 +53,6 @@ def warn_plant_mismatch(scenario: Scenario, fmu: Path | None) -> list[str]:
         return []
     print(f"twin: warning: {warning}", file=sys.stderr)
     return [warning]
-
-
-def versions() -> dict[str, str]:
-    """Versions of the software a result depends on."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    found = {"python": platform.python_version()}
-    for package in ("twin-cosim", "fmpy", "numpy", "scipy", "numba", "pandas"):
-        try:
-            found[package] = version(package)
-        except PackageNotFoundError:
-            found[package] = "not installed"
-    return found
 
 
 def write_json(path: Path, data: dict[str, Any]) -> None:
@@ -112,30 +98,6 @@ def out_folder(option: str | None, default: Path) -> Path:
     return out
 
 
-def loop_warnings(record, scenario) -> tuple[bool, list[str]]:
-    """Whether a run diverged (the objective's band applies), and warnings about it.
-
-    Diverged: |error| beyond ``optimize.abort_error_um``; a current at its limit more than 10 %
-    of the time is a warning too.
-    """
-    from twin_cosim.optimize.config import load_config
-
-    band_um = load_config(scenario).abort_error_um
-    peak_um = float(abs(record["error"]).max()) * 1e6
-    limit = scenario.settings.current_limit
-    saturated = float((abs(record["current"]) >= 0.999 * limit).mean())
-    found = []
-    diverged = not peak_um <= band_um
-    if diverged:
-        found.append(
-            f"the loop diverged: |error| reached {peak_um:.4g} um, beyond the band of "
-            f"{band_um:g} um (optimize.abort_error_um) in which the optimizer keeps a run"
-        )
-    if saturated > 0.1:
-        found.append(f"the current is at its limit ({limit:g} A) {saturated:.0%} of the time")
-    return diverged, found
-
-
 def _build(args: argparse.Namespace) -> int:
     from fmu_build.build import build_fmu
 
@@ -150,7 +112,9 @@ def _simulate(args: argparse.Namespace) -> int:
     from twin_cosim.plant import Plant
     from twin_cosim.plant_parameters import with_plant_parameters
     from twin_cosim.plots import plot_run
+    from twin_cosim.run_checks import loop_warnings
     from twin_cosim.scenario import load_scenario, load_tuned_parameters
+    from twin_cosim.versions import versions
 
     scenario = with_plant_parameters(
         load_scenario(args.scenario), args.plant_parameters, args.plant
@@ -384,29 +348,10 @@ def _compare(args: argparse.Namespace) -> int:
     return 0
 
 
-def _emps_gains(scenario, follow, fmu) -> dict[str, float]:
-    """kp, kv, gtau of an EMPS-format run: the followed run's, else the scenario's."""
-    from twin_cosim.measured import read_measured
-    from twin_cosim.plant import Plant
-
-    measured = read_measured(follow) if follow else None
-    scalars = measured.extra if measured else {}
-    if all(k in scalars for k in ("kp", "kv", "gtau")):
-        return {k: float(scalars[k]) for k in ("kp", "kv", "gtau")}
-    with Plant(Path(fmu) if fmu else scenario.fmu) as plant:
-        gtau = plant.start_values().get("drive_gain", 1.0)
-    tuned, settings = scenario.tuned, scenario.settings
-    return {
-        "kp": tuned.Kp_pos,
-        "kv": tuned.Kp_vel / settings.travel_per_rad,
-        "gtau": gtau,
-    }
-
-
 def _synth(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from twin_cosim.emps_runs import write_emps_mat
+    from twin_cosim.emps_runs import emps_gains, write_emps_mat
     from twin_cosim.gap.synth import parse_effect, synthesize
     from twin_cosim.measured import read_measured
     from twin_cosim.scenario import for_measured_run, load_scenario
@@ -446,7 +391,7 @@ def _synth(args: argparse.Namespace) -> int:
             values = followed.extra.get(scenario.disturbance_spec["variable"])
             if isinstance(values, np.ndarray):
                 pulses = np.interp(run["t"], followed.t, values)
-        gains = _emps_gains(scenario, args.follow, args.plant)
+        gains = emps_gains(scenario, args.follow, args.plant)
         write_emps_mat(out, run["t"], run["x_ref"], run["x"], run["current"], gains, pulses)
     else:
         run.to_csv(out, index=False)
@@ -474,10 +419,12 @@ def _progress_bar(enabled: bool):
 
 def _diagnose(args: argparse.Namespace) -> int:
     from twin_cosim.gap.diagnosis import diagnose
+    from twin_cosim.gap.plant_file import write_calibration
     from twin_cosim.gap.report import write_report
     from twin_cosim.gap.settings import settings_from
     from twin_cosim.measured import read_measured
     from twin_cosim.scenario import load_scenario
+    from twin_cosim.versions import versions
 
     scenario = load_scenario(args.scenario)
     mismatch = warn_plant_mismatch(scenario, Path(args.plant) if args.plant else None)
@@ -503,7 +450,10 @@ def _diagnose(args: argparse.Namespace) -> int:
     }
     files = write_report(result, out, extra)
     summary = {**result.summary(), **extra}
-    files |= _write_calibration(args, scenario, summary, out)
+    runs = [f"--measured {m}" for m in args.measured]
+    runs += [f"--holdout {h}" for h in args.holdout or []]
+    command = " ".join(["twin diagnose", str(args.scenario), *runs])
+    files |= write_calibration(scenario, summary, out, command, args.plant)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -558,31 +508,6 @@ def _plant_option(parser: argparse.ArgumentParser) -> None:
         metavar="FMU",
         help="another FMU offering the plant contract (default: the scenario's plant)",
     )
-
-
-def _write_calibration(
-    args: argparse.Namespace, scenario, summary: dict[str, Any], out: Path
-) -> dict[str, str]:
-    """DIR/plant.yaml (noise, accepted effects, calibration correction), DIR/calibrated.yaml."""
-    from twin_cosim.plant_parameters import (
-        calibrated_scenario,
-        fmu_model,
-        from_diagnosis,
-        write_plant_parameters,
-    )
-
-    runs = [f"--measured {m}" for m in args.measured] + [
-        f"--holdout {h}" for h in args.holdout or []
-    ]
-    made_by = {
-        "command": " ".join(["twin diagnose", str(args.scenario), *runs]),
-        "version": versions()["twin-cosim"],
-    }
-    model = fmu_model(args.plant or scenario.fmu)
-    plant = from_diagnosis(summary, model, made_by, scenario.plant_parameters)
-    plant_file = write_plant_parameters(out / "plant.yaml", plant)
-    calibrated = calibrated_scenario(scenario.source, plant, out / "calibrated.yaml")
-    return {"plant": str(plant_file), "calibrated": str(calibrated)}
 
 
 def build_parser() -> argparse.ArgumentParser:
