@@ -240,33 +240,16 @@ def _optimize(args: argparse.Namespace) -> int:
     from twin_cosim.optimize.cases import campaign_scenarios
     from twin_cosim.optimize.outputs import write_campaign_plots
 
-    if args.resume:
+    given = _given_options(args)
+    if args.resume:  # the campaign refuses options that differ from the stored ones
         stored = load_spec(Path(args.resume))
-        given = {"method": args.method, "seed": args.seed, "budget": args.budget}
-        given |= _robust_options(args)
-        spec = dataclasses.replace(stored, scenario=args.scenario[0], fmu=args.plant or stored.fmu)
-        stored = {"method": spec.method, "seed": spec.seed, "budget": spec.budget}
-        stored |= {k: getattr(spec, k) for k in _robust_options(args)}
-        conflicts = {
-            k: (v, stored[k]) for k, v in given.items() if v is not None and v != stored[k]
-        }
-        if conflicts:
-            raise ValueError(
-                f"--resume {args.resume}: options differ from the stored campaign: {conflicts}"
-            )
+        fmu = args.plant or stored.fmu
+        spec = dataclasses.replace(stored, scenario=args.scenario[0], fmu=fmu, **given)
         out = Path(args.resume)
     else:
         if args.method is None:
             raise ValueError(f"--method is required ({method_list()}) unless --resume is given")
-        robust = {k: v for k, v in _robust_options(args).items() if v is not None}
-        spec = CampaignSpec(
-            scenario=args.scenario[0],
-            method=args.method,
-            seed=0 if args.seed is None else args.seed,
-            budget=args.budget,
-            fmu=args.plant,
-            **robust,
-        )
+        spec = CampaignSpec(scenario=args.scenario[0], fmu=args.plant, **given)
         out = out_folder(args.out, Path("out") / f"optimize-{spec.method}-seed{spec.seed}")
     scenarios = campaign_scenarios(spec)
     if not args.resume:
@@ -314,9 +297,12 @@ def _optimize(args: argparse.Namespace) -> int:
     return 0
 
 
-def _robust_options(args: argparse.Namespace) -> dict[str, Any]:
-    """Options of a calibrated or robust campaign as given (None: not given)."""
-    return {
+def _given_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The campaign options given on the command line (those not given are left out)."""
+    given = {
+        "method": args.method,
+        "seed": args.seed,
+        "budget": args.budget,
         "plant_parameters": args.plant_parameters,
         "scenarios": list(args.scenario[1:]) or None,
         "tolerance": args.tolerance,
@@ -325,6 +311,7 @@ def _robust_options(args: argparse.Namespace) -> dict[str, Any]:
         "relative": True if args.relative else None,
         "early_stop": False if args.no_early_stop else None,
     }
+    return {k: v for k, v in given.items() if v is not None}
 
 
 def _compare(args: argparse.Namespace) -> int:
