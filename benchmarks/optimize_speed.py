@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from twin_cosim.optimize.campaign import CampaignSpec, run_campaign
+from twin_cosim.optimize.campaign import run_campaign
+from twin_cosim.optimize.campaign_spec import CampaignSpec
 from twin_cosim.optimize.config import load_config
 from twin_cosim.optimize.objective import ObjectiveSpec
 from twin_cosim.scenario import load_scenario
@@ -40,9 +41,10 @@ def main() -> None:
     )
     args = parser.parse_args()
     workers = os.cpu_count() or 1
-    config = load_config(load_scenario(SCENARIO))
+    scenario = load_scenario(SCENARIO)
+    config = load_config(scenario)
     candidates = config.from_unit(np.random.default_rng(0).uniform(0.2, 0.8, (args.evaluations, 6)))
-    spec = ObjectiveSpec(SCENARIO, None, None)
+    spec = ObjectiveSpec((scenario,), None, None)
     serial = SerialPool(spec)
     timed_batch(serial, candidates[:2])  # compiled loop loaded
     t_serial = timed_batch(serial, candidates)

@@ -6,9 +6,10 @@ recorded drive command, V), scalars ``kp`` (1/s), ``kv`` (V/(m/s)) and ``gtau`` 
 cross-test validation run ``pulses_N``, one value per sample.
 
 :func:`write_emps_mat` writes a record of the twin in that format (what ``twin synth --out
-RUN.mat`` does); :func:`pulse_template` makes the reference and pulse train of a validation-like
-run (bang-bang accelerations between seeded random positions, with pulses added to the drive
-command), whose ``qm`` and ``vir`` are placeholders until ``twin synth --follow`` fills them.
+RUN.mat`` does, with the gains of :func:`emps_gains`); :func:`pulse_template` makes the
+reference and pulse train of a validation-like run (bang-bang accelerations between seeded
+random positions, with pulses added to the drive command), whose ``qm`` and ``vir`` are
+placeholders until ``twin synth --follow`` fills them.
 """
 
 from __future__ import annotations
@@ -18,7 +19,10 @@ from pathlib import Path
 import numpy as np
 from scipy.io import savemat
 
+from twin_cosim.measured import read_measured
+from twin_cosim.plant import Plant
 from twin_cosim.reference import Dwell, Move, sample_segments
+from twin_cosim.scenario import Scenario
 
 SAMPLE_PERIOD = 1e-3  # s, the benchmark's rate
 
@@ -107,6 +111,41 @@ def pulse_template(
     for k, start in enumerate(starts):
         pulses[(t >= start) & (t < start + pulse_length)] = pulse_height * (-1) ** k
     return write_emps_mat(path, t, reference, reference, np.zeros_like(t), gains, pulses)
+
+
+def emps_gains(
+    scenario: Scenario, follow: Path | str | None, fmu: Path | str | None
+) -> dict[str, float]:
+    """The scalars ``kp`` (1/s), ``kv`` (V/(m/s)) and ``gtau`` (N/V) of an EMPS-format run.
+
+    Parameters
+    ----------
+    scenario
+        The scenario the run followed.
+    follow
+        The measured run it followed (``twin synth --follow``); its gains when it has all three.
+    fmu
+        The plant (``--plant``); none: the scenario's. Its ``drive_gain`` start value is
+        ``gtau`` (1 when it has none).
+
+    Returns
+    -------
+    dict
+        The followed run's gains, else the scenario's: ``kp`` its position gain, ``kv`` its
+        speed gain per m/s of the load, ``gtau`` the plant's drive gain.
+    """
+    measured = read_measured(follow) if follow else None
+    scalars = measured.extra if measured else {}
+    if all(k in scalars for k in ("kp", "kv", "gtau")):
+        return {k: float(scalars[k]) for k in ("kp", "kv", "gtau")}
+    with Plant(scenario.plant_fmu(fmu)) as plant:
+        gtau = plant.start_values().get("drive_gain", 1.0)
+    tuned, settings = scenario.tuned, scenario.settings
+    return {
+        "kp": tuned.Kp_pos,
+        "kv": tuned.Kp_vel / settings.travel_per_rad,
+        "gtau": gtau,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:

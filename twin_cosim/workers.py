@@ -1,9 +1,10 @@
 """Worker pools for FMU work: each worker builds its own plant once and reuses it for every task.
 
-A *factory* is a picklable object (paths and numbers only) with a ``build()`` method returning the
-worker: a callable ``worker(task) -> result`` with a ``close()`` method. In a process pool every
-process calls ``build()`` once (spawned processes: an FMU is never instantiated in a parent that
-then forks); tasks then run on that worker and results stream back as they complete.
+A *factory* is a picklable object (plain values: paths, numbers, resolved scenarios) with a
+``build()`` method returning the worker: a callable ``worker(task) -> result`` with a ``close()``
+method. In a process pool every process calls ``build()`` once (spawned processes: an FMU is never
+instantiated in a parent that then forks); tasks then run on that worker and results stream back
+as they complete.
 
 Nothing outlives a pool. Every pool has a private temp folder (``twin-pool-<parent pid>-*``) that
 its workers extract FMUs into and that ``close()`` removes. A worker ignores Ctrl-C from the

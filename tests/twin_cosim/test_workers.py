@@ -16,6 +16,7 @@ import pytest
 from scenario_texts import scenario_text
 
 from twin_cosim.optimize.objective import ObjectiveSpec
+from twin_cosim.scenario import load_scenario
 from twin_cosim.workers import ProcessPool, command_temp_folder, make_pool
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -63,7 +64,7 @@ def short_scenario(tmp_path_factory) -> str:
 
 
 def test_pool_removes_every_extracted_fmu(short_scenario, private_tmp):
-    pool = make_pool(ObjectiveSpec(short_scenario, None, None), 2)
+    pool = make_pool(ObjectiveSpec((load_scenario(short_scenario),), None, None), 2)
     try:
         results = list(pool.imap([FINE_TUNE, FINE_TUNE]))
     finally:
@@ -73,7 +74,7 @@ def test_pool_removes_every_extracted_fmu(short_scenario, private_tmp):
 
 
 def test_serial_pool_removes_its_extracted_fmu(short_scenario, private_tmp):
-    pool = make_pool(ObjectiveSpec(short_scenario, None, None), 1)
+    pool = make_pool(ObjectiveSpec((load_scenario(short_scenario),), None, None), 1)
     pool.close()
     assert list(private_tmp.iterdir()) == []
 
@@ -144,7 +145,7 @@ def test_stale_pool_folder_of_a_dead_process_is_removed(short_scenario, private_
     mine.mkdir()
     with command_temp_folder() as folder:
         assert tempfile.gettempdir() == folder
-        pool = make_pool(ObjectiveSpec(short_scenario, None, None), 1)
+        pool = make_pool(ObjectiveSpec((load_scenario(short_scenario),), None, None), 1)
         pool.close()
     assert sorted(p.name for p in private_tmp.iterdir()) == [mine.name]
 

@@ -3,7 +3,8 @@
 :func:`from_diagnosis` turns the JSON summary of ``twin diagnose`` into a plant parameter file
 (:mod:`twin_cosim.scenario.plant_file`): the identified noise harmonics, the accepted effects'
 FMU parameters and the calibration correction, each with where it came from.
-:func:`calibrated_scenario` folds such a file into a copy of the diagnosed scenario.
+:func:`calibrated_scenario` folds such a file into a copy of the diagnosed scenario;
+:func:`write_calibration` writes both beside a diagnosis report.
 """
 
 from __future__ import annotations
@@ -16,8 +17,14 @@ from typing import Any
 import yaml
 
 from twin_cosim.plant_model import plant_model
-from twin_cosim.scenario.plant_file import PlantParameters, read_plant_parameters
+from twin_cosim.scenario import Scenario
+from twin_cosim.scenario.plant_file import (
+    PlantParameters,
+    read_plant_parameters,
+    write_plant_parameters,
+)
 from twin_cosim.schema import load_yaml
+from twin_cosim.versions import versions
 
 NOISE_SOURCE = "noise harmonics identified at standstill by twin diagnose"
 CALIBRATION_SOURCE = (
@@ -135,3 +142,38 @@ def calibrated_scenario(scenario_file: Path | str, plant: PlantParameters, out: 
     ).strip()
     out.write_text(yaml.safe_dump(data, sort_keys=False, width=100))
     return out
+
+
+def write_calibration(
+    scenario: Scenario,
+    summary: dict[str, Any],
+    out: Path,
+    command: str,
+    fmu: Path | str | None = None,
+) -> dict[str, str]:
+    """Write ``out/plant.yaml`` and ``out/calibrated.yaml`` of a diagnosis.
+
+    Parameters
+    ----------
+    scenario
+        The diagnosed scenario (its plant parameters are the nominal values).
+    summary
+        The diagnosis summary (:meth:`twin_cosim.gap.diagnosis.Diagnosis.summary`).
+    out
+        The report folder.
+    command
+        The command that made the diagnosis, kept in ``plant.yaml``.
+    fmu
+        The plant diagnosed (``--plant``); none: the scenario's.
+
+    Returns
+    -------
+    dict
+        Paths of the files written: ``plant`` and ``calibrated``.
+    """
+    made_by = {"command": command, "version": versions()["twin-cosim"]}
+    model = scenario.model_name(fmu)
+    plant = from_diagnosis(summary, model, made_by, scenario.plant_parameters)
+    plant_file = write_plant_parameters(out / "plant.yaml", plant)
+    calibrated = calibrated_scenario(scenario.source, plant, out / "calibrated.yaml")
+    return {"plant": str(plant_file), "calibrated": str(calibrated)}

@@ -38,14 +38,15 @@ from twin_cosim.controller import TUNED_NAMES, TunedParameters
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.motion_envelope import MARGIN, envelope_of, outside
 from twin_cosim.optimize.algorithms import ALGORITHMS
-from twin_cosim.optimize.campaign import CampaignSpec, run_campaign
+from twin_cosim.optimize.campaign import run_campaign
+from twin_cosim.optimize.campaign_spec import CampaignSpec
 from twin_cosim.optimize.config import check_uncertainty
 from twin_cosim.optimize.objective import AGGREGATES
 from twin_cosim.optimize.outputs import plot_convergence
 from twin_cosim.plant import Plant
 from twin_cosim.plots import plot_error_comparison
 from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table
-from twin_cosim.scenario import ScenarioError, load_scenario, with_plant_parameters
+from twin_cosim.scenario import ScenarioError, resolve_scenario
 from twin_cosim.schema import load_yaml
 
 KEYS = {
@@ -180,17 +181,15 @@ def run_comparison(
         resume = (folder / "campaign.json").exists()
         results[method] = run_campaign(spec, folder, workers, scheduler, resume, progress).as_dict()
     calibrated = _text(comparison.plant_parameters)
-    scenario = with_plant_parameters(load_scenario(comparison.scenario), calibrated)
+    scenario = resolve_scenario(comparison.scenario, calibrated)
     sets = {"FT": scenario.tuned} | {
         m.upper(): TunedParameters(**results[m]["best_params"]) for m in methods
     }
     scenarios = {"optimized": scenario}
     if comparison.validation:
-        scenarios["validation"] = with_plant_parameters(
-            load_scenario(comparison.validation), calibrated
-        )
+        scenarios["validation"] = resolve_scenario(comparison.validation, calibrated)
     for path in comparison.holdout:
-        held = with_plant_parameters(load_scenario(path), calibrated)
+        held = resolve_scenario(path, calibrated)
         scenarios[f"holdout {held.name}"] = held
     with Plant(scenario.plant_fmu()) as plant:
         table, records = evaluate_sets(plant, scenarios, sets)
@@ -216,7 +215,7 @@ def run_comparison(
         )
         text += markdown_table(validation)
     tuned_on = [scenario.reference] + [
-        load_scenario(f).reference for f in comparison.robust["scenarios"]
+        resolve_scenario(f).reference for f in comparison.robust["scenarios"]
     ]
     beyond = {}
     for label in (k for k in scenarios if k.startswith("holdout ")):

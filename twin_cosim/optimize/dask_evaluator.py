@@ -1,6 +1,6 @@
 """Candidates scored on a Dask distributed cluster (the ``[dask]`` extra).
 
-A :class:`ObjectivePlugin` (it holds only paths and numbers, so it pickles) gives every thread of
+A :class:`ObjectivePlugin` (it holds only resolved values, so it pickles) gives every thread of
 every Dask worker its own objective, built on the thread's first task (one plant instance per
 thread: an FMU instance is never shared between threads); each task resets that plant and runs one
 candidate. Any worker layout is correct (``--nthreads 1`` uses the least memory). A closing worker
@@ -23,7 +23,7 @@ from distributed import Client, Reschedule, WorkerPlugin, get_worker
 from distributed import as_completed as dask_completed
 from distributed.comm.core import CommClosedError
 
-from twin_cosim.optimize.evaluators import Result, SchedulerError
+from twin_cosim.optimize.evaluator_protocol import Result, SchedulerError
 from twin_cosim.optimize.objective import Objective, ObjectiveSpec
 
 LOG = logging.getLogger(__name__)

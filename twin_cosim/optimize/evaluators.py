@@ -4,22 +4,15 @@ Dask (:mod:`twin_cosim.optimize.dask_evaluator`, needs the ``[dask]`` extra).
 Every worker builds one :class:`~twin_cosim.optimize.objective.Objective` (extracts and
 instantiates the FMU once) and resets the plant for every run. Results stream back as they
 complete, so a campaign can log each one at once; the order of completion never changes a
-result, so every evaluator gives the same campaign for the same seed. An evaluator has
-``imap(candidates) -> iterator of (row index, result)`` and ``close()``.
+result, so every evaluator gives the same campaign for the same seed. An evaluator offers
+:class:`~twin_cosim.optimize.evaluator_protocol.Evaluator`.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
+from twin_cosim.optimize.evaluator_protocol import Evaluator
 from twin_cosim.optimize.objective import ObjectiveSpec
 from twin_cosim.workers import make_pool
-
-Result = dict[str, Any]
-
-
-class SchedulerError(ValueError):
-    """The Dask scheduler cannot be reached, has no workers, or was lost mid-run."""
 
 
 def make_evaluator(
@@ -27,12 +20,12 @@ def make_evaluator(
     workers: int | None,
     scheduler: str | None,
     scheduler_timeout: float | None = None,
-):
+) -> Evaluator:
     """Dask when a scheduler is given, serial for one worker, else a local process pool.
 
     ``scheduler_timeout`` (s) bounds the wait for the scheduler and for a first worker.
     """
-    if scheduler:
+    if scheduler:  # Dask is an optional extra: imported only when asked for
         from twin_cosim.optimize.dask_evaluator import DaskEvaluator
 
         return DaskEvaluator(spec, scheduler, scheduler_timeout)

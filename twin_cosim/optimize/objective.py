@@ -37,7 +37,7 @@ from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.config import OptimizeConfig, load_config
 from twin_cosim.optimize.early_stop import lower_bound_above, window_spans_run
 from twin_cosim.plant import Plant, PlantError
-from twin_cosim.scenario import Scenario, load_scenario, with_plant_parameters
+from twin_cosim.scenario import Scenario
 
 AGGREGATES = ("worst", "mean")
 
@@ -52,23 +52,21 @@ class EvaluationTask:
 
 @dataclass(frozen=True)
 class ObjectiveSpec:
-    """Everything a worker needs to build the objective (picklable: paths and numbers only).
+    """Everything a worker needs to build the objective (picklable: resolved values only).
 
     Attributes
     ----------
-    scenario : str
-        Scenario file (its ``optimize`` section configures the objective).
+    scenarios : tuple of Scenario
+        The objective's scenarios, resolved once by the parent (any plant parameter file
+        applied); the first one's ``optimize`` section configures the objective, the others
+        make it robust.
     fmu : str or None
-        Plant FMU; the scenario's (or the project's drive2mass) when None.
+        Plant FMU; the first scenario's (or the project's drive2mass) when None.
     iau_limit : float or None
         Largest allowed IAU, A.s, of every case when ``iau_limits`` is empty; None: no cap.
-    plant_parameters : str or None
-        Plant parameter file applied to every scenario.
-    scenarios : tuple of str
-        Further scenarios of a robust objective.
     iau_limits : tuple
-        IAU limit of each case, A.s (None: no cap), in case order: scenario by scenario
-        (``scenario`` first), plant sample by sample within each.
+        IAU limit of each case, A.s (None: no cap), in case order: scenario by scenario,
+        plant sample by sample within each.
     samples : tuple of dict
         Plant samples: relative factors by FMU parameter name; none: the nominal plant only.
     aggregate : str
@@ -77,11 +75,9 @@ class ObjectiveSpec:
         Factor on each case's E_pk (case order); empty: 1 for every case.
     """
 
-    scenario: str
+    scenarios: tuple[Scenario, ...]
     fmu: str | None
     iau_limit: float | None
-    plant_parameters: str | None = None
-    scenarios: tuple[str, ...] = ()
     iau_limits: tuple[float | None, ...] = ()
     samples: tuple[dict[str, float], ...] = ()
     aggregate: str = "worst"
@@ -110,24 +106,22 @@ class Objective:
 
     def __init__(self, spec: ObjectiveSpec) -> None:
         self.spec = spec
-        self.scenario: Scenario = self._load(spec.scenario)
+        self.scenario: Scenario = spec.scenarios[0]
         self.config: OptimizeConfig = load_config(self.scenario)
         fmu = self.scenario.plant_fmu(spec.fmu)
         self.plant = Plant(fmu)
         start = self.plant.start_values()
         samples = spec.samples or ({},)
-        files = (spec.scenario, *spec.scenarios)
-        count = len(files) * len(samples)
+        count = len(spec.scenarios) * len(samples)
         limits = spec.iau_limits or (spec.iau_limit,) * count
         scales = spec.scales or (1.0,) * count
         if len(limits) != count or len(scales) != count:
             raise ValueError(
-                f"objective of {count} cases ({len(files)} scenarios x {len(samples)} samples): "
-                f"got {len(limits)} IAU limits and {len(scales)} scales"
+                f"objective of {count} cases ({len(spec.scenarios)} scenarios x "
+                f"{len(samples)} samples): got {len(limits)} IAU limits and {len(scales)} scales"
             )
         self.cases: list[_Case] = []
-        for file in files:
-            scenario = self.scenario if file == spec.scenario else self._load(file)
+        for scenario in spec.scenarios:
             window = load_config(scenario).window
             nominal = {**start, **scenario.plant_parameters}
             ratio = scenario.settings.speed_steps_per_position_step
@@ -143,9 +137,6 @@ class Objective:
         self.exact_early_stop = all(
             window_spans_run(c.window, c.scenario.reference.duration) for c in self.cases
         )
-
-    def _load(self, path: str) -> Scenario:
-        return with_plant_parameters(load_scenario(path), self.spec.plant_parameters, self.spec.fmu)
 
     def reference_metrics(self) -> list[dict[str, Any]]:
         """Metrics of each case run with its scenario's own parameters (Fine-Tune by default).

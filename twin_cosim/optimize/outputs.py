@@ -14,10 +14,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 from twin_cosim.controller import TunedParameters  # noqa: E402
 from twin_cosim.cosim import run_scenario  # noqa: E402
 from twin_cosim.metrics import compute_metrics  # noqa: E402
-from twin_cosim.optimize.campaign import convergence, load_spec  # noqa: E402
+from twin_cosim.optimize.campaign_folder import convergence  # noqa: E402
+from twin_cosim.optimize.campaign_spec import CampaignSpec  # noqa: E402
 from twin_cosim.plant import Plant  # noqa: E402
 from twin_cosim.plots import plot_error_comparison  # noqa: E402
-from twin_cosim.scenario import load_scenario, with_plant_parameters  # noqa: E402
+from twin_cosim.scenario import Scenario  # noqa: E402
 
 
 def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
@@ -38,13 +39,21 @@ def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
     return path
 
 
-def write_campaign_plots(out_dir: Path) -> None:
-    """``convergence.png`` and ``best_run.png`` (best set against the scenario's own set)."""
+def write_campaign_plots(out_dir: Path, spec: CampaignSpec, scenario: Scenario) -> None:
+    """``convergence.png`` and ``best_run.png`` (best set against the scenario's own set).
+
+    Parameters
+    ----------
+    out_dir
+        Folder of a finished campaign (its ``result.json`` and ``evaluations.jsonl``).
+    spec
+        The campaign's spec (method, seed, plant FMU).
+    scenario
+        The campaign's first scenario, resolved (:func:`campaign_scenarios`).
+    """
     out_dir = Path(out_dir)
-    spec = load_spec(out_dir)
     result = json.loads((out_dir / "result.json").read_text())
     plot_convergence({spec.method: out_dir}, out_dir / "convergence.png")
-    scenario = with_plant_parameters(load_scenario(spec.scenario), spec.plant_parameters, spec.fmu)
     with Plant(scenario.plant_fmu(spec.fmu)) as plant:
         runs = {
             "scenario set": run_scenario(plant, scenario),

@@ -14,7 +14,7 @@ diagnose sections), loaded and checked once into a typed :class:`Scenario`.
 The YAML loader and checker shared with every other input file are :mod:`twin_cosim.schema`.
 """
 
-from twin_cosim.scenario.loader import load_scenario
+from twin_cosim.scenario.loader import load_scenario, resolve_scenario
 from twin_cosim.scenario.plant_section import plant_mismatch, with_plant_parameters
 from twin_cosim.scenario.resolved import Scenario, for_measured_run
 from twin_cosim.scenario.shipped import find_scenario
@@ -29,5 +29,6 @@ __all__ = [
     "load_scenario",
     "load_tuned_parameters",
     "plant_mismatch",
+    "resolve_scenario",
     "with_plant_parameters",
 ]

@@ -30,7 +30,12 @@ from typing import Any
 
 from twin_cosim.controller import ControllerSettings
 from twin_cosim.plant_model import DRIVE_FACTS
-from twin_cosim.scenario.plant_section import PlantSection, drive_facts, plant_section
+from twin_cosim.scenario.plant_section import (
+    PlantSection,
+    drive_facts,
+    plant_section,
+    with_plant_parameters,
+)
 from twin_cosim.scenario.reference_section import reference_section
 from twin_cosim.scenario.resolved import Scenario
 from twin_cosim.scenario.shipped import find_scenario
@@ -130,3 +135,28 @@ def _metrics_window(
     if t_end is not None and not t0 < t_end <= duration + 1e-9:
         raise check.fail("run.metrics_window", f"0 <= t0 < tF <= {duration:g} s", window)
     return t0, t_end
+
+
+def resolve_scenario(
+    path: Path | str, plant_parameters: Path | str | None = None, fmu: Path | str | None = None
+) -> Scenario:
+    """The scenario of a file (or shipped name), with a plant parameter file applied.
+
+    Parameters
+    ----------
+    path
+        Scenario YAML file, or the name of a shipped scenario.
+    plant_parameters
+        Plant parameter file whose values win over the scenario's; none: the scenario's own.
+    fmu
+        The plant actually used (``--plant``), whose model the parameter file must be of;
+        none: the scenario's.
+
+    Raises
+    ------
+    ScenarioError
+        On a malformed scenario file.
+    PlantParametersError
+        On a malformed plant parameter file, or one of another model than the plant's.
+    """
+    return with_plant_parameters(load_scenario(path), plant_parameters, fmu)

@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 from scenario_texts import scenario_text
 
-from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
+from twin_cosim.optimize.campaign import run_campaign
+from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
 from twin_cosim.optimize.comparison import load_comparison, run_comparison
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -13,7 +13,9 @@ import pytest
 from scenario_texts import scenario_text
 
 from twin_cosim.cli import main
-from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, load_spec, run_campaign
+from twin_cosim.optimize.campaign import run_campaign
+from twin_cosim.optimize.campaign_folder import load_spec
+from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
 from twin_cosim.optimize.folder_lock import FolderLock
 
 pytestmark = pytest.mark.usefixtures("keep_sigterm")

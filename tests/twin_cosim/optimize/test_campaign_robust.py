@@ -8,7 +8,8 @@ import shutil
 import pytest
 from scenario_texts import scenario_text
 
-from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
+from twin_cosim.optimize.campaign import run_campaign
+from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
 from twin_cosim.scenario.plant_file import PlantParameters, write_plant_parameters
 
 SMALL_CE = "methods: {ce: {population_size: 10, elite_fraction: 0.2}}"

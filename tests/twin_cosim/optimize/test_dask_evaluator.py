@@ -14,8 +14,10 @@ from pathlib import Path
 import pytest
 from scenario_texts import scenario_text
 
-from twin_cosim.optimize.campaign import CampaignError, CampaignSpec, run_campaign
-from twin_cosim.optimize.evaluators import SchedulerError
+from twin_cosim.optimize.campaign import run_campaign
+from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
+from twin_cosim.optimize.evaluator_protocol import SchedulerError
+from twin_cosim.scenario import load_scenario
 
 distributed = pytest.importorskip("distributed")
 
@@ -132,7 +134,7 @@ def test_teardown_waits_for_the_running_task(tmp_path):
 
     path = tmp_path / "long.yaml"
     path.write_text(LONG)
-    plugin = ObjectivePlugin(ObjectiveSpec(str(path), None, None))
+    plugin = ObjectivePlugin(ObjectiveSpec((load_scenario(path),), None, None))
     plugin.setup(worker=None)
     results = []
     fine_tune = [66.667, 0.5, 0.01, 1.0, 0.01, 0.1]

@@ -10,7 +10,8 @@ import pytest
 from scenario_texts import scenario_text
 
 from twin_cosim.optimize.algorithms import make_optimizer
-from twin_cosim.optimize.campaign import CampaignSpec, run_campaign
+from twin_cosim.optimize.campaign import run_campaign
+from twin_cosim.optimize.campaign_spec import CampaignSpec
 from twin_cosim.optimize.early_stop import elite_cutoff, lower_bound_above, window_spans_run
 
 SHORT = scenario_text(optimize="methods: {ce: {population_size: 10, elite_fraction: 0.2}}")

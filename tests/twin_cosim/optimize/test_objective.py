@@ -18,9 +18,14 @@ from twin_cosim.scenario import load_scenario
 REFERENCE1 = str(Path(__file__).resolve().parents[3] / "scenarios" / "reference1.yaml")
 
 
+def loaded(*files: str) -> tuple:
+    """The scenarios of ``files``, resolved as a campaign sends them to its workers."""
+    return tuple(load_scenario(f) for f in files)
+
+
 @pytest.fixture(scope="module")
 def objective():
-    instance = Objective(ObjectiveSpec(REFERENCE1, None, iau_limit=None))
+    instance = Objective(ObjectiveSpec(loaded(REFERENCE1), None, iau_limit=None))
     yield instance
     instance.close()
 
@@ -33,7 +38,8 @@ def test_valid_candidate_scores_its_epk(objective, plant):
 
 
 def test_iau_cap_violation_is_penalised(objective):
-    spec = ObjectiveSpec(REFERENCE1, None, iau_limit=1.0)  # A.s, far below what the run needs
+    # An IAU limit of 1 A.s, far below what the run needs.
+    spec = ObjectiveSpec(loaded(REFERENCE1), None, iau_limit=1.0)
     capped = Objective(spec)
     result = capped(TABLE3["ft"].as_array())
     capped.close()
@@ -80,7 +86,7 @@ def single_run_fitness(scenario_file, factors, x, plant):
 @pytest.mark.parametrize("aggregate", ["worst", "mean"])
 def test_robust_fitness_is_the_worst_or_mean_of_separate_runs(two_scenarios, plant, aggregate):
     first, second = two_scenarios
-    spec = ObjectiveSpec(first, None, None, None, (second,), (), SAMPLES, aggregate)
+    spec = ObjectiveSpec(loaded(first, second), None, None, (), SAMPLES, aggregate)
     robust = Objective(spec)
     x = TABLE3["ft"].as_array()
     result = robust(x)
@@ -95,7 +101,7 @@ def test_robust_fitness_is_the_worst_or_mean_of_separate_runs(two_scenarios, pla
 @pytest.mark.parametrize("aggregate", ["worst", "mean"])
 def test_early_stop_gives_a_lower_bound_above_the_cutoff(two_scenarios, aggregate):
     first, second = two_scenarios
-    spec = ObjectiveSpec(first, None, None, None, (second,), (), SAMPLES, aggregate)
+    spec = ObjectiveSpec(loaded(first, second), None, None, (), SAMPLES, aggregate)
     robust = Objective(spec)
     x = TABLE3["ft"].as_array()
     full = robust(x)
@@ -112,7 +118,7 @@ def test_early_stop_gives_a_lower_bound_above_the_cutoff(two_scenarios, aggregat
 def test_relative_scales_multiply_each_runs_epk(two_scenarios, plant):
     first, second = two_scenarios
     scales = tuple(0.5 + 0.25 * k for k in range(6))
-    spec = ObjectiveSpec(first, None, None, None, (second,), (), SAMPLES, "worst", scales)
+    spec = ObjectiveSpec(loaded(first, second), None, None, (), SAMPLES, "worst", scales)
     robust = Objective(spec)
     x = TABLE3["ga"].as_array()
     result = robust(x)
@@ -127,29 +133,29 @@ def test_relative_scales_multiply_each_runs_epk(two_scenarios, plant):
 def test_a_case_count_mismatch_is_refused(two_scenarios):
     first, second = two_scenarios
     with pytest.raises(ValueError, match="6 cases .* got 2 IAU limits"):
-        Objective(ObjectiveSpec(first, None, None, None, (second,), (1.0, 1.0), SAMPLES))
+        Objective(ObjectiveSpec(loaded(first, second), None, None, (1.0, 1.0), SAMPLES))
 
 
 def test_each_case_has_its_own_iau_limit(two_scenarios):
     first, second = two_scenarios
-    probe = Objective(ObjectiveSpec(first, None, None, None, (second,), (), SAMPLES))
+    probe = Objective(ObjectiveSpec(loaded(first, second), None, None, (), SAMPLES))
     references = probe.reference_metrics()
     probe.close()
     iau = [r["IAU"] for r in references]
     assert max(iau) > 1.02 * min(iau)  # the samples and scenarios need different currents
     own = tuple(1.001 * value for value in iau)
-    capped = Objective(ObjectiveSpec(first, None, None, None, (second,), own, SAMPLES))
+    capped = Objective(ObjectiveSpec(loaded(first, second), None, None, own, SAMPLES))
     assert capped(TABLE3["ft"].as_array())["status"] == "ok"
     capped.close()
     # One limit for every case, the nominal first case's, penalises the samples needing more.
-    shared = Objective(ObjectiveSpec(first, None, 1.001 * iau[0], None, (second,), (), SAMPLES))
+    shared = Objective(ObjectiveSpec(loaded(first, second), None, 1.001 * iau[0], (), SAMPLES))
     assert shared(TABLE3["ft"].as_array())["status"] == "violation"
     shared.close()
 
 
 def test_the_case_that_stopped_a_candidate_runs_first_next(two_scenarios):
     first, second = two_scenarios
-    spec = ObjectiveSpec(first, None, None, None, (second,), (), SAMPLES, "worst")
+    spec = ObjectiveSpec(loaded(first, second), None, None, (), SAMPLES, "worst")
     robust = Objective(spec)
     x = TABLE3["ft"].as_array()
     full = robust(x)

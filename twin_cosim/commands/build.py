@@ -1,0 +1,31 @@
+"""``twin build``: build a plant FMU from ``models/<MODEL>``."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from fmu_build.build import CACHE_ENV, DEFAULT_MODEL, available_models, build_fmu
+from twin_cosim.commands.options import command_parser
+
+
+def add_arguments(subparsers) -> None:
+    """The ``build`` command and its options."""
+    parser = command_parser(subparsers, "build", "build a plant FMU from models/<MODEL>")
+    parser.add_argument(
+        "model", nargs="?", default=DEFAULT_MODEL, help=f"one of {available_models()}"
+    )
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        help=f"output folder (default: the per-user cache, ${CACHE_ENV} or "
+        "$XDG_CACHE_HOME/twin-cosim, one folder per source version)",
+    )
+    parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Build (or find up to date) the FMU and print its path."""
+    print(build_fmu(args.model, Path(args.out) if args.out else None, force=args.force))
+    return 0

@@ -1,0 +1,59 @@
+"""``twin compare``: several methods on one campaign file, the paper's Tables 3-5."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from pathlib import Path
+
+from twin_cosim.commands.options import (
+    command_parser,
+    data_option,
+    out_folder,
+    plant_parameters_option,
+    whole_number,
+)
+
+
+def add_arguments(subparsers) -> None:
+    """The ``compare`` command and its options."""
+    parser = command_parser(
+        subparsers, "compare", "several methods on one campaign file: Tables 3-5"
+    )
+    parser.add_argument("campaign", help="campaign YAML file (see scenarios/paper_campaign.yaml)")
+    parser.add_argument(
+        "--methods",
+        help="comma-separated subset of the campaign's methods (default: all of them)",
+    )
+    parser.add_argument(
+        "--workers", type=whole_number(1), help="local processes (default: all cores)"
+    )
+    parser.add_argument(
+        "--scheduler", metavar="ADDR", help="Dask scheduler address (default: none, a local pool)"
+    )
+    parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<campaign name>)")
+    plant_parameters_option(parser)
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    data_option(parser)
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run (or reuse) each method's campaign and write the tables and figures."""
+    from twin_cosim.optimize.comparison import load_comparison, run_comparison
+
+    comparison = load_comparison(Path(args.campaign))
+    if args.plant_parameters:
+        comparison = dataclasses.replace(comparison, plant_parameters=Path(args.plant_parameters))
+    out = out_folder(args.out, Path("out") / comparison.name)
+    text = run_comparison(
+        comparison,
+        out,
+        methods=args.methods.split(",") if args.methods else None,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=not args.quiet,
+    )
+    print(text)
+    print(f"wrote {out}/tables.md, tables.json, convergence.png and error plots")
+    return 0

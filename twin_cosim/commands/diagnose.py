@@ -1,0 +1,142 @@
+"""``twin diagnose``: where the twin is wrong, why, and by how much; the calibrated plant file."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from twin_cosim.commands.console import warn_plant_mismatch
+from twin_cosim.commands.options import (
+    command_parser,
+    data_option,
+    fraction,
+    out_folder,
+    plant_option,
+    plant_path,
+    whole_number,
+)
+
+
+def add_arguments(subparsers) -> None:
+    """The ``diagnose`` command and its options."""
+    parser = command_parser(subparsers, "diagnose", "where the twin is wrong, why, and by how much")
+    parser.add_argument("scenario", help="scenario YAML file (or shipped name) the runs followed")
+    parser.add_argument(
+        "--measured",
+        action="append",
+        required=True,
+        help="measured run, CSV or EMPS .mat (repeatable; required, no default)",
+    )
+    parser.add_argument(
+        "--holdout", action="append", help="held-out run(s) (default: a time split)"
+    )
+    parser.add_argument(
+        "--split",
+        type=fraction(0.1, 0.9),
+        help="training fraction of the time split "
+        "(default: the scenario's diagnose.split, else 0.5)",
+    )
+    parser.add_argument(
+        "--max-effects",
+        type=whole_number(1),
+        help="effects to accept at most (default: the scenario's diagnose.max_effects, else 3)",
+    )
+    plant_option(parser)
+    parser.add_argument(
+        "--workers", type=whole_number(1), help="local processes for the fits (default: all cores)"
+    )
+    parser.add_argument(
+        "--out", metavar="DIR", help="report folder (default: out/diagnosis-<scenario name>)"
+    )
+    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    parser.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress bar (there is none either with --json when stdout is not a terminal)",
+    )
+    data_option(parser)
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Diagnose, write the report, plant.yaml and calibrated.yaml; print the verdict."""
+    from twin_cosim.gap.calibrated_plant import write_calibration
+    from twin_cosim.gap.diagnosis import diagnose
+    from twin_cosim.gap.report import write_report
+    from twin_cosim.gap.settings import settings_from
+    from twin_cosim.measured import read_measured
+    from twin_cosim.scenario import resolve_scenario
+    from twin_cosim.versions import versions
+
+    scenario = resolve_scenario(args.scenario)
+    mismatch = warn_plant_mismatch(scenario, plant_path(args))
+    out = out_folder(args.out, Path("out") / f"diagnosis-{scenario.name}")
+    measured = [read_measured(path) for path in args.measured]
+    holdout = [read_measured(path) for path in args.holdout or []]
+    settings = settings_from(scenario, args.split, args.max_effects)
+    start = time.perf_counter()
+    progress = _progress_bar(args)
+    result = diagnose(
+        scenario, measured, holdout, args.plant, settings, workers=args.workers, progress=progress
+    )
+    extra = {
+        "wall_s": time.perf_counter() - start,
+        "versions": versions(),
+        "warnings": mismatch + result.summary()["warnings"],
+    }
+    files = write_report(result, out, extra)
+    summary = {**result.summary(), **extra}
+    files |= write_calibration(scenario, summary, out, _command(args), args.plant)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        _print_text(summary, files)
+    return 0
+
+
+def _command(args: argparse.Namespace) -> str:
+    """The command that made the diagnosis, as plant.yaml records it."""
+    runs = [f"--measured {m}" for m in args.measured]
+    runs += [f"--holdout {h}" for h in args.holdout or []]
+    return " ".join(["twin diagnose", str(args.scenario), *runs])
+
+
+def _progress_bar(args: argparse.Namespace) -> Callable[[int, str], Callable[[int], None]]:
+    """A factory of tqdm progress bars on stderr; none with ``--quiet``, or with ``--json``
+    when stdout is not a terminal."""
+    from tqdm import tqdm
+
+    enabled = not args.quiet and not (args.json and not sys.stdout.isatty())
+
+    def make(total: int, label: str) -> Callable[[int], None]:
+        bar = tqdm(total=total, desc=label, unit="task", disable=not enabled, file=sys.stderr)
+
+        def tick(done: int) -> None:
+            if bar.n + done > bar.total:
+                bar.total = bar.n + done
+            bar.update(done)
+
+        return tick
+
+    return make
+
+
+def _print_text(summary: dict[str, Any], files: dict[str, str]) -> None:
+    """The verdict, each accepted effect's held-out gaps, and the files written."""
+    print(summary["gap"]["verdict"])
+    for step in summary["steps"]:
+        print(
+            f"  {step['effect']}: held-out position gap {step['holdout_gap_before_um']:.3f} -> "
+            f"{step['holdout_gap_after_um']:.3f} um, current "
+            f"{step['holdout_current_before_A']:.4f} -> "
+            f"{step['holdout_current_after_A']:.4f} A; fitted {step['params']}"
+        )
+    print(
+        f"wrote {files['markdown']}, {files['html']}, {files['json']}, {files['plant']}, "
+        f"{files['calibrated']} ({summary['wall_s']:.1f} s)"
+    )

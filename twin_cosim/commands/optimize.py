@@ -1,0 +1,192 @@
+"""``twin optimize``: tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] in a campaign folder."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from twin_cosim.commands.console import warn_plant_mismatch
+from twin_cosim.commands.options import (
+    command_parser,
+    data_option,
+    out_folder,
+    plant_option,
+    plant_parameters_option,
+    plant_path,
+    whole_number,
+)
+from twin_cosim.optimize.methods import METHOD_NAMES, method_list
+
+if TYPE_CHECKING:
+    from twin_cosim.optimize.campaign_spec import CampaignResult, CampaignSpec
+
+
+def add_arguments(subparsers) -> None:
+    """The ``optimize`` command and its options."""
+    parser = command_parser(
+        subparsers, "optimize", "tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H]"
+    )
+    parser.add_argument(
+        "scenario",
+        nargs="+",
+        help="scenario YAML file or shipped name (its optimize section); more scenarios: a "
+        "robust objective over all of them",
+    )
+    _campaign_options(parser)
+    plant_parameters_option(parser)
+    _robust_options(parser)
+    parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    data_option(parser)
+    parser.set_defaults(handler=run)
+
+
+def _campaign_options(parser: argparse.ArgumentParser) -> None:
+    """Method, seed, budget, where it runs, the plant and the campaign folder."""
+    parser.add_argument(
+        "--method", choices=METHOD_NAMES, help="optimizer (default: none; required unless --resume)"
+    )
+    parser.add_argument("--seed", type=whole_number(0), help="seed (default: 0)")
+    parser.add_argument(
+        "--budget", type=whole_number(1), help="maximum evaluations (default: the method's)"
+    )
+    parser.add_argument(
+        "--workers", type=whole_number(1), help="local processes (default: all cores; 1: serial)"
+    )
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDR",
+        help="Dask scheduler address, e.g. tcp://host:8786 (default: none, a local pool)",
+    )
+    plant_option(parser)
+    parser.add_argument(
+        "--out", metavar="DIR", help="campaign folder (default: out/optimize-<method>-seed<N>)"
+    )
+    parser.add_argument(
+        "--resume", metavar="DIR", help="campaign folder to resume (default: a new campaign)"
+    )
+
+
+def _robust_options(parser: argparse.ArgumentParser) -> None:
+    """Plant samples, how runs combine, and early stopping."""
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        help="relative tolerance of the uncertain plant parameters (default: 0, no samples)",
+    )
+    parser.add_argument(
+        "--samples",
+        type=whole_number(1),
+        help="plant samples per scenario, the first nominal (default: 1)",
+    )
+    parser.add_argument(
+        "--objective", choices=["worst", "mean"], help="over scenarios x samples (default: worst)"
+    )
+    parser.add_argument(
+        "--relative",
+        action="store_true",
+        help="score each run's E_pk relative to the reference set's (Fine-Tune) on the same "
+        "scenario and plant sample, so that no scenario outweighs the others by being harder "
+        "(default: off, E_pk in um)",
+    )
+    parser.add_argument(
+        "--no-early-stop",
+        action="store_true",
+        help="run every candidate to the end (early stopping is exact; this is for measuring it)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run (or resume) the campaign, write its plots, print its result."""
+    from twin_cosim.optimize.campaign import run_campaign
+    from twin_cosim.optimize.cases import campaign_scenarios
+    from twin_cosim.optimize.outputs import write_campaign_plots
+
+    spec, out = _spec_and_folder(args)
+    scenarios = campaign_scenarios(spec)
+    if not args.resume:
+        warn_plant_mismatch(scenarios[0], plant_path(args))
+    try:
+        result = run_campaign(
+            spec,
+            out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            resume=bool(args.resume),
+            progress=not args.quiet,
+            scenarios=scenarios,
+        )
+    except KeyboardInterrupt as exc:
+        if (out / "campaign.json").exists():
+            scenarios_given = " ".join(args.scenario)
+            exc.hint = f"; the log is intact: twin optimize {scenarios_given} --resume {out}"
+        raise
+    write_campaign_plots(out, spec, scenarios[0])
+    _report(spec, result, out, args.json)
+    return 0
+
+
+def _given(args: argparse.Namespace) -> dict[str, Any]:
+    """The campaign options given on the command line (those not given are left out)."""
+    given = {
+        "method": args.method,
+        "seed": args.seed,
+        "budget": args.budget,
+        "plant_parameters": args.plant_parameters,
+        "scenarios": list(args.scenario[1:]) or None,
+        "tolerance": args.tolerance,
+        "samples": args.samples,
+        "aggregate": args.objective,
+        "relative": True if args.relative else None,
+        "early_stop": False if args.no_early_stop else None,
+    }
+    return {k: v for k, v in given.items() if v is not None}
+
+
+def _spec_and_folder(args: argparse.Namespace) -> tuple[CampaignSpec, Path]:
+    """The campaign asked for and its folder: a new one, or the stored one with what is given.
+
+    On a resume, the campaign refuses given options that differ from the stored ones.
+    """
+    from twin_cosim.optimize.campaign_folder import load_spec
+    from twin_cosim.optimize.campaign_spec import CampaignSpec
+
+    given = _given(args)
+    if args.resume:
+        out = Path(args.resume)
+        stored = load_spec(out)
+        fmu = args.plant or stored.fmu
+        return dataclasses.replace(stored, scenario=args.scenario[0], fmu=fmu, **given), out
+    if args.method is None:
+        raise ValueError(f"--method is required ({method_list()}) unless --resume is given")
+    spec = CampaignSpec(scenario=args.scenario[0], fmu=args.plant, **given)
+    return spec, out_folder(args.out, Path("out") / f"optimize-{spec.method}-seed{spec.seed}")
+
+
+def _report(spec: CampaignSpec, result: CampaignResult, out: Path, as_json: bool) -> None:
+    """Print the result: one JSON object, or lines for a reader."""
+    if as_json:
+        summary = {
+            "best_params": result.best_params,
+            "metrics": result.metrics,
+            "reference_metrics": result.reference,
+            "evaluations": result.evaluations,
+            "evaluations_reused": result.evaluations_reused,
+            "generations": result.generations,
+            "stop_reason": result.stop_reason,
+            "wall_s": result.wall_s,
+            "out": str(out),
+        }
+        print(json.dumps(summary))
+        return
+    m = result.metrics or {}
+    print(
+        f"{spec.method}: best E_pk {m.get('E_pk_um', float('nan')):.3f} um "
+        f"(reference {result.reference['E_pk_um']:.3f} um) after {result.evaluations} "
+        f"evaluations in {result.wall_s:.1f} s; {result.stop_reason}"
+    )
+    print("best parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in result.best_params.items()))
+    print(f"wrote {out}/result.json, evaluations.jsonl, convergence.png, best_run.png")

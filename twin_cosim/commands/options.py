@@ -1,0 +1,98 @@
+"""Options and argument types shared by the commands of ``twin``, and their help format."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+
+from twin_cosim.environment import DATA_ENV
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Help that shows every option's default: the value, or what the help text says it is."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if "default" in text or action.default in (None, argparse.SUPPRESS):
+            return text
+        if action.default is False:
+            return f"{text} (default: off)"
+        return f"{text} (default: %(default)s)"
+
+
+def command_parser(subparsers, name: str, help: str) -> argparse.ArgumentParser:
+    """The parser of command ``name`` among ``subparsers`` (help shows the defaults)."""
+    return subparsers.add_parser(name, help=help, formatter_class=HelpFormatter)
+
+
+def whole_number(low: int) -> Callable[[str], int]:
+    """An argparse type: a whole number >= ``low`` (the message names the option)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low:
+            raise argparse.ArgumentTypeError(f"expected a whole number >= {low}, got {text!r}")
+        return value
+
+    return parse
+
+
+def fraction(low: float, high: float) -> Callable[[str], float]:
+    """An argparse type: a number in [low, high]."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"expected a number in [{low}, {high}], got {text!r}")
+        return value
+
+    return parse
+
+
+def out_folder(option: str | None, default: Path) -> Path:
+    """The output folder of ``--out`` (or ``default``); an existing file is refused."""
+    out = Path(option) if option else default
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a folder; give a folder")
+    return out
+
+
+def plant_path(args: argparse.Namespace) -> Path | None:
+    """The FMU of ``--plant``, None when not given."""
+    return Path(args.plant) if args.plant else None
+
+
+def data_option(parser: argparse.ArgumentParser) -> None:
+    """``--data DIR``: the folder of measured data files."""
+    parser.add_argument(
+        "--data",
+        metavar="DIR",
+        help=f"folder of measured data files, e.g. the EMPS benchmark's DATA_EMPS.mat "
+        f"(default: ${DATA_ENV}, else the path in the scenario)",
+    )
+
+
+def plant_parameters_option(parser: argparse.ArgumentParser) -> None:
+    """``--plant-parameters FILE``: a plant.yaml applied to every scenario."""
+    parser.add_argument(
+        "--plant-parameters",
+        metavar="FILE",
+        help="calibrated plant parameters for every scenario, the plant.yaml of twin diagnose "
+        "(default: none)",
+    )
+
+
+def plant_option(parser: argparse.ArgumentParser) -> None:
+    """``--plant FMU``: another plant than the scenario's."""
+    parser.add_argument(
+        "--plant",
+        metavar="FMU",
+        help="another FMU offering the plant contract (default: the scenario's plant)",
+    )

@@ -1,0 +1,187 @@
+"""``twin simulate``: run a scenario in closed loop, judge the run, write its record and plot."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from twin_cosim.commands.console import warn_plant_mismatch, write_json
+from twin_cosim.commands.options import (
+    command_parser,
+    data_option,
+    out_folder,
+    plant_option,
+    plant_parameters_option,
+    plant_path,
+)
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from twin_cosim.controller import TunedParameters
+    from twin_cosim.metrics import Metrics
+    from twin_cosim.scenario import Scenario
+
+
+def add_arguments(subparsers) -> None:
+    """The ``simulate`` command and its options."""
+    parser = command_parser(subparsers, "simulate", "run a scenario in closed loop")
+    parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
+    parser.add_argument(
+        "--params",
+        help="ft|ga|ce|sa (paper Table 3) or a YAML/JSON file (default: the scenario's)",
+    )
+    plant_option(parser)
+    plant_parameters_option(parser)
+    parser.add_argument(
+        "--machine",
+        metavar="RUN_OR_PLANT",
+        help="judge on a machine: a measured run (CSV/.mat) made with these gains, or a virtual "
+        "machine (a scenario or plant.yaml whose plant stands for the machine) (default: none)",
+    )
+    parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<scenario name>)")
+    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    parser.add_argument(
+        "--reference-path",
+        action="store_true",
+        help="step through fmpy in plain Python instead of the compiled loop",
+    )
+    data_option(parser)
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Simulate, write record.csv, run.png and summary.json; 1 when the loop diverged."""
+    from twin_cosim.metrics import compute_metrics
+    from twin_cosim.plots import plot_run
+    from twin_cosim.run_checks import loop_warnings
+    from twin_cosim.scenario import load_tuned_parameters, resolve_scenario
+
+    scenario = resolve_scenario(args.scenario, args.plant_parameters, args.plant)
+    tuned = load_tuned_parameters(args.params) if args.params else scenario.tuned
+    mismatch = warn_plant_mismatch(scenario, plant_path(args))
+    out = out_folder(args.out, Path("out") / scenario.name)
+    out.mkdir(parents=True, exist_ok=True)
+    record, ran = _simulate(scenario, tuned, plant_path(args), not args.reference_path)
+    metrics = compute_metrics(record, scenario.metrics_window)
+    diverged, loop = loop_warnings(record, scenario)
+    summary = _summary(args, scenario, tuned, record, metrics, ran, mismatch + loop, out)
+    record.to_csv(out / "record.csv", index=False)
+    title = f"{scenario.name}: {args.params or 'scenario parameters'}"
+    plot_run(record, metrics, title, out / "run.png")
+    write_json(out / "summary.json", summary)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        _print_text(scenario.name, metrics, summary, args.machine, out)
+    for warning in summary["warnings"]:
+        print(f"twin simulate: warning: {warning}", file=sys.stderr)
+    return 1 if diverged else 0
+
+
+def _simulate(
+    scenario: Scenario, tuned: TunedParameters, fmu: Path | None, fast: bool
+) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """The run's record, and the FMU it ran on (``fmu``, else the scenario's) and its wall time.
+
+    Returns
+    -------
+    tuple
+        The record, and ``fmu`` (the FMU's path) and ``wall_s`` (the run's wall time, s).
+    """
+    from twin_cosim.cosim import run_scenario
+    from twin_cosim.plant import Plant
+
+    with Plant(scenario.plant_fmu(fmu)) as plant:
+        start = time.perf_counter()
+        record = run_scenario(plant, scenario, tuned, fast=fast)
+        wall = time.perf_counter() - start
+        return record, {"fmu": str(plant.fmu_path), "wall_s": wall}
+
+
+def _summary(
+    args: argparse.Namespace,
+    scenario: Scenario,
+    tuned: TunedParameters,
+    record: pd.DataFrame,
+    metrics: Metrics,
+    ran: dict[str, Any],
+    warnings: list[str],
+    out: Path,
+) -> dict[str, Any]:
+    """summary.json: inputs, metrics, the comparisons with a measured run and a machine.
+
+    ``ran`` is what :func:`_simulate` tells of the run (FMU, wall time in s).
+    """
+    from twin_cosim.versions import versions
+
+    return {
+        "scenario": str(scenario.source),
+        "fmu": ran["fmu"],
+        "plant_parameters_file": args.plant_parameters,
+        "params": tuned.as_dict(),
+        "metrics": metrics.as_dict(),
+        "validation": _validation(scenario, record),
+        "machine": _on_machine(scenario, tuned, args.machine, metrics),
+        "metrics_window_s": list(scenario.metrics_window),
+        "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
+        "wall_s": ran["wall_s"],
+        "outputs": {"record": str(out / "record.csv"), "plot": str(out / "run.png")},
+        "warnings": warnings,
+        "versions": versions(),
+    }
+
+
+def _validation(scenario: Scenario, record: pd.DataFrame) -> dict[str, Any] | None:
+    """The run against the scenario's measured run (gaps in um and %), None without one."""
+    if scenario.measured is None:
+        return None
+    from twin_cosim.measured import read_measured
+    from twin_cosim.metrics import compare_with_measured
+
+    run = read_measured(scenario.measured)
+    return {
+        "measured": str(scenario.measured),
+        **compare_with_measured(record, run.t, run.x, run.current),
+    }
+
+
+def _on_machine(
+    scenario: Scenario, tuned: TunedParameters, machine: str | None, metrics: Metrics
+) -> dict[str, Any] | None:
+    """The twin's prediction against ``--machine`` (a measured run or a virtual machine)."""
+    if not machine:
+        return None
+    from twin_cosim.machine import machine_metrics, prediction
+
+    judged, kind = machine_metrics(scenario, tuned, machine)
+    return {"source": machine, "kind": kind, **prediction(metrics, judged)}
+
+
+def _print_text(
+    name: str, metrics: Metrics, summary: dict[str, Any], machine: str | None, out: Path
+) -> None:
+    """The summary for a reader: metrics, the measured-run gaps, the machine's verdict."""
+    m = metrics
+    print(
+        f"{name}: E_pk {m.E_pk_um:.2f} um, ITAE {m.ITAE:.2f} um.s^2, IAU {m.IAU:.3f} A.s, "
+        f"RMS {m.rms_um:.2f} um ({summary['wall_s']:.2f} s wall)"
+    )
+    v = summary["validation"]
+    if v:
+        print(
+            f"against {v['measured']}: position gap RMS {v['position_rms_gap_um']:.3f} um "
+            f"(max {v['position_max_gap_um']:.2f} um, relative "
+            f"{v['position_relative_error_pct']:.4f} %), command/force relative error "
+            f"{v['current_relative_error_pct']:.3f} %"
+        )
+    on_machine = summary["machine"]
+    if on_machine:
+        from twin_cosim.machine import JUDGED, describe
+
+        print(describe(machine, on_machine["kind"], {k: on_machine[k] for k in JUDGED}))
+    print(f"wrote {out}/record.csv, run.png, summary.json")

@@ -1,0 +1,180 @@
+"""The ask/tell loop of a campaign: every generation answered from the log or the evaluator.
+
+The optimizer starts from the scenario's parameters (the Fine-Tune set by default) when they lie
+inside the bounds. Resuming replays the optimizer from its seed, answering from the log every
+batch already evaluated, so a resumed campaign ends exactly where an uninterrupted one would.
+
+Early stopping (CE, on by default where exact, see :mod:`twin_cosim.optimize.early_stop`): a
+generation's candidates go out in groups of as many as there are workers, each with the cutoff
+known at that moment; a stopped candidate's lower bound is reused from the log only within its
+own generation (elsewhere it is evaluated again).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from twin_cosim.optimize.algorithms.base import Optimizer
+from twin_cosim.optimize.campaign_folder import write_progress
+from twin_cosim.optimize.campaign_spec import CampaignError
+from twin_cosim.optimize.config import OptimizeConfig
+from twin_cosim.optimize.early_stop import elite_cutoff
+from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
+from twin_cosim.optimize.evaluator_protocol import Evaluator, SchedulerError
+from twin_cosim.optimize.objective import EvaluationTask
+
+LOG = logging.getLogger(__name__)
+
+
+class AskTellLoop:
+    """Asks the optimizer for generations, answers each from the log or the evaluator, tells it.
+
+    Parameters
+    ----------
+    optimizer
+        The optimizer, in the unit cube.
+    config
+        The objective's configuration (bounds: unit cube <-> physical units).
+    log
+        The campaign's evaluation log: read for answers, appended with every new result.
+    evaluator
+        Scores the candidates the log cannot answer.
+    early_stop
+        Send candidates in groups of ``evaluator.workers`` with the cutoff known then.
+    bar
+        Progress bar (evaluations).
+    """
+
+    def __init__(
+        self,
+        optimizer: Optimizer,
+        config: OptimizeConfig,
+        log: EvaluationLog,
+        evaluator: Evaluator,
+        early_stop: bool,
+        bar: tqdm,
+    ) -> None:
+        self.optimizer = optimizer
+        self.config = config
+        self.log = log
+        self.evaluator = evaluator
+        self.early_stop = early_stop
+        self.bar = bar
+        self.logged_before = {entry["key"] for entry in log.entries}
+        self.reused = 0  # answers from entries logged before this run
+
+    def run(self, out_dir: Path, start: float) -> None:
+        """Ask and tell until the optimizer stops; ``progress.json`` after every generation.
+
+        ``start`` is the loop's start (``time.perf_counter()``, s).
+        """
+        optimizer = self.optimizer
+        while optimizer.stop_reason is None:
+            unit = optimizer.ask()
+            if len(unit) == 0:
+                break
+            optimizer.tell(self._generation(self.config.from_unit(unit)))
+            write_progress(out_dir, optimizer, self.config, time.perf_counter() - start)
+            self.bar.set_postfix(gen=optimizer.generation, best_um=f"{optimizer.best[1]:.3f}")
+
+    def _generation(self, candidates: np.ndarray) -> np.ndarray:
+        """The fitness (um) of every candidate of a generation (physical units, one per row)."""
+        fitness = np.empty(len(candidates))
+        missing = self._answer_from_log(candidates, fitness)
+        unique: dict[str, list[int]] = {}
+        for i in missing:
+            unique.setdefault(candidate_key(candidates[i]), []).append(i)
+        firsts = [rows[0] for rows in unique.values()]
+        known = [i for i in range(len(candidates)) if i not in missing]
+        group = self.evaluator.workers if self.early_stop else max(1, len(firsts))
+        for start_at in range(0, len(firsts), group):
+            chosen = firsts[start_at : start_at + group]
+            self._evaluate(candidates, chosen, unique, fitness, known)
+        return fitness
+
+    def _answer_from_log(self, candidates: np.ndarray, fitness: np.ndarray) -> list[int]:
+        """Fill ``fitness`` from the log where it answers; the rows it does not answer."""
+        missing = []
+        for i, x in enumerate(candidates):
+            entry = self.log.lookup(x)
+            if entry is None or (
+                entry["status"] == "stopped" and entry["generation"] != self.optimizer.generation
+            ):  # a lower bound holds only against its own generation's cutoff
+                missing.append(i)
+            else:
+                fitness[i] = entry["fitness"]
+                self.reused += entry["key"] in self.logged_before
+        self.bar.update(len(candidates) - len(missing))
+        return missing
+
+    def _evaluate(
+        self,
+        candidates: np.ndarray,
+        chosen: list[int],
+        unique: dict[str, list[int]],
+        fitness: np.ndarray,
+        known: list[int],
+    ) -> None:
+        """Evaluate the ``chosen`` rows with the cutoff known now; log and fill their fitness.
+
+        ``unique`` maps a candidate's key to its rows (duplicates get the same answer);
+        ``known`` lists the rows whose fitness is known, extended here.
+        """
+        cutoff = (
+            elite_cutoff(self.optimizer, len(candidates), fitness[known])
+            if self.early_stop
+            else float("inf")
+        )
+        tasks = [EvaluationTask(candidates[i], cutoff) for i in chosen]
+        for j, result in self.evaluator.imap(tasks):
+            entry = self.log.append(candidates[chosen[j]], result, self.optimizer.generation)
+            if result["status"] != "ok":
+                LOG.info("candidate %s: %s (%s)", entry["x"], result["status"], result["reason"])
+            rows = unique[entry["key"]]
+            fitness[rows] = result["fitness"]
+            known.extend(rows)
+            self.bar.update(len(rows))
+
+
+def run_loop(
+    optimizer: Optimizer,
+    config: OptimizeConfig,
+    log: EvaluationLog,
+    evaluator: Evaluator,
+    early_stop: bool,
+    out_dir: Path,
+    progress: bool,
+) -> tuple[int, float]:
+    """Run the loop to its end, then free the evaluator, the log and the optimizer.
+
+    Returns
+    -------
+    tuple
+        Evaluations answered from entries logged before this run, and the loop's wall time
+        (s, until everything is freed).
+
+    Raises
+    ------
+    CampaignError
+        When the Dask scheduler is lost; the message tells how to resume.
+    """
+    start = time.perf_counter()
+    bar = tqdm(total=optimizer.budget, unit="eval", disable=not progress, desc=optimizer.name)
+    loop = AskTellLoop(optimizer, config, log, evaluator, early_stop, bar)
+    try:
+        loop.run(out_dir, start)
+    except SchedulerError as exc:
+        raise CampaignError(
+            f"{exc}; every completed evaluation is in {log.path}: continue with --resume {out_dir}"
+        ) from exc
+    finally:
+        bar.close()
+        evaluator.close()
+        log.close()
+        optimizer.close()
+    return loop.reused, time.perf_counter() - start

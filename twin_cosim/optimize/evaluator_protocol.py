@@ -1,0 +1,32 @@
+"""What every evaluator of candidates offers, and what it may raise.
+
+An evaluator (serial, a local process pool of :mod:`twin_cosim.workers`, or Dask in
+:mod:`twin_cosim.optimize.dask_evaluator`) scores tasks on its workers and streams back
+``(row index, result)`` pairs as they complete; a result is the dict an
+:class:`~twin_cosim.optimize.objective.Objective` returns.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from typing import Any, Protocol
+
+Result = dict[str, Any]
+
+
+class SchedulerError(ValueError):
+    """The Dask scheduler cannot be reached, has no workers, or was lost mid-run."""
+
+
+class Evaluator(Protocol):
+    """Scores tasks on ``workers`` workers, each holding its own plant."""
+
+    workers: int
+
+    def imap(self, tasks: Sequence[Any]) -> Iterator[tuple[int, Result]]:
+        """Yield (task index, result) in order of completion."""
+        ...
+
+    def close(self) -> None:
+        """Free the workers."""
+        ...
