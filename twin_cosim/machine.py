@@ -21,6 +21,8 @@ from typing import Any
 import pandas as pd
 
 from twin_cosim.controller import TunedParameters
+from twin_cosim.cosim import run_scenario
+from twin_cosim.measured import check_against_reference, read_measured
 from twin_cosim.metrics import Metrics, compute_metrics
 from twin_cosim.plant import Plant
 from twin_cosim.scenario import Scenario, load_scenario
@@ -55,12 +57,8 @@ def machine_metrics(
         (ScenarioError, MeasuredDataError) naming the file when the machine cannot be read or a
         measured run does not follow the scenario's reference.
     """
-    from twin_cosim.cosim import run_scenario
-
     machine = Path(machine)
     if machine.suffix.lower() in MEASURED_SUFFIXES:
-        from twin_cosim.measured import check_against_reference, read_measured
-
         run = read_measured(machine)
         check_against_reference(run, scenario.reference)
         record = pd.DataFrame({"t": run.t, "error": run.x_ref - run.x, "current": run.current})

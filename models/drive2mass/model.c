@@ -34,6 +34,15 @@ SOLVER_CHECK_STATE_COUNT(STATE_COUNT);
 
 static double sign_of(double x) { return (x > 0.0) - (x < 0.0); }
 
+/* Carriage travel per motor radian (m/rad): spindle constant over gear ratio (the model card
+ * states the same for the Python side). */
+static double travel_per_rad(const ModelVariables *v) { return v->spindle_constant / v->gear_ratio; }
+
+/* Leadscrew angle (rad) of a load angle referred to the motor (rad). */
+static double screw_angle(const ModelVariables *v, double load_angle) {
+    return load_angle / v->gear_ratio;
+}
+
 /* Coupling torque (N.m) for a twist (rad) and twist rate (rad/s). */
 static double shaft_torque(const ModelState *s, double twist, double twist_rate) {
     double torque;
@@ -60,7 +69,7 @@ static double motor_torque(const ModelVariables *v, double current, double motor
 static double friction_position_factor(const ModelVariables *v, double load_angle) {
     if (v->position_friction_amplitude == 0.0) return 1.0;
     return 1.0 + v->position_friction_amplitude *
-                     cos(v->position_friction_order * load_angle / v->gear_ratio +
+                     cos(v->position_friction_order * screw_angle(v, load_angle) +
                          v->position_friction_phase);
 }
 
@@ -225,7 +234,7 @@ static double scale_error(const ModelVariables *v, double t) {
  * start: travel (q_L - q_L0) scale_error(t) + E(theta_screw) - E(theta_screw0). */
 static double transmission_error(const ModelVariables *v, const ModelState *s, double t) {
     return s->travel_per_rad * (s->load_angle - s->start_load_angle) * scale_error(v, t) +
-           pitch_harmonics(s, s->load_angle / v->gear_ratio) - s->pitch_error_start;
+           pitch_harmonics(s, screw_angle(v, s->load_angle)) - s->pitch_error_start;
 }
 
 /* Time derivative (m/s) of transmission_error at time t (s). */
@@ -233,7 +242,7 @@ static double transmission_error_rate(const ModelVariables *v, const ModelState 
     double scale_rate = v->thermal_expansion_rate * (1.0 + v->pitch_error_linear);   /* 1/s */
     return s->travel_per_rad * (s->load_speed * scale_error(v, t) +
                                 (s->load_angle - s->start_load_angle) * scale_rate) +
-           pitch_harmonics_slope(s, s->load_angle / v->gear_ratio) * s->load_speed / v->gear_ratio;
+           pitch_harmonics_slope(s, screw_angle(v, s->load_angle)) * s->load_speed / v->gear_ratio;
 }
 
 /* The linear scale's reading (m) of a position (m): quantised to position_resolution when set. */
@@ -343,7 +352,7 @@ static void derive_transmission(const ModelVariables *v, ModelState *s) {
         if (s->pitch_amplitude[k] != 0.0) s->transmission_error = 1;
     }
     s->start_load_angle = s->load_angle;
-    s->pitch_error_start = pitch_harmonics(s, s->load_angle / v->gear_ratio);
+    s->pitch_error_start = pitch_harmonics(s, screw_angle(v, s->load_angle));
 }
 
 fmi2Status model_initialize(ModelInstance *inst) {
@@ -355,7 +364,7 @@ fmi2Status model_initialize(ModelInstance *inst) {
     if (check_effect_parameters(inst) != fmi2OK) return fmi2Error;
     s->stiffness = v->load_inertia * omega_01 * omega_01;
     s->damping = 2.0 * v->damping_ratio * omega_01 * v->load_inertia;
-    s->travel_per_rad = v->spindle_constant / v->gear_ratio;
+    s->travel_per_rad = travel_per_rad(v);
     s->half_gap = 0.5 * v->backlash / s->travel_per_rad;
     /* omega_02 = omega_01 sqrt(1 + J_L/J_M), eq. (1); the damped pair's modulus is the same. */
     derive_step_limits(v, s, omega_01 * sqrt(1.0 + v->load_inertia / v->motor_inertia));

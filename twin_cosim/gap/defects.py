@@ -33,7 +33,7 @@ def _patched_source(source: str, amplitude: float, centre: float, width: float) 
     )
     bump = (
         f"{SIGNATURE}\n"
-        f"    const double spot = (load_angle * v->spindle_constant / v->gear_ratio - "
+        f"    const double spot = (load_angle * travel_per_rad(v) - "
         f"({centre!r})) / ({width!r});\n"
         f"    return (1.0 + ({amplitude!r}) * exp(-spot * spot)) *\n"
         f"           untouched_friction_position_factor(v, load_angle);\n"

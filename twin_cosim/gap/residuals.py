@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from twin_cosim.gap import regimes as regime_model
+from twin_cosim.gap.spectra import dominant_peak, mean_amplitude_spectrum
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.metrics import UM_PER_M, indices
 from twin_cosim.reference import ReferenceGrid
@@ -160,8 +161,6 @@ def pulse_response(
     (Hz) of the largest peak of the residual's spectrum inside those windows (``ringing_hz``,
     the frequency a flexibility excited by the pulses would ring at); None without edges.
     """
-    from twin_cosim.gap.spectra import dominant_peak, mean_amplitude_spectrum
-
     jumps = np.abs(np.diff(signal))
     if len(jumps) == 0 or jumps.max() <= 0:
         return None
