@@ -15,8 +15,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
-from scipy.interpolate import CubicSpline
 
 
 class ReferenceError(ValueError):
@@ -197,6 +195,8 @@ def read_reference_csv(path: Path, sample_period: float) -> np.ndarray:
 
     The samples must be finite and equally spaced by ``sample_period`` starting at t = 0.
     """
+    import pandas as pd  # a CSV reference only: pandas stays off the start of other runs
+
     try:
         table = pd.read_csv(path)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
@@ -277,6 +277,8 @@ def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -
     loop_period
         Position-loop period, s (250 us); must divide sample_period.
     """
+    from scipy.interpolate import CubicSpline  # heavy: not imported by a process that only runs
+
     ratio = check_periods(sample_period, loop_period)
     spline = CubicSpline(np.arange(len(samples)) * sample_period, samples, bc_type="clamped")
     t = np.arange((len(samples) - 1) * ratio + 1) * loop_period

@@ -37,10 +37,10 @@ import pandas as pd
 from twin_cosim.controller import TUNED_NAMES, TunedParameters
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.motion_envelope import MARGIN, envelope_of, outside
-from twin_cosim.optimize.algorithms import ALGORITHMS
 from twin_cosim.optimize.campaign import run_campaign
 from twin_cosim.optimize.campaign_spec import CampaignSpec
 from twin_cosim.optimize.config import check_uncertainty
+from twin_cosim.optimize.methods import METHOD_NAMES
 from twin_cosim.optimize.objective import AGGREGATES
 from twin_cosim.optimize.outputs import plot_convergence
 from twin_cosim.plant import Plant
@@ -88,14 +88,14 @@ def load_comparison(path: Path) -> Comparison:
         raise ScenarioError(f"{path}: unknown key(s) {unknown}; allowed: {sorted(KEYS)}")
     if "scenario" not in data:
         raise ScenarioError(f"{path}: scenario: expected the scenario file to optimize on")
-    methods = data.get("methods", list(ALGORITHMS))
-    if not isinstance(methods, list) or not methods or any(m not in ALGORITHMS for m in methods):
+    methods = data.get("methods", list(METHOD_NAMES))
+    if not isinstance(methods, list) or not methods or any(m not in METHOD_NAMES for m in methods):
         raise ScenarioError(
-            f"{path}: methods: expected a list from {list(ALGORITHMS)}, got {methods!r}"
+            f"{path}: methods: expected a list from {list(METHOD_NAMES)}, got {methods!r}"
         )
     budgets = data.get("budgets") or {}
     if not isinstance(budgets, dict) or any(
-        m not in ALGORITHMS or not isinstance(b, int) or b < 1 for m, b in budgets.items()
+        m not in METHOD_NAMES or not isinstance(b, int) or b < 1 for m, b in budgets.items()
     ):
         raise ScenarioError(
             f"{path}: budgets: expected method -> positive integer, got {budgets!r}"
@@ -159,9 +159,9 @@ def run_comparison(
 ) -> str:
     """Run (or resume) the campaigns and write the tables and figures; returns the Markdown."""
     methods = methods or comparison.methods
-    unknown = [m for m in methods if m not in ALGORITHMS]
+    unknown = [m for m in methods if m not in METHOD_NAMES]
     if unknown:
-        raise ValueError(f"unknown methods {unknown}; expected some of {list(ALGORITHMS)}")
+        raise ValueError(f"unknown methods {unknown}; expected some of {list(METHOD_NAMES)}")
     out.mkdir(parents=True, exist_ok=True)
     results = {}
     for method in methods:
