@@ -15,6 +15,7 @@ from twin_cosim.commands.options import (
     command_parser,
     data_option,
     fraction,
+    no_plots_option,
     out_folder,
     plant_option,
     plant_path,
@@ -59,12 +60,14 @@ def add_arguments(subparsers) -> None:
         action="store_true",
         help="no progress bar (there is none either with --json when stdout is not a terminal)",
     )
+    no_plots_option(parser)
     data_option(parser)
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Diagnose, write the report, plant.yaml and calibrated.yaml; print the verdict."""
+    """Diagnose, write the report, plant.yaml and calibrated.yaml, print the verdict, then draw
+    the report's figures."""
     from twin_cosim.gap.calibrated_plant import write_calibration
     from twin_cosim.gap.diagnosis import diagnose
     from twin_cosim.gap.report import write_report
@@ -89,13 +92,23 @@ def run(args: argparse.Namespace) -> int:
         "versions": versions(),
         "warnings": mismatch + result.summary()["warnings"],
     }
-    files = write_report(result, out, extra)
+    files = write_report(result, out, extra, figures=not args.no_plots)
     summary = {**result.summary(), **extra}
     files |= write_calibration(scenario, summary, out, _command(args), args.plant)
     if args.json:
         print(json.dumps(summary))
     else:
-        _print_text(summary, files)
+        _print_text(summary)
+    if not args.no_plots:
+        from twin_cosim.gap.figures import write_figures
+
+        write_figures(result, out)
+    if not args.json:
+        print(
+            f"wrote {files['markdown']}, {files['html']}, {files['json']}, {files['plant']}, "
+            f"{files['calibrated']}{'' if args.no_plots else ' and figures'} "
+            f"({summary['wall_s']:.1f} s)"
+        )
     return 0
 
 
@@ -126,8 +139,8 @@ def _progress_bar(args: argparse.Namespace) -> Callable[[int, str], Callable[[in
     return make
 
 
-def _print_text(summary: dict[str, Any], files: dict[str, str]) -> None:
-    """The verdict, each accepted effect's held-out gaps, and the files written."""
+def _print_text(summary: dict[str, Any]) -> None:
+    """The verdict and each accepted effect's held-out gaps."""
     print(summary["gap"]["verdict"])
     for step in summary["steps"]:
         print(
@@ -136,7 +149,3 @@ def _print_text(summary: dict[str, Any], files: dict[str, str]) -> None:
             f"{step['holdout_current_before_A']:.4f} -> "
             f"{step['holdout_current_after_A']:.4f} A; fitted {step['params']}"
         )
-    print(
-        f"wrote {files['markdown']}, {files['html']}, {files['json']}, {files['plant']}, "
-        f"{files['calibrated']} ({summary['wall_s']:.1f} s)"
-    )
