@@ -23,6 +23,7 @@ from twin_cosim.optimize.methods import METHOD_NAMES, method_list
 
 if TYPE_CHECKING:
     from twin_cosim.optimize.campaign_spec import CampaignResult, CampaignSpec
+    from twin_cosim.workers import ProcessPool, SerialPool
 
 
 def add_arguments(subparsers) -> None:
@@ -102,7 +103,21 @@ def _robust_options(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run (or resume) the campaign, print its result, then write its plots."""
+    """Run (or resume) the campaign, print its result, then write its plots.
+
+    The pool's processes start first, so that they load the co-simulation while this process
+    reads the campaign.
+    """
+    from twin_cosim.pool_runs import prepare_worker
+    from twin_cosim.workers import make_pool
+
+    local = 1 if args.scheduler else args.workers  # with Dask: reference and plot runs here
+    with make_pool(None, local, prepare_worker) as pool:
+        return _run_on(args, pool)
+
+
+def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
+    """The campaign, its result and its plots, with ``pool`` running the plant."""
     from twin_cosim.optimize.campaign import run_campaign
     from twin_cosim.optimize.cases import campaign_scenarios
 
@@ -114,11 +129,11 @@ def run(args: argparse.Namespace) -> int:
         result = run_campaign(
             spec,
             out,
-            workers=args.workers,
             scheduler=args.scheduler,
             resume=bool(args.resume),
             progress=not args.quiet,
             scenarios=scenarios,
+            pool=pool,
         )
     except KeyboardInterrupt as exc:
         if (out / "campaign.json").exists():
@@ -129,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_plots:
         from twin_cosim.optimize.outputs import write_campaign_plots
 
-        write_campaign_plots(out, spec, scenarios[0])
+        write_campaign_plots(out, spec, scenarios[0], pool)
     if not args.json:
         plots = "" if args.no_plots else ", convergence.png, best_run.png"
         print(f"wrote {out}/result.json, evaluations.jsonl{plots}")
