@@ -8,7 +8,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from twin_cosim.commands.console import warn_plant_mismatch
 from twin_cosim.commands.options import (
@@ -21,6 +21,9 @@ from twin_cosim.commands.options import (
     plant_path,
     whole_number,
 )
+
+if TYPE_CHECKING:
+    from twin_cosim.workers import ProcessPool, SerialPool
 
 
 def add_arguments(subparsers) -> None:
@@ -67,7 +70,20 @@ def add_arguments(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Diagnose, write the report, plant.yaml and calibrated.yaml, print the verdict, then draw
-    the report's figures."""
+    the report's figures.
+
+    The replay pool's processes start first, so that they load the co-simulation while this
+    process reads the runs and replays the nominal twin.
+    """
+    from twin_cosim.pool_runs import prepare_worker
+    from twin_cosim.workers import make_pool
+
+    with make_pool(None, args.workers, prepare_worker) as pool:
+        return _run_on(args, pool)
+
+
+def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
+    """The diagnosis, its files and its figures, with ``pool`` running the replays."""
     from twin_cosim.gap.calibrated_plant import write_calibration
     from twin_cosim.gap.diagnosis import diagnose
     from twin_cosim.gap.report import write_report
@@ -85,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     progress = _progress_bar(args)
     result = diagnose(
-        scenario, measured, holdout, args.plant, settings, workers=args.workers, progress=progress
+        scenario, measured, holdout, args.plant, settings, progress=progress, pool=pool
     )
     extra = {
         "wall_s": time.perf_counter() - start,
