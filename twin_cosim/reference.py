@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from twin_cosim.grid_cache import grid_key, load_grid, store_grid
+
 
 class ReferenceError(ValueError):
     """A reference description or CSV is invalid; the message names the source and the item."""
@@ -268,6 +270,9 @@ def check_periods(sample_period: float, loop_period: float) -> int:
 def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -> ReferenceGrid:
     """Cubic-spline interpolation of 4-ms samples onto the position-loop grid.
 
+    A grid made before from the same inputs is read back from the per-user cache
+    (:mod:`twin_cosim.grid_cache`: the same numbers, without SciPy).
+
     Parameters
     ----------
     samples
@@ -277,9 +282,15 @@ def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -
     loop_period
         Position-loop period, s (250 us); must divide sample_period.
     """
-    from scipy.interpolate import CubicSpline  # heavy: not imported by a process that only runs
-
     ratio = check_periods(sample_period, loop_period)
+    key = grid_key(samples, sample_period, loop_period, Path(__file__))
+    stored = load_grid(key)
+    if stored is not None:
+        return ReferenceGrid(loop_period, *stored)
+    from scipy.interpolate import CubicSpline  # heavy: only for a reference not seen before
+
     spline = CubicSpline(np.arange(len(samples)) * sample_period, samples, bc_type="clamped")
     t = np.arange((len(samples) - 1) * ratio + 1) * loop_period
-    return ReferenceGrid(loop_period, spline(t), spline(t, 1), spline(t, 2))
+    grid = ReferenceGrid(loop_period, spline(t), spline(t, 1), spline(t, 2))
+    store_grid(key, grid.position, grid.velocity, grid.acceleration)
+    return grid

@@ -184,3 +184,21 @@ def test_a_plant_of_another_model_is_warned_about(tmp_path, twin_cli):
     assert "made for the plant model 'drive2mass'" in result.stderr
     (warning,) = json.loads(result.stdout)["warnings"]
     assert "is model 'emps'" in warning
+
+
+def test_a_second_run_of_a_scenario_needs_no_scipy():
+    """Reference preparation is cached across runs: resolving reference 1 again (a new
+    process) reads the stored grid instead of importing SciPy's spline."""
+    code = (
+        "import sys\n"
+        "from twin_cosim.scenario import resolve_scenario\n"
+        "resolve_scenario('reference1')\n"
+        "print('scipy' in sys.modules)\n"
+    )
+    answers = [
+        subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True
+        ).stdout.strip()
+        for _ in range(2)
+    ]
+    assert answers[1] == "False"
