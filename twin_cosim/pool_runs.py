@@ -8,6 +8,7 @@ the compiled loop are loaded in the workers (:class:`RecordRuns`), which start w
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,12 +23,29 @@ if TYPE_CHECKING:
 RunTask = tuple["Scenario", "TunedParameters | None"]  # a scenario and a set (None: its own)
 
 
-def prepare_worker() -> None:
+def prepare_worker(modules: tuple[str, ...] = ()) -> None:
     """What a pool's process does as it starts, before its first task: import the co-simulation
-    (numpy, pandas, fmpy, numba) and ready the compiled loop, while the parent prepares."""
+    (numpy, pandas, fmpy, numba), ready the compiled loop and import ``modules`` (those of its
+    workers), while the parent prepares.
+
+    A pool of campaign or diagnosis workers takes :func:`prepare_campaign_worker` or
+    :func:`prepare_replay_worker`.
+    """
     from twin_cosim.cosim import ready_compiled_loop  # what this process is for
 
     ready_compiled_loop()
+    for module in modules:
+        importlib.import_module(module)
+
+
+def prepare_campaign_worker() -> None:
+    """:func:`prepare_worker` of a campaign's pool: the objective's modules too."""
+    prepare_worker(("twin_cosim.optimize.objective",))
+
+
+def prepare_replay_worker() -> None:
+    """:func:`prepare_worker` of a diagnosis's pool: the replays and fits (SciPy's optimizers)."""
+    prepare_worker(("twin_cosim.gap.replay",))
 
 
 @dataclass(frozen=True)

@@ -46,10 +46,10 @@ def run(args: argparse.Namespace) -> int:
     One pool serves every method; its processes start first, so that they load the
     co-simulation while this process reads the campaign file.
     """
-    from twin_cosim.pool_runs import prepare_worker
+    from twin_cosim.pool_runs import prepare_campaign_worker
     from twin_cosim.workers import make_pool
 
-    with make_pool(None, 1 if args.scheduler else args.workers, prepare_worker) as pool:
+    with make_pool(None, 1 if args.scheduler else args.workers, prepare_campaign_worker) as pool:
         from twin_cosim.optimize.comparison import load_comparison, run_comparison
 
         comparison = load_comparison(Path(args.campaign))

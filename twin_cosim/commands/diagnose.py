@@ -75,10 +75,10 @@ def run(args: argparse.Namespace) -> int:
     The replay pool's processes start first, so that they load the co-simulation while this
     process reads the runs and replays the nominal twin.
     """
-    from twin_cosim.pool_runs import prepare_worker
+    from twin_cosim.pool_runs import prepare_replay_worker
     from twin_cosim.workers import make_pool
 
-    with make_pool(None, args.workers, prepare_worker) as pool:
+    with make_pool(None, args.workers, prepare_replay_worker) as pool:
         return _run_on(args, pool)
 
 

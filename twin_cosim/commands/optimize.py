@@ -108,11 +108,11 @@ def run(args: argparse.Namespace) -> int:
     The pool's processes start first, so that they load the co-simulation while this process
     reads the campaign.
     """
-    from twin_cosim.pool_runs import prepare_worker
+    from twin_cosim.pool_runs import prepare_campaign_worker
     from twin_cosim.workers import make_pool
 
     local = 1 if args.scheduler else args.workers  # with Dask: reference and plot runs here
-    with make_pool(None, local, prepare_worker) as pool:
+    with make_pool(None, local, prepare_campaign_worker) as pool:
         return _run_on(args, pool)
 
 

@@ -54,7 +54,7 @@ from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
-from twin_cosim.pool_runs import prepare_worker
+from twin_cosim.pool_runs import prepare_replay_worker
 from twin_cosim.scenario import Scenario
 from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, make_pool
 
@@ -357,7 +357,7 @@ def diagnose(
     """
     settings = settings or DiagnosisSettings()
     if pool is None:
-        with make_pool(None, workers, prepare_worker) as own:
+        with make_pool(None, workers, prepare_replay_worker) as own:
             return _diagnose(scenario, measured, holdout or [], fmu, settings, progress, own)
     return _diagnose(scenario, measured, holdout or [], fmu, settings, progress, pool)
 

@@ -42,7 +42,7 @@ from twin_cosim.optimize.evaluator_protocol import Evaluator
 from twin_cosim.optimize.evaluators import make_evaluator
 from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
 from twin_cosim.optimize.worker_specs import ObjectiveSpec
-from twin_cosim.pool_runs import prepare_worker
+from twin_cosim.pool_runs import prepare_campaign_worker
 from twin_cosim.scenario import Scenario
 from twin_cosim.workers import ProcessPool, SerialPool, check_workers, make_pool
 
@@ -97,7 +97,7 @@ def run_campaign(
     start_evaluator = _evaluators(scheduler, scheduler_timeout)
     own = pool is None
     if pool is None:
-        pool = SerialPool() if scheduler else make_pool(None, workers, prepare_worker)
+        pool = SerialPool() if scheduler else make_pool(None, workers, prepare_campaign_worker)
     try:
         return _prepared(spec, out_dir, stored, scenarios, pool, start_evaluator, progress)
     finally:

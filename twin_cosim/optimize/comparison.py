@@ -42,7 +42,7 @@ from twin_cosim.optimize.campaign_spec import CampaignSpec
 from twin_cosim.optimize.config import check_uncertainty
 from twin_cosim.optimize.methods import METHOD_NAMES
 from twin_cosim.optimize.worker_specs import AGGREGATES
-from twin_cosim.pool_runs import prepare_worker
+from twin_cosim.pool_runs import prepare_campaign_worker
 from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table
 from twin_cosim.scenario import Scenario, ScenarioError, resolve_scenario
 from twin_cosim.schema import load_yaml
@@ -169,7 +169,7 @@ def run_comparison(
     if unknown:
         raise ValueError(f"unknown methods {unknown}; expected some of {list(METHOD_NAMES)}")
     if pool is None:
-        with make_pool(None, 1 if scheduler else workers, prepare_worker) as own:
+        with make_pool(None, 1 if scheduler else workers, prepare_campaign_worker) as own:
             return _compare(comparison, out, methods, scheduler, progress, plots, own)
     return _compare(comparison, out, methods, scheduler, progress, plots, pool)
 
