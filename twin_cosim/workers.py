@@ -14,14 +14,16 @@ closes the one before, so a command starts its processes once (``twin compare``:
 campaign, the reference runs and the runs of the tables and figures on one pool).
 
 Nothing outlives a pool. Every pool has a private temp folder (``twin-pool-<parent pid>-*``) that
-its workers extract FMUs into and that ``close()`` removes. A worker ignores Ctrl-C from the
-moment it starts (it is spawned with SIGINT ignored, so a Ctrl-C while it still imports prints
-no traceback; its parent handles Ctrl-C and shuts the pool down), frees its plant when it
-exits, and dies with its parent: a watchdog thread polls the parent's pid, so after ``kill -9``
-of the parent every worker removes the pool's folder and exits (the multiprocessing resource
-tracker then ends too). A command of the ``twin`` CLI keeps all its temporary files in one such
-folder (:func:`command_temp_folder`); one left by a process that could not clean up (``kill -9``
-of a serial run) is removed by the next pool or command.
+holds its workers' temporary files and its stored factories, and that ``close()`` removes (FMUs
+are extracted into the per-user cache, :func:`twin_cosim.plant.extracted_fmu`). A pool closed
+before it was given a task terminates its processes instead of awaiting their preparation. A
+worker ignores Ctrl-C from the moment it starts (it is spawned with SIGINT ignored, so a Ctrl-C
+while it still imports prints no traceback; its parent handles Ctrl-C and shuts the pool down),
+frees its plant when it exits, and dies with its parent: a watchdog thread polls the parent's
+pid, so after ``kill -9`` of the parent every worker removes the pool's folder and exits (the
+multiprocessing resource tracker then ends too). A command of the ``twin`` CLI keeps all its
+temporary files in one such folder (:func:`command_temp_folder`); one left by a process that
+could not clean up (``kill -9`` of a serial run) is removed by the next pool or command.
 :func:`terminate_as_interrupt` makes SIGTERM end a process the way Ctrl-C does.
 """
 
@@ -350,7 +352,7 @@ class ProcessPool:
         are terminated rather than awaited: their preparation would delay the end for nothing.
         """
         try:
-            if not self._used:
+            if not self._used:  # the executor offers no public way to its processes (3.11)
                 for process in list(self.executor._processes.values()):
                     process.terminate()  # SIGTERM: the worker removes its folder and exits
             self.executor.shutdown(cancel_futures=True)
