@@ -24,6 +24,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import pandas as pd
+from numba.core.registry import cpu_target
 
 from twin_cosim import controller
 from twin_cosim.controller import ControllerSettings, TunedParameters
@@ -261,6 +262,14 @@ def _drop_stale_compiled_loop() -> None:
 
 
 _drop_stale_compiled_loop()
+
+
+def ready_compiled_loop() -> None:
+    """Ready numba's compiler target now, as the first run would (most of the cost of loading
+    the cached loop, about 0.3 s): a process that is about to run (a pool's worker while its
+    parent prepares) calls this ahead, so that its first run only loads the cached machine code.
+    """
+    cpu_target.target_context.refresh()
 
 
 class FastCalls:

@@ -12,6 +12,7 @@ from twin_cosim.commands.console import warn_plant_mismatch
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
+    no_plots_option,
     out_folder,
     plant_option,
     plant_parameters_option,
@@ -22,6 +23,7 @@ from twin_cosim.optimize.methods import METHOD_NAMES, method_list
 
 if TYPE_CHECKING:
     from twin_cosim.optimize.campaign_spec import CampaignResult, CampaignSpec
+    from twin_cosim.workers import ProcessPool, SerialPool
 
 
 def add_arguments(subparsers) -> None:
@@ -40,6 +42,7 @@ def add_arguments(subparsers) -> None:
     _robust_options(parser)
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    no_plots_option(parser)
     data_option(parser)
     parser.set_defaults(handler=run)
 
@@ -100,10 +103,23 @@ def _robust_options(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run (or resume) the campaign, write its plots, print its result."""
+    """Run (or resume) the campaign, print its result, then write its plots.
+
+    The pool's processes start first, so that they load the co-simulation while this process
+    reads the campaign.
+    """
+    from twin_cosim.pool_runs import prepare_campaign_worker
+    from twin_cosim.workers import make_pool
+
+    local = 1 if args.scheduler else args.workers  # with Dask: reference and plot runs here
+    with make_pool(None, local, prepare_campaign_worker) as pool:
+        return _run_on(args, pool)
+
+
+def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
+    """The campaign, its result and its plots, with ``pool`` running the plant."""
     from twin_cosim.optimize.campaign import run_campaign
     from twin_cosim.optimize.cases import campaign_scenarios
-    from twin_cosim.optimize.outputs import write_campaign_plots
 
     spec, out = _spec_and_folder(args)
     scenarios = campaign_scenarios(spec)
@@ -113,19 +129,25 @@ def run(args: argparse.Namespace) -> int:
         result = run_campaign(
             spec,
             out,
-            workers=args.workers,
             scheduler=args.scheduler,
             resume=bool(args.resume),
             progress=not args.quiet,
             scenarios=scenarios,
+            pool=pool,
         )
     except KeyboardInterrupt as exc:
         if (out / "campaign.json").exists():
             scenarios_given = " ".join(args.scenario)
             exc.hint = f"; the log is intact: twin optimize {scenarios_given} --resume {out}"
         raise
-    write_campaign_plots(out, spec, scenarios[0])
     _report(spec, result, out, args.json)
+    if not args.no_plots:
+        from twin_cosim.optimize.outputs import write_campaign_plots
+
+        write_campaign_plots(out, spec, scenarios[0], pool)
+    if not args.json:
+        plots = "" if args.no_plots else ", convergence.png, best_run.png"
+        print(f"wrote {out}/result.json, evaluations.jsonl{plots}")
     return 0
 
 
@@ -189,4 +211,3 @@ def _report(spec: CampaignSpec, result: CampaignResult, out: Path, as_json: bool
         f"evaluations in {result.wall_s:.1f} s; {result.stop_reason}"
     )
     print("best parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in result.best_params.items()))
-    print(f"wrote {out}/result.json, evaluations.jsonl, convergence.png, best_run.png")
