@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from twin_cosim.contour.interpolation import PlannedMotion
+from twin_cosim.contour.gcode import Program
+from twin_cosim.contour.interpolation import PlannedMotion, plan_program
 from twin_cosim.contour.lockstep import AxisRun, run_axes_fast, run_axes_reference
 from twin_cosim.contour.path import distance_to_path
 from twin_cosim.metrics import UM_PER_M, compute_metrics
@@ -157,3 +158,15 @@ def contour_metrics(record: MachineRecord) -> dict[str, float]:
 def axis_metrics(record: MachineRecord) -> dict[str, dict[str, float]]:
     """The single-axis metrics of each axis (E_pk um, ITAE um.s^2, IAU A.s, ...) by name."""
     return {name: compute_metrics(frame).as_dict() for name, frame in record.axes.items()}
+
+
+def run_program(
+    machine: MachineScenario, program: Program, plants: MachinePlants, fast: bool = True
+) -> tuple[MachineRecord, PlannedMotion]:
+    """Run a part program on the machine: its planned motion, then the lockstep run.
+
+    The program starts at the machine's origin (every axis at 0 m).
+    """
+    limits = {axis.name: axis.limits for axis in machine.axes}
+    motion = plan_program(program, limits, machine.sample_period, machine.settle)
+    return run_machine(machine, motion, plants, fast), motion

@@ -24,7 +24,7 @@ from twin_cosim.scenario.machine_loader import is_machine_scenario, load_machine
 from twin_cosim.scenario.plant_section import plant_mismatch, with_plant_parameters
 from twin_cosim.scenario.resolved import Scenario, for_measured_run
 from twin_cosim.scenario.shipped import find_scenario
-from twin_cosim.scenario.tuned_section import load_tuned_parameters
+from twin_cosim.scenario.tuned_section import load_axes_parameters, load_tuned_parameters
 from twin_cosim.schema import ScenarioError
 
 __all__ = [
@@ -36,6 +36,7 @@ __all__ = [
     "find_scenario",
     "for_measured_run",
     "is_machine_scenario",
+    "load_axes_parameters",
     "load_machine",
     "load_scenario",
     "load_tuned_parameters",
