@@ -235,9 +235,8 @@ def evaluate_circle(
         travelled = _after(angle_deg, transition, sign)
         near |= (travelled >= -SPIKE_LEAD_DEG) & (travelled <= SPIKE_WINDOW_DEG)
     deviation = about_fit * UM_PER_M
-    residual = deviation - _smooth_part(
-        angle, deviation, ~near if (~near).sum() > 8 else ~near | True
-    )
+    keep = ~near if np.count_nonzero(~near) > 2 * SMOOTH_ORDERS + 1 else np.ones_like(near)
+    residual = deviation - _smooth_part(angle, deviation, keep)
     spikes = [_spike(t, angle_deg, residual, tr, sign) for tr in TRANSITIONS_DEG]
     fit_angle = np.arctan2(y - cy, x - cx)
     return CircleResult(
