@@ -28,9 +28,20 @@ def add_arguments(subparsers) -> None:
         subparsers, "circle", "circular test (ISO 230-4: G, H, F, reversal spikes) on a machine"
     )
     parser.add_argument("scenario", help="machine scenario (axes: X, Y), file or shipped name")
-    parser.add_argument("--radius", type=_positive, required=True, metavar="MM", help="radius, mm")
     parser.add_argument(
-        "--feed", type=_positive, required=True, metavar="MM_PER_MIN", help="feed, mm/min"
+        "--radius", type=_positive, metavar="MM", help="radius, mm (required unless --measured)"
+    )
+    parser.add_argument(
+        "--feed",
+        type=_positive,
+        metavar="MM_PER_MIN",
+        help="feed, mm/min (required unless --measured)",
+    )
+    parser.add_argument(
+        "--measured",
+        metavar="RUN.csv",
+        help="a measured circular test (t, x_ref, y_ref, x, y [, current_x, current_y]): "
+        "replay it on the twin and diagnose the gap per axis (default: none, run the twin)",
     )
     parser.add_argument(
         "--direction", choices=["cw", "ccw", "both"], default="both", help="direction(s)"
@@ -57,6 +68,10 @@ def run(args: argparse.Namespace) -> int:
     command = "twin circle " + " ".join(shlex.quote(a) for a in sys.argv[2:])
     default = Path("out") / f"{Path(args.scenario).stem}-circle"
     out = out_folder(args.out, default)
+    if args.measured:
+        return _measured(args, out, command)
+    if args.radius is None or args.feed is None:
+        raise ValueError("--radius MM and --feed MM_PER_MIN are required (unless --measured)")
     summary = circular_test(
         args.scenario,
         args.radius,
@@ -82,4 +97,30 @@ def run(args: argparse.Namespace) -> int:
             f"spike {spike['height_um']:+.2f} um, {spike['width_ms']:.1f} ms"
         )
     print(f"wrote {out}/circle.json, circle.png, contour_<direction>.csv")
+    return 0
+
+
+def _measured(args: argparse.Namespace, out: Path, command: str) -> int:
+    """Replay and diagnose a measured test; write circle.json and circle.png; print the verdict."""
+    from twin_cosim.contour.circle_report import measured_circular_test
+
+    found = measured_circular_test(
+        args.scenario, args.measured, out, command, fast=not args.reference_path
+    )
+    write_json(out / "circle.json", found)
+    if args.json:
+        print(json.dumps(found))
+        return 0
+    machine, twin = found["machine"], found["twin"]
+    print(
+        f"{args.measured}: G {machine['G_um']:.2f} um on the machine, {twin['G_um']:.2f} um on "
+        "the twin"
+    )
+    for gap in found["transitions"]:
+        print(
+            f"  {gap['angle_deg']:5.0f} deg ({gap['axis']} reverses): spike machine "
+            f"{gap['machine_height_um']:+.2f} um, twin {gap['twin_height_um']:+.2f} um"
+        )
+    print(found["verdict"]["text"])
+    print(f"wrote {out}/circle.json, circle.png")
     return 0

@@ -62,7 +62,8 @@ def circular_test(
             run.record.contour.to_csv(out / f"contour_{name}.csv", index=False)
             results.append(run.result)
     h = hysteresis(*results) if len(results) == 2 else None
-    plot_circle(results, radius_mm, h, command, out / "circle.png")
+    labelled = [(r.direction.upper(), r) for r in results]
+    plot_circle(labelled, radius_mm, h, command, out / "circle.png")
     summary: dict[str, Any] = {
         "scenario": str(machine.source),
         "radius_mm": radius_mm,
@@ -79,3 +80,29 @@ def circular_test(
     summary["params"] = {a.name: a.tuned.as_dict() for a in machine.axes}
     summary["outputs"] = {"plot": str(out / "circle.png"), "folder": str(out)}
     return summary
+
+
+def measured_circular_test(
+    scenario: str, measured: str, out: Path, command: str, fast: bool = True
+) -> dict[str, Any]:
+    """Replay and diagnose a measured circular test; write ``circle.png`` (machine and twin).
+
+    Returns the diagnosis of :func:`twin_cosim.contour.circle_diagnosis.diagnose_circle`.
+    """
+    from twin_cosim.contour.circle_diagnosis import diagnose_circle
+    from twin_cosim.contour.measured_circle import read_measured_circle
+
+    machine = load_machine(scenario)
+    test = read_measured_circle(measured)
+    out.mkdir(parents=True, exist_ok=True)
+    found = diagnose_circle(machine, test, fast, workers=1)
+    paths = found.pop("paths")
+    plot_circle(
+        [("machine", paths["machine"]), ("twin", paths["twin"])],
+        test.radius * 1e3,
+        None,
+        command,
+        out / "circle.png",
+    )
+    found["outputs"] = {"plot": str(out / "circle.png"), "folder": str(out)}
+    return found

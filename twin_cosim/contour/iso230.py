@@ -255,13 +255,14 @@ def evaluate_circle(
     )
 
 
+def on_grid(result: CircleResult, grid: np.ndarray) -> np.ndarray:
+    """The radial deviation (um) of an evaluated path at the angles ``grid`` (degrees)."""
+    order = np.argsort(result.angle_deg)
+    return np.interp(grid, result.angle_deg[order], result.deviation_um[order], period=360.0)
+
+
 def hysteresis(first: CircleResult, second: CircleResult) -> float:
     """Circular hysteresis H (um): the largest radial difference of two directions' paths at
     one angle (each interpolated on a grid of :data:`HYSTERESIS_STEP_DEG`)."""
     grid = np.arange(0.0, 360.0, HYSTERESIS_STEP_DEG)
-
-    def on_grid(result: CircleResult) -> np.ndarray:
-        order = np.argsort(result.angle_deg)
-        return np.interp(grid, result.angle_deg[order], result.deviation_um[order], period=360.0)
-
-    return float(np.max(np.abs(on_grid(first) - on_grid(second))))
+    return float(np.max(np.abs(on_grid(first, grid) - on_grid(second, grid))))

@@ -15,13 +15,13 @@ import numpy as np  # noqa: E402
 
 from twin_cosim.contour.iso230 import CircleResult  # noqa: E402
 
-COLOURS = {"ccw": "tab:blue", "cw": "tab:red"}
+COLOURS = ("tab:blue", "tab:red", "tab:green", "tab:purple")
 RING_SHARE = 0.4  # the deviation band drawn as this share of the plot's radius
 MARKED_SHARE = 0.1  # spikes of at least this share of the drawn band (and 0.5 um) are marked
 
 
 def plot_circle(
-    results: Sequence[CircleResult],
+    results: Sequence[tuple[str, CircleResult]],
     radius_mm: float,
     hysteresis_um: float | None,
     command: str,
@@ -32,7 +32,7 @@ def plot_circle(
     Parameters
     ----------
     results
-        The evaluated directions (one or two).
+        (label, evaluation) of each path drawn: CW and CCW, or a measured test and the twin.
     radius_mm
         Nominal radius, mm.
     hysteresis_um
@@ -42,7 +42,7 @@ def plot_circle(
     path
         PNG file to write.
     """
-    deviations = np.concatenate([r.deviation_um for r in results])
+    deviations = np.concatenate([r.deviation_um for _, r in results])
     low, high = float(deviations.min()), float(deviations.max())
     margin = max(0.15 * (high - low), 0.5)
     low, high = min(low - margin, 0.0), max(high + margin, 0.0)
@@ -52,10 +52,9 @@ def plot_circle(
     ax.set_rlim(low, high)
     circle = np.linspace(0.0, 2 * math.pi, 721)
     ax.plot(circle, np.zeros_like(circle), color="0.3", ls="--", lw=0.8, label="nominal circle")
-    for result in results:
+    for (label, result), colour in zip(results, COLOURS, strict=False):
         order = np.argsort(result.angle_deg)
         theta = np.radians(result.angle_deg[order])
-        colour = COLOURS[result.direction]
         speed = result.speed_mm_min
         ellipse = result.mismatch
         lagging = ellipse["lagging_axis"]
@@ -64,7 +63,7 @@ def plot_circle(
             result.deviation_um[order],
             color=colour,
             lw=1.2,
-            label=f"{result.direction.upper()} at {speed:.0f} mm/min: G {result.G_um:.2f} um, "
+            label=f"{label} at {speed:.0f} mm/min: G {result.G_um:.2f} um, "
             f"F {result.F_um:.2f} um; ellipse {ellipse['size_um']:.2f} um at "
             f"{ellipse['major_axis_deg']:.0f} deg" + (f" ({lagging} lags)" if lagging else ""),
         )
