@@ -38,10 +38,27 @@ def add_arguments(subparsers) -> None:
     _campaign_options(parser)
     plant_parameters_option(parser)
     _robust_options(parser)
+    _machine_options(parser)
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     data_option(parser)
     parser.set_defaults(handler=run)
+
+
+def _machine_options(parser: argparse.ArgumentParser) -> None:
+    """For a machine scenario (axes:): a part program instead of the circles, the target."""
+    parser.add_argument(
+        "--program",
+        metavar="PART.nc",
+        help="machine scenarios: tune on this part program (target contour) instead of the "
+        "scenario's circles (default: the circles of optimize.circles)",
+    )
+    parser.add_argument(
+        "--target",
+        choices=["G", "spike", "contour"],
+        help="machine scenarios: worst case of G, the largest reversal spike or the largest "
+        "contour error (default: the scenario's optimize.target, else G)",
+    )
 
 
 def _campaign_options(parser: argparse.ArgumentParser) -> None:
@@ -101,6 +118,14 @@ def _robust_options(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run (or resume) the campaign, write its plots, print its result."""
+    from twin_cosim.scenario import is_machine_scenario
+
+    if is_machine_scenario(args.scenario[0]):
+        from twin_cosim.commands.optimize_machine import run_machine_campaign
+
+        return run_machine_campaign(args)
+    if args.program or args.target:
+        raise ValueError("--program and --target: for a machine scenario (axes:)")
     from twin_cosim.optimize.campaign import run_campaign
     from twin_cosim.optimize.cases import campaign_scenarios
     from twin_cosim.optimize.outputs import write_campaign_plots

@@ -110,11 +110,19 @@ def data_circle(contour: pd.DataFrame, arc: Arc) -> np.ndarray:
 
 
 def run_circle(
-    machine: MachineScenario, plants: MachinePlants, spec: CircleSpec, fast: bool = True
+    machine: MachineScenario,
+    plants: MachinePlants,
+    spec: CircleSpec,
+    fast: bool = True,
+    abort_error: float = math.inf,
 ) -> CircleRun:
-    """Run one circle of the test on the machine (a Z axis stands still) and evaluate it."""
+    """Run one circle of the test on the machine (a Z axis stands still) and evaluate it.
+
+    ``abort_error`` (m): stop once an axis' |x_ref - x| exceeds it
+    (:class:`~twin_cosim.cosim.RunAborted`).
+    """
     motion, arc = circle_motion(machine, spec)
-    record: MachineRecord = run_machine(machine, motion, plants, fast)
+    record: MachineRecord = run_machine(machine, motion, plants, fast, abort_error)
     data = data_circle(record.contour, arc)
     speed = motion.speeds[0]
     result = evaluate_circle(record.contour[data], spec.radius, spec.direction, speed)

@@ -161,12 +161,17 @@ def axis_metrics(record: MachineRecord) -> dict[str, dict[str, float]]:
 
 
 def run_program(
-    machine: MachineScenario, program: Program, plants: MachinePlants, fast: bool = True
+    machine: MachineScenario,
+    program: Program,
+    plants: MachinePlants,
+    fast: bool = True,
+    abort_error: float = math.inf,
 ) -> tuple[MachineRecord, PlannedMotion]:
     """Run a part program on the machine: its planned motion, then the lockstep run.
 
-    The program starts at the machine's origin (every axis at 0 m).
+    The program starts at the machine's origin (every axis at 0 m); ``abort_error`` as for
+    :func:`run_machine` (m).
     """
     limits = {axis.name: axis.limits for axis in machine.axes}
     motion = plan_program(program, limits, machine.sample_period, machine.settle)
-    return run_machine(machine, motion, plants, fast), motion
+    return run_machine(machine, motion, plants, fast, abort_error), motion
