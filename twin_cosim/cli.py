@@ -1,4 +1,5 @@
-"""The ``twin`` command line: build, simulate, circle, optimize, compare, synth, diagnose, table3.
+"""The ``twin`` command line: build, simulate, circle, optimize, compare, synth, diagnose, table3,
+ssp.
 
 Each command is a module of :mod:`twin_cosim.commands` (its arguments and ``run``). Only the
 standard library and the light registries are imported at start, so that ``twin --help`` answers
@@ -20,6 +21,7 @@ from twin_cosim.commands import (
     diagnose,
     optimize,
     simulate,
+    ssp,
     synth,
     table3,
 )
@@ -35,6 +37,7 @@ COMMANDS = (
     synth,
     diagnose,
     table3,
+    ssp,
 )  # in the help's order
 
 
