@@ -26,7 +26,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
 from twin_cosim.contour.gcode import Motion, Pause, Program
-from twin_cosim.contour.path import Arc, Element, Line
+from twin_cosim.contour.path import Element, Line
 from twin_cosim.scenario.machine import AxisLimits
 
 ARC_SHARE = 0.5  # share rho of the axes' acceleration and jerk kept for the centripetal terms
@@ -290,8 +290,3 @@ def plan_program(
     if not program.elements:
         raise InterpolationError(f"{program.source}: the program has no motion")
     return plan_blocks(program.blocks, program.start, limits, sample_period, settle)
-
-
-def full_circle_speed(radius: float, feed: float, limits: dict[str, AxisLimits]) -> float:
-    """The constant path speed (m/s) of an arc of ``radius`` (m) at ``feed`` (m/s)."""
-    return _first_limits(Arc((0.0, 0.0), radius, 0.0, 2 * math.pi), feed, limits)[0]

@@ -50,6 +50,7 @@ from twin_cosim.cosim import RunAborted
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.config import DEFAULT_BOUNDS, OptimizeConfig
 from twin_cosim.optimize.early_stop import lower_bound_above
+from twin_cosim.optimize.objective import EvaluationTask
 from twin_cosim.plant import PlantError
 from twin_cosim.scenario.machine import MachineScenario
 from twin_cosim.schema import Checker
@@ -202,9 +203,8 @@ def case_values(
         values = {}
     values["contour"] = contour_metrics(record)["contour_error_max_um"]
     values["IAU"] = {name: compute_metrics(frame).IAU for name, frame in record.axes.items()}
-    values["steps"] = sum(len(f) for f in record.axes.values()) * round(
-        machine.axes[0].settings.speed_steps_per_position_step
-    )
+    ratio = machine.axes[0].settings.speed_steps_per_position_step
+    values["steps"] = sum(len(f) for f in record.axes.values()) * ratio
     return values
 
 
@@ -248,7 +248,7 @@ class ContourObjective:
         machine = self.spec.machine
         return [case_values(machine, self.plants, case, math.inf) for case in self.spec.cases]
 
-    def __call__(self, task) -> dict[str, Any]:
+    def __call__(self, task: EvaluationTask | np.ndarray) -> dict[str, Any]:
         """Evaluate one candidate (an EvaluationTask or a vector of every axis' parameters).
 
         Returns
@@ -258,7 +258,9 @@ class ContourObjective:
             ``reason``, ``metrics`` (the worst case's target value and per case the values) and
             ``steps`` (speed-loop steps simulated, all axes).
         """
-        x, cutoff = (task.x, task.cutoff_um) if hasattr(task, "x") else (task, math.inf)
+        x, cutoff = (
+            (task.x, task.cutoff_um) if isinstance(task, EvaluationTask) else (task, math.inf)
+        )
         settings = self.spec.settings
         config = settings.config
         failure = 2.0 * config.penalty_um

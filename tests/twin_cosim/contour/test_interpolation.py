@@ -11,7 +11,6 @@ import pytest
 from twin_cosim.contour.gcode import Motion, parse_program
 from twin_cosim.contour.interpolation import (
     axis_derivatives,
-    full_circle_speed,
     plan_block,
     plan_blocks,
     plan_program,
@@ -65,10 +64,11 @@ def test_every_axis_stays_within_its_limits(element, feed):
 
 
 def test_the_arc_speed_is_the_feed_where_the_limits_allow_it():
-    assert full_circle_speed(0.01, 0.02, LIMITS) == 0.02
-    small = full_circle_speed(0.0005, 0.1, LIMITS)  # centripetal acceleration caps it
-    assert small < 0.1
-    assert small**2 / 0.0005 <= 0.5 * LIMITS["Y"].acceleration * (1 + 1e-12)
+    arc = Arc((0.0, 0.0), 0.01, 0.0, 4 * math.pi)
+    assert plan_block(arc, 0.02, LIMITS).v.max() == pytest.approx(0.02, rel=1e-12)
+    small = plan_block(Arc((0.0, 0.0), 0.0005, 0.0, 4 * math.pi), 0.1, LIMITS).v.max()
+    assert small < 0.1  # the centripetal acceleration caps it
+    assert small**2 / 0.0005 <= 0.5 * LIMITS["Y"].acceleration * (1 + 1e-9)
 
 
 def test_exact_stop_at_block_ends_and_dwells_hold_the_position():
