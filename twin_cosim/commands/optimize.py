@@ -59,6 +59,13 @@ def _machine_options(parser: argparse.ArgumentParser) -> None:
         help="machine scenarios: worst case of G, the largest reversal spike or the largest "
         "contour error (default: the scenario's optimize.target, else G)",
     )
+    parser.add_argument(
+        "--start",
+        metavar="SET_OR_FILE",
+        help="machine scenarios: start the search from these sets (ft|ga|ce|sa, or a file: one "
+        "set or axes: {X: ..., Y: ...}, e.g. an earlier result.json); the scores stay relative "
+        "to the scenario's own sets (default: the scenario's own sets)",
+    )
 
 
 def _campaign_options(parser: argparse.ArgumentParser) -> None:
@@ -124,8 +131,8 @@ def run(args: argparse.Namespace) -> int:
         from twin_cosim.commands.optimize_machine import run_machine_campaign
 
         return run_machine_campaign(args)
-    if args.program or args.target:
-        raise ValueError("--program and --target: for a machine scenario (axes:)")
+    if args.program or args.target or args.start:
+        raise ValueError("--program, --target and --start: for a machine scenario (axes:)")
     from twin_cosim.optimize.campaign import run_campaign
     from twin_cosim.optimize.cases import campaign_scenarios
     from twin_cosim.optimize.outputs import write_campaign_plots

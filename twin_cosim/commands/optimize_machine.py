@@ -46,6 +46,7 @@ def run_machine_campaign(args: argparse.Namespace) -> int:
                 "budget": args.budget,
                 "program": args.program,
                 "target": args.target,
+                "start": args.start,
             }.items()
             if v is not None
         }
@@ -63,6 +64,7 @@ def run_machine_campaign(args: argparse.Namespace) -> int:
             program=args.program,
             target=args.target,
             early_stop=not args.no_early_stop,
+            start=args.start,
         )
         out = out_folder(args.out, Path("out") / f"optimize-machine-{spec.method}-seed{spec.seed}")
     try:

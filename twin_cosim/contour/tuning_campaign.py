@@ -37,7 +37,7 @@ from twin_cosim.optimize.evaluation_log import EvaluationLog
 from twin_cosim.optimize.evaluators import make_evaluator
 from twin_cosim.optimize.fingerprints import fmu_fingerprint, settings_fingerprint
 from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
-from twin_cosim.scenario import load_machine
+from twin_cosim.scenario import load_axes_parameters, load_machine
 from twin_cosim.scenario.machine import MachineScenario
 
 HEADER = "campaign.json"
@@ -63,6 +63,10 @@ class ContourCampaignSpec:
         ``G``, ``spike`` or ``contour``; the scenario's when None.
     early_stop : bool
         Stop candidates early where that is exact.
+    start : str or None
+        Sets the search starts from (a Table 3 set or a file, as ``--params``: one set or one
+        per axis); the scenario's own when None. The reference of the relative scores and of
+        the IAU caps stays the scenario's own sets.
     """
 
     scenario: str
@@ -72,13 +76,20 @@ class ContourCampaignSpec:
     program: str | None = None
     target: str | None = None
     early_stop: bool = True
+    start: str | None = None
 
 
 def _fingerprints(machine: MachineScenario, spec: ContourCampaignSpec, settings) -> dict:
     program = b"" if spec.program is None else Path(spec.program).read_bytes()
+    start = (
+        b""
+        if spec.start is None or not Path(spec.start).is_file()
+        else Path(spec.start).read_bytes()
+    )
     return {
         "scenario": hashlib.sha256(Path(machine.source).read_bytes()).hexdigest(),
         "program": hashlib.sha256(program).hexdigest(),
+        "start": hashlib.sha256(start).hexdigest(),
         "plant_fmus": {a.name: fmu_fingerprint(a.plant_fmu()) for a in machine.axes},
         "settings": settings_fingerprint({"spec": asdict(spec), "settings": settings}),
     }
@@ -160,7 +171,10 @@ def run_contour_campaign(
     method_settings = {**config.methods.get(spec.method, {})}
     if spec.budget is not None:
         method_settings["budget"] = spec.budget
-    x0 = config.to_unit(machine_vector(machine))
+    first = machine
+    if spec.start:
+        first = machine.with_tuned(load_axes_parameters(spec.start, machine.axis_names))
+    x0 = config.to_unit(machine_vector(first))
     x0 = x0 if np.all((x0 >= 0) & (x0 <= 1)) else None
     try:
         optimizer = make_optimizer(spec.method, len(config.names), spec.seed, x0, **method_settings)

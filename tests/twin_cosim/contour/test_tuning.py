@@ -86,3 +86,14 @@ def test_a_campaign_resumes_to_the_same_result_and_refuses_another(machine_file,
         run_contour_campaign(other, tmp_path / "b", workers=1, resume=True, progress=False)
     result = json.loads((tmp_path / "a" / "result.json").read_text())
     assert result["best_params"] == first["best_params"]
+
+
+def test_a_campaign_may_start_from_other_sets_and_a_resume_keeps_them(machine_file, tmp_path):
+    spec = ContourCampaignSpec(str(machine_file), "ce", seed=0, budget=2, start="ga")
+    run_contour_campaign(spec, tmp_path / "c", workers=1, progress=False)
+    header = json.loads((tmp_path / "c" / "campaign.json").read_text())
+    assert header["spec"]["start"] == "ga"
+    assert header["reference_params"]["X"]["Kp_pos"] == pytest.approx(66.6667)  # still Fine-Tune
+    other = ContourCampaignSpec(str(machine_file), "ce", seed=0, budget=2, start="sa")
+    with pytest.raises(CampaignError, match="different campaign"):
+        run_contour_campaign(other, tmp_path / "c", workers=1, resume=True, progress=False)
