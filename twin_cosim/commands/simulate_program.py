@@ -3,6 +3,8 @@
 The machine branch of :mod:`twin_cosim.commands.simulate`: it writes ``contour.csv`` (the
 contour record), ``<axis>.csv`` (each axis' record), ``contour.png`` and ``summary.json``
 (``contour_error_max_um``, ``contour_error_rms_um`` and each axis' metrics under ``axes``).
+Exit status 1 when an axis' error left the band of ``optimize.abort_error_um`` (the loop
+diverged), as for one axis.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ def run_program_command(args: argparse.Namespace) -> int:
         contour_metrics,
         run_program,
     )
+    from twin_cosim.contour.tuning import contour_settings
     from twin_cosim.scenario import load_axes_parameters, load_machine
     from twin_cosim.versions import versions
 
@@ -53,6 +56,13 @@ def run_program_command(args: argparse.Namespace) -> int:
         start = time.perf_counter()
         record, _ = run_program(machine, program, plants, not args.reference_path)
         wall = time.perf_counter() - start
+    band_um = contour_settings(machine).config.abort_error_um
+    warnings = [
+        f"axis {name}: the loop diverged: |error| reached {peak:.4g} um, beyond the band of "
+        f"{band_um:g} um (optimize.abort_error_um)"
+        for name, frame in record.axes.items()
+        if not (peak := float(abs(frame["error"]).max()) * 1e6) <= band_um
+    ]
     command = "twin simulate " + " ".join(shlex.quote(a) for a in sys.argv[2:])
     record.contour.to_csv(out / "contour.csv", index=False)
     for name, frame in record.axes.items():
@@ -67,6 +77,7 @@ def run_program_command(args: argparse.Namespace) -> int:
         "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
         "wall_s": wall,
         "outputs": {"contour": str(out / "contour.csv"), "plot": str(out / "contour.png")},
+        "warnings": warnings,
         "versions": versions(),
     }
     write_json(out / "summary.json", summary)
@@ -81,4 +92,6 @@ def run_program_command(args: argparse.Namespace) -> int:
             + f" ({wall:.2f} s wall)"
         )
         print(f"wrote {out}/contour.csv, contour.png, summary.json")
-    return 0
+    for warning in warnings:
+        print(f"twin simulate: warning: {warning}", file=sys.stderr)
+    return 1 if warnings else 0

@@ -46,3 +46,13 @@ def test_a_program_needs_a_machine_scenario(twin_cli, tmp_path):
     done = twin_cli("simulate", "reference1", "--program", str(program), "--out", str(tmp_path))
     assert done.returncode == 2
     assert "axes" in done.stderr
+
+
+def test_an_axis_leaving_the_band_exits_1_with_a_warning(twin_cli, tmp_path):
+    machine = tmp_path / "narrow.yaml"
+    machine.write_text("axes: {X: {}, Y: {}}\noptimize: {abort_error_um: 1.0}\n")
+    program = tmp_path / "part.nc"
+    program.write_text(PART)
+    done = twin_cli("simulate", str(machine), "--program", str(program), "--out", str(tmp_path))
+    assert done.returncode == 1
+    assert "axis X: the loop diverged" in done.stderr
