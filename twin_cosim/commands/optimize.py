@@ -40,11 +40,35 @@ def add_arguments(subparsers) -> None:
     _campaign_options(parser)
     plant_parameters_option(parser)
     _robust_options(parser)
+    _machine_options(parser)
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     no_plots_option(parser)
     data_option(parser)
     parser.set_defaults(handler=run)
+
+
+def _machine_options(parser: argparse.ArgumentParser) -> None:
+    """For a machine scenario (axes:): a part program instead of the circles, the target."""
+    parser.add_argument(
+        "--program",
+        metavar="PART.nc",
+        help="machine scenarios: tune on this part program (target contour) instead of the "
+        "scenario's circles (default: the circles of optimize.circles)",
+    )
+    parser.add_argument(
+        "--target",
+        choices=["G", "spike", "contour"],
+        help="machine scenarios: worst case of G, the largest reversal spike or the largest "
+        "contour error (default: the scenario's optimize.target, else G)",
+    )
+    parser.add_argument(
+        "--start",
+        metavar="SET_OR_FILE",
+        help="machine scenarios: start the search from these sets (ft|ga|ce|sa, or a file: one "
+        "set or axes: {X: ..., Y: ...}, e.g. an earlier result.json); the scores stay relative "
+        "to the scenario's own sets (default: the scenario's own sets)",
+    )
 
 
 def _campaign_options(parser: argparse.ArgumentParser) -> None:
@@ -105,12 +129,19 @@ def _robust_options(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run (or resume) the campaign, print its result, then write its plots.
 
-    The pool's processes start first, so that they load the co-simulation while this process
-    reads the campaign.
+    A machine scenario (axes:) runs its own campaign; otherwise the pool's processes start
+    first, so that they load the co-simulation while this process reads the campaign.
     """
     from twin_cosim.pool_runs import prepare_campaign_worker
+    from twin_cosim.scenario import is_machine_scenario
     from twin_cosim.workers import make_pool
 
+    if is_machine_scenario(args.scenario[0]):
+        from twin_cosim.commands.optimize_machine import run_machine_campaign
+
+        return run_machine_campaign(args)
+    if args.program or args.target or args.start:
+        raise ValueError("--program, --target and --start: for a machine scenario (axes:)")
     local = 1 if args.scheduler else args.workers  # with Dask: reference and plot runs here
     with make_pool(None, local, prepare_campaign_worker) as pool:
         return _run_on(args, pool)

@@ -44,6 +44,12 @@ def add_arguments(subparsers) -> None:
         help="judge on a machine: a measured run (CSV/.mat) made with these gains, or a virtual "
         "machine (a scenario or plant.yaml whose plant stands for the machine) (default: none)",
     )
+    parser.add_argument(
+        "--program",
+        metavar="PART.nc",
+        help="part program (G-code subset, docs/contouring.md) for a machine scenario (axes:) "
+        "(default: the scenario's program)",
+    )
     parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<scenario name>)")
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     parser.add_argument(
@@ -58,7 +64,13 @@ def add_arguments(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate, write record.csv and summary.json, print the result, then plot run.png; 1 when
-    the loop diverged."""
+    the loop diverged. A machine scenario (axes:) or a part program runs on every axis."""
+    from twin_cosim.scenario import is_machine_scenario
+
+    if args.program or is_machine_scenario(args.scenario):
+        from twin_cosim.commands.simulate_program import run_program_command
+
+        return run_program_command(args)
     from twin_cosim.metrics import compute_metrics
     from twin_cosim.run_checks import loop_warnings
     from twin_cosim.scenario import load_tuned_parameters, resolve_scenario
