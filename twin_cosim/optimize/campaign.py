@@ -5,7 +5,9 @@ the resolved scenarios on plant samples (:mod:`~twin_cosim.optimize.cases`), the
 checks of a resume (:mod:`~twin_cosim.optimize.campaign_folder`) and the ask/tell loop
 (:mod:`~twin_cosim.optimize.campaign_loop`). Every argument is checked before anything is
 written, so a mistake never blocks the folder; while a campaign runs, ``campaign.lock`` keeps a
-second writer out of the folder.
+second writer out of the folder. The pool's processes start before the campaign is prepared and
+run every run of it (the reference runs and the evaluations): with a process pool, this process
+never loads the plant.
 """
 
 from __future__ import annotations

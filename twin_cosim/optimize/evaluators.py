@@ -1,11 +1,11 @@
 """Evaluators of candidates: serially, on a local process pool (:mod:`twin_cosim.workers`), or on
 Dask (:mod:`twin_cosim.optimize.dask_evaluator`, needs the ``[dask]`` extra).
 
-Every worker builds one :class:`~twin_cosim.optimize.objective.Objective` (extracts and
-instantiates the FMU once) and resets the plant for every run. Results stream back as they
-complete, so a campaign can log each one at once; the order of completion never changes a
-result, so every evaluator gives the same campaign for the same seed. An evaluator offers
-:class:`~twin_cosim.optimize.evaluator_protocol.Evaluator`.
+Every worker builds one :class:`~twin_cosim.optimize.objective.Objective` (instantiates the FMU
+once, from its extraction in the per-user cache) and resets the plant for every run. Results
+stream back as they complete, so a campaign can log each one at once; the order of completion
+never changes a result, so every evaluator gives the same campaign for the same seed. An
+evaluator offers :class:`~twin_cosim.optimize.evaluator_protocol.Evaluator`.
 """
 
 from __future__ import annotations
