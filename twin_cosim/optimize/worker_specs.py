@@ -10,15 +10,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from importlib import import_module
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     import numpy as np
 
-    from twin_cosim.optimize.objective import Objective, ReferenceRuns
     from twin_cosim.scenario import Scenario
+    from twin_cosim.workers import Worker
 
 AGGREGATES = ("worst", "mean")
+
+
+# The module of the workers these recipes build, imported by name in the process that runs them:
+# the recipes stay light (the parent never loads the co-simulation), and the workers' module
+# depends on the recipes, not the other way round.
+RUN_MODULE = "twin_cosim.optimize.objective"
 
 
 @dataclass(frozen=True)
@@ -62,11 +69,10 @@ class ObjectiveSpec:
     aggregate: str = "worst"
     scales: tuple[float, ...] = ()
 
-    def build(self) -> Objective:
-        """The objective (a worker of :mod:`twin_cosim.workers`), in the process that runs it."""
-        from twin_cosim.optimize.objective import Objective  # the run's modules: workers only
-
-        return Objective(self)
+    def build(self) -> Worker:
+        """The objective (:class:`~twin_cosim.optimize.objective.Objective`, a worker of
+        :mod:`twin_cosim.workers`), in the process that runs it."""
+        return import_module(RUN_MODULE).Objective(self)
 
 
 @dataclass(frozen=True)
@@ -79,8 +85,7 @@ class ReferenceSpec:
 
     objective: ObjectiveSpec
 
-    def build(self) -> ReferenceRuns:
-        """The worker, in the process that runs it."""
-        from twin_cosim.optimize.objective import ReferenceRuns  # the run's modules: workers only
-
-        return ReferenceRuns(self.objective)
+    def build(self) -> Worker:
+        """The worker (:class:`~twin_cosim.optimize.objective.ReferenceRuns`), in the process that
+        runs it."""
+        return import_module(RUN_MODULE).ReferenceRuns(self.objective)
