@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import signal
 import subprocess
 import sys
 from collections.abc import Callable, Mapping
@@ -26,14 +25,6 @@ def twin_cli() -> Callable[..., subprocess.CompletedProcess]:
         return subprocess.run(command, capture_output=True, text=True, cwd=ROOT)
 
     return run
-
-
-@pytest.fixture()
-def keep_sigterm():
-    """``twin``'s main turns SIGTERM into an interrupt: give the test process its handler back."""
-    before = signal.getsignal(signal.SIGTERM)
-    yield
-    signal.signal(signal.SIGTERM, before)
 
 
 @pytest.fixture(scope="session")

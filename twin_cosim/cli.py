@@ -84,6 +84,8 @@ def run() -> None:
     global _status
     atexit.register(_end_at_once)  # registered first: runs after every other handler
     _status = main()
+    for signum in (signal.SIGINT, signal.SIGTERM):  # the status is known: the process ends
+        signal.signal(signum, signal.SIG_IGN)
     sys.exit(_status)
 
 
@@ -105,27 +107,26 @@ def main(argv: list[str] | None = None) -> int:
     """The ``twin`` command line (:func:`run` is its entry point).
 
     Exit status: 0 done; 1 done, but the result needs attention (``simulate``: the loop
-    diverged); 2 a user error (bad file, key or option), with a message naming it; 128 + N ended
-    by signal N (130 Ctrl-C, 143 SIGTERM), after a clean shutdown.
+    diverged or oscillates); 2 a user error (bad file, key or option), with a message naming
+    it; 128 + N ended by signal N (130 Ctrl-C, 143 SIGTERM), after a clean shutdown.
     """
     args = build_parser().parse_args(argv)
     if getattr(args, "data", None):
         os.environ[DATA_ENV] = args.data  # also seen by worker processes
-    from twin_cosim.workers import command_temp_folder, terminate_as_interrupt
+    from twin_cosim.interrupts import Terminated, stop_handlers
+    from twin_cosim.workers import command_temp_folder
 
-    terminate_as_interrupt()
-    try:
-        with command_temp_folder():
-            return args.handler(args)
-    except user_errors() as exc:
-        print(f"twin {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt as exc:
-        hint = getattr(exc, "hint", "")
-        print(f"twin {args.command}: interrupted{hint}", file=sys.stderr)
-        from twin_cosim.workers import Terminated
-
-        return 128 + (signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT)
+    with stop_handlers():  # a second signal never interrupts the shutdown the first began
+        try:
+            with command_temp_folder():
+                return args.handler(args)
+        except user_errors() as exc:
+            print(f"twin {args.command}: error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt as exc:
+            hint = getattr(exc, "hint", "")
+            print(f"twin {args.command}: interrupted{hint}", file=sys.stderr)
+            return 128 + (signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT)
 
 
 if __name__ == "__main__":

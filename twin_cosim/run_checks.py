@@ -1,10 +1,12 @@
-"""Judgement of a closed-loop run: did the loop diverge, did the current sit at its limit."""
+"""Judgement of a closed-loop run: did the loop diverge or oscillate (a limit cycle, a chattering
+current, :mod:`twin_cosim.oscillation`), did the current sit at its limit."""
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
 from twin_cosim.optimize.config import load_config
+from twin_cosim.oscillation import record_findings
 from twin_cosim.scenario import Scenario
 
 if TYPE_CHECKING:
@@ -14,7 +16,7 @@ SATURATED_SHARE = 0.1  # a current at its limit longer than this share of the ru
 
 
 def loop_warnings(record: pd.DataFrame, scenario: Scenario) -> tuple[bool, list[str]]:
-    """Whether a run diverged (the objective's band applies), and warnings about it.
+    """Whether a run is unusable (it diverged, or oscillates), and warnings about it.
 
     Parameters
     ----------
@@ -27,8 +29,9 @@ def loop_warnings(record: pd.DataFrame, scenario: Scenario) -> tuple[bool, list[
     Returns
     -------
     tuple
-        Diverged: |error| beyond ``optimize.abort_error_um``; and the warnings: the divergence,
-        and a current at its limit more than 10 % of the time.
+        Unusable: |error| beyond ``optimize.abort_error_um``, a limit cycle or a chattering
+        current; and the warnings: each of those, and a current at its limit more than 10 % of
+        the time.
     """
     band_um = load_config(scenario).abort_error_um
     peak_um = float(abs(record["error"]).max()) * 1e6
@@ -41,6 +44,8 @@ def loop_warnings(record: pd.DataFrame, scenario: Scenario) -> tuple[bool, list[
             f"the loop diverged: |error| reached {peak_um:.4g} um, beyond the band of "
             f"{band_um:g} um (optimize.abort_error_um) in which the optimizer keeps a run"
         )
+    oscillating = [] if diverged else record_findings(record, limit)
+    found.extend(oscillating)
     if saturated > SATURATED_SHARE:
         found.append(f"the current is at its limit ({limit:g} A) {saturated:.0%} of the time")
-    return diverged, found
+    return diverged or bool(oscillating), found

@@ -16,15 +16,20 @@ campaign, the reference runs and the runs of the tables and figures on one pool)
 Nothing outlives a pool. Every pool has a private temp folder (``twin-pool-<parent pid>-*``) that
 holds its workers' temporary files and its stored factories, and that ``close()`` removes (FMUs
 are extracted into the per-user cache, :func:`twin_cosim.plant.extracted_fmu`). A pool closed
-before it was given a task terminates its processes instead of awaiting their preparation. A
-worker ignores Ctrl-C from the moment it starts (it is spawned with SIGINT ignored, so a Ctrl-C
-while it still imports prints no traceback; its parent handles Ctrl-C and shuts the pool down),
-frees its plant when it exits, and dies with its parent: a watchdog thread polls the parent's
-pid, so after ``kill -9`` of the parent every worker removes the pool's folder and exits (the
-multiprocessing resource tracker then ends too). A command of the ``twin`` CLI keeps all its
-temporary files in one such folder (:func:`command_temp_folder`); one left by a process that
-could not clean up (``kill -9`` of a serial run) is removed by the next pool or command.
-:func:`terminate_as_interrupt` makes SIGTERM end a process the way Ctrl-C does.
+before it was given a task terminates its processes instead of awaiting their preparation; one
+closed while tasks still run (Ctrl-C, an error) kills them: their results are not wanted and a
+long run would delay the end. A worker ignores Ctrl-C from the moment it starts (it is started
+with SIGINT blocked, and ignores it before unblocking it, so a Ctrl-C while it still imports
+prints no traceback; its parent handles Ctrl-C and shuts the pool down), frees its plant when it
+exits, and dies with its parent: a watchdog thread polls the parent's pid, so after ``kill -9``
+of the parent every worker removes the pool's folder and exits (the multiprocessing resource
+tracker then ends too). A command of the ``twin`` CLI keeps all its temporary files in one such
+folder (:func:`command_temp_folder`); one left by a process that could not clean up (``kill -9``
+of a serial run) is removed by the next pool or command.
+
+The parent never lets a Ctrl-C or SIGTERM land inside the executor's machinery: submitting,
+waiting and shutting down run with those signals deferred (:mod:`twin_cosim.interrupts`), which
+are raised between two of those steps instead.
 """
 
 from __future__ import annotations
@@ -41,10 +46,12 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Protocol
+
+from twin_cosim.interrupts import deferred_signals, wait_interruptibly
 
 POOL_PREFIX = "twin-pool-"
 PARENT_POLL_S = 0.2  # how often a worker checks that its parent is alive
@@ -62,19 +69,6 @@ class WorkerFactory(Protocol):
     """Picklable recipe of a worker."""
 
     def build(self) -> Worker: ...
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM received: handled like Ctrl-C, so that every ``finally`` runs."""
-
-
-def _raise_terminated(signum: int, frame: Any) -> None:
-    raise Terminated(f"signal {signum}")
-
-
-def terminate_as_interrupt() -> None:
-    """Make SIGTERM raise :class:`Terminated` (a KeyboardInterrupt) in the main thread."""
-    signal.signal(signal.SIGTERM, _raise_terminated)
 
 
 def pid_alive(pid: int) -> bool:
@@ -236,7 +230,8 @@ def _build_in_process(
     prepare: Callable[[], None] | None,
 ) -> None:
     global _PROCESS_WORKER
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C; a Ctrl-C pending
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # since the start is dropped
     folder = tempfile.mkdtemp(dir=pool_folder)
     tempfile.tempdir = folder
     _exit_on_sigterm(folder)
@@ -253,24 +248,19 @@ def _started() -> None:
 
 
 @contextmanager
-def _children_ignore_interrupts() -> Iterator[None]:
-    """Start processes in this block with SIGINT ignored; this process keeps its Ctrl-C.
+def _children_start_blocking_interrupts() -> Iterator[None]:
+    """Processes started in this block start with SIGINT blocked (a signal mask survives fork
+    and exec); they ignore it once they run their initializer.
 
-    SIGINT is blocked, then ignored: a spawned interpreter inherits the ignored disposition
-    (and then installs no Ctrl-C handler of its own), while a Ctrl-C that arrives here meanwhile
-    stays pending (a blocked signal is never discarded as ignored) and reaches the restored
-    handler when the block ends. Outside the main thread (where handlers cannot change) nothing
-    changes.
+    Only this thread blocks SIGINT meanwhile, and its handler stays: a Ctrl-C goes to another
+    thread of this process, or waits for the block's end, and is never lost. (Ignoring SIGINT
+    here instead, for the children to inherit, would drop a Ctrl-C that another thread, e.g. a
+    BLAS thread, receives meanwhile.)
     """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
     held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, handler)
         signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
@@ -319,15 +309,20 @@ class ProcessPool:
         self._factory_file: str | None = None
         self._factories = 0  # factories stored so far
         self._used = False  # a task was given
+        self._running: set[Future] = set()  # tasks given and not yet answered
         self.executor = ProcessPoolExecutor(
             max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_build_in_process,
             initargs=(factory, self.folder, os.getpid(), prepare),
         )
-        with _children_ignore_interrupts():  # each submit starts one process
-            for _ in range(self.workers):
-                self.executor.submit(_started)
+        try:
+            with deferred_signals(), _children_start_blocking_interrupts():
+                for _ in range(self.workers):  # each submit starts one process
+                    self.executor.submit(_started)
+        except BaseException:  # Ctrl-C meanwhile: nothing is left running
+            self.close()
+            raise
 
     def _use(self, factory: WorkerFactory) -> None:
         """Tasks from now on run on ``factory``'s workers (stored for the processes to read)."""
@@ -346,27 +341,44 @@ class ProcessPool:
         if factory is not None:
             self._use(factory)
         self._used = True
-        with _children_ignore_interrupts():  # a submit may start a process anew
+        with deferred_signals():
             futures = {
                 self.executor.submit(_run_in_process, task, self._factory_file): i
                 for i, task in enumerate(tasks)
             }
-        for future in as_completed(futures):
-            yield futures[future], future.result()
+        self._running = set(futures)
+        while self._running:
+            for future in wait_interruptibly(self._done_within):
+                self._running.discard(future)
+                yield futures[future], future.result()
+
+    def _done_within(self, timeout_s: float) -> set[Future] | None:
+        """The running tasks answered within ``timeout_s`` (s); None: none yet."""
+        done, _ = wait(self._running, timeout=timeout_s, return_when=FIRST_COMPLETED)
+        return done or None
 
     def close(self) -> None:
         """Shut the pool down (workers free their plants) and remove its temp folder.
 
         Processes that were given no task yet (an error or Ctrl-C while the parent prepared)
         are terminated rather than awaited: their preparation would delay the end for nothing.
+        Processes with tasks still running (Ctrl-C or an error while the parent waited) are
+        killed: their results are not wanted, and a long run would delay the end. A Ctrl-C or
+        SIGTERM during the shutdown is raised once it is complete.
         """
-        try:
-            if not self._used:  # the executor offers no public way to its processes (3.11)
-                for process in list(self.executor._processes.values()):
-                    process.terminate()  # SIGTERM: the worker removes its folder and exits
-            self.executor.shutdown(cancel_futures=True)
-        finally:
-            shutil.rmtree(self.folder, ignore_errors=True)
+        with deferred_signals():
+            try:
+                # the executor offers no public way to its processes (3.11)
+                processes = list(self.executor._processes.values())
+                if not self._used:
+                    for process in processes:
+                        process.terminate()  # SIGTERM: the worker removes its folder, exits
+                elif any(not future.done() for future in self._running):
+                    for process in processes:
+                        process.kill()
+                self.executor.shutdown(cancel_futures=True)
+            finally:
+                shutil.rmtree(self.folder, ignore_errors=True)
 
     def __enter__(self) -> ProcessPool:
         return self

@@ -10,8 +10,6 @@ from scenario_texts import scenario_text
 
 from twin_cosim.cli import main
 
-pytestmark = pytest.mark.usefixtures("keep_sigterm")
-
 SHORT = scenario_text(move=0.2, back=False, optimize="abort_error_um: 100.0")
 ABSURD = "Kp_pos: 3000.0\nKp_vel: 0.05\nKi_vel: 0.03\nPP2: 5.0\nPP3: 0.1\nf_H: 0.5\n"
 

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import multiprocessing
 import os
+import random
 import signal
 import subprocess
 import sys
@@ -191,6 +193,71 @@ def test_closing_a_pool_given_no_task_does_not_wait_for_its_preparation(private_
     assert list(private_tmp.iterdir()) == []
 
 
+class InterruptsAsItIsSent:
+    """A worker factory that sends Ctrl-C to the parent while it is sent to a starting process
+    (pickled by the parent as the process starts)."""
+
+    def __getstate__(self) -> dict:
+        os.kill(os.getpid(), signal.SIGINT)
+        return {}
+
+    def build(self) -> PidWorker:
+        return PidWorker()
+
+
+def test_a_ctrl_c_while_the_processes_start_is_not_lost(private_tmp):
+    """Another thread (numpy's BLAS threads in a campaign) may receive the signal: it must reach
+    the parent's handler, and nothing may be left running."""
+    release = threading.Event()
+    other = threading.Thread(target=release.wait)
+    other.start()
+    before = set(multiprocessing.active_children())
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            ProcessPool(InterruptsAsItIsSent(), 2)
+    finally:
+        release.set()
+        other.join()
+    assert not set(multiprocessing.active_children()) - before
+    assert list(private_tmp.iterdir()) == []
+
+
+class Sleeper:
+    """A worker that sleeps ``task`` seconds (a long run)."""
+
+    def __call__(self, task: float) -> float:
+        time.sleep(task)
+        return task
+
+    def close(self) -> None:
+        pass
+
+
+class Sleepers:
+    def build(self) -> Sleeper:
+        return Sleeper()
+
+
+def test_a_ctrl_c_while_tasks_run_ends_the_pool_without_awaiting_them(private_tmp):
+    """The parent waits for results; a Ctrl-C interrupts that wait, and closing the pool kills
+    the running tasks instead of awaiting their end (an hour here)."""
+    pool = ProcessPool(Sleepers(), 2)
+    results = pool.imap([0.0, 3600.0, 3600.0])
+    assert next(results)[1] == 0.0
+    sender = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
+    sender.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            next(results)
+    finally:
+        sender.join()
+    closing = threading.Thread(target=pool.close)
+    closing.start()
+    closing.join(60.0)  # a guard against a hang, not a timing
+    assert not closing.is_alive()
+    assert list(private_tmp.iterdir()) == []
+
+
 def test_stale_pool_folder_of_a_dead_process_is_removed(short_scenario, private_tmp):
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
@@ -205,32 +272,26 @@ def test_stale_pool_folder_of_a_dead_process_is_removed(short_scenario, private_
     assert sorted(p.name for p in private_tmp.iterdir()) == [mine.name]
 
 
-def start_campaign(scenario: str, out: Path, tmp: Path) -> subprocess.Popen:
-    command = [
-        sys.executable,
-        "-m",
-        "twin_cosim",
-        "optimize",
-        scenario,
-        "--method",
-        "ce",
-        "--budget",
-        "2000",
-        "--workers",
-        "2",
-        "--quiet",
-        "--out",
-        str(out),
-    ]
+def start_twin(args: list[str], tmp: Path) -> subprocess.Popen:
+    """``python -m twin_cosim ARGS`` in its own process group (a terminal's job), its temporary
+    files in ``tmp``."""
     env = {**os.environ, "TMPDIR": str(tmp)}
     return subprocess.Popen(
-        command,
+        [sys.executable, "-m", "twin_cosim", *args],
         cwd=ROOT,
         env=env,
         start_new_session=True,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
+    )
+
+
+def start_campaign(scenario: str, out: Path, tmp: Path) -> subprocess.Popen:
+    return start_twin(
+        ["optimize", scenario, "--method", "ce", "--budget", "2000", "--workers", "2"]
+        + ["--quiet", "--out", str(out)],
+        tmp,
     )
 
 
@@ -272,3 +333,80 @@ def test_campaign_ends_cleanly_on_a_signal(short_scenario, tmp_path, sent, to_gr
         assert "Traceback" not in stderr
         assert f"--resume {out}" in stderr
         assert len(stderr.strip().splitlines()) == 1, stderr
+
+
+MOMENTS = [round(random.Random(18).uniform(0.3, 6.0), 2) for _ in range(8)]
+
+
+@pytest.fixture(scope="module")
+def dask_scheduler():
+    """A Dask cluster in this process, listening on 127.0.0.1: its scheduler's address."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=1,
+        threads_per_worker=2,
+        processes=False,
+        protocol="tcp",
+        host="127.0.0.1",
+        dashboard_address=None,
+    ) as cluster:
+        yield cluster.scheduler_address
+
+
+def interrupt_after(process: subprocess.Popen, delay: float) -> tuple[int | None, str, list[int]]:
+    """Ctrl-C to the process group after ``delay`` s; the exit status (None: it had ended
+    before), stderr and the processes of the group still alive 15 s after its end."""
+    try:
+        process.wait(timeout=delay)
+        return None, process.stderr.read(), []
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGINT)
+    try:
+        process.wait(timeout=60)  # a guard against a hang, not a timing
+        alive = wait_until_gone(process.pid, 15)
+    finally:
+        if live_in_group(process.pid):
+            os.killpg(process.pid, signal.SIGKILL)
+    return process.returncode, process.stderr.read(), alive
+
+
+@pytest.mark.parametrize(
+    ("kind", "delay"),
+    [("fresh", d) for d in MOMENTS[:3]]
+    + [("resumed", d) for d in MOMENTS[3:5]]
+    + [("compare", d) for d in MOMENTS[5:7]]
+    + [("dask", MOMENTS[7])],
+)
+def test_ctrl_c_at_random_moments_ends_every_campaign(
+    short_scenario, tmp_path, kind, delay, request
+):
+    """Ctrl-C from start-up to the middle of the evaluations, on a fresh, a resumed and a
+    compared campaign, local pool and Dask: exit 130 after a clean shutdown, one line, no
+    process or temp folder left, a log that reads whole."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    out = tmp_path / "campaign"
+    where = ["--workers", "2"]
+    if kind == "dask":
+        where = ["--scheduler", request.getfixturevalue("dask_scheduler")]
+    optimize = ["optimize", short_scenario, "--method", "ga", "--budget", "100000", *where]
+    args = [*optimize, "--quiet", "--no-plots", "--out", str(out)]
+    if kind == "resumed":
+        first = start_twin(args, tmp)
+        wait_for_evaluations(first, out / "evaluations.jsonl", 1)
+        assert interrupt_after(first, 0.0)[:1] == (130,)
+        args = ["optimize", short_scenario, "--resume", str(out), *where, "--quiet", "--no-plots"]
+    elif kind == "compare":
+        campaign = tmp_path / "campaign.yaml"
+        campaign.write_text(
+            f"name: c\nscenario: {short_scenario}\nmethods: [ga]\nbudgets: {{ga: 100000}}\n"
+        )
+        args = ["compare", str(campaign), *where, "--quiet", "--no-plots", "--out", str(out)]
+    status, stderr, alive = interrupt_after(start_twin(args, tmp), delay)
+    assert status == 130, stderr
+    assert alive == [], f"processes left behind: {alive}"
+    assert "Traceback" not in stderr
+    assert len(stderr.strip().splitlines()) == 1, stderr
+    for log in out.glob("**/evaluations.jsonl"):
+        assert all(json.loads(line) for line in log.read_text().splitlines())
+    assert list(tmp.iterdir()) == [], "temp folders left behind"

@@ -64,7 +64,8 @@ def add_arguments(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate, write record.csv and summary.json, print the result, then plot run.png; 1 when
-    the loop diverged. A machine scenario (axes:) or a part program runs on every axis."""
+    the loop diverged or oscillates (a limit cycle, a chattering current). A machine scenario
+    (axes:) or a part program runs on every axis."""
     from twin_cosim.scenario import is_machine_scenario
 
     if args.program or is_machine_scenario(args.scenario):
@@ -82,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     record, ran = _simulate(scenario, tuned, plant_path(args), not args.reference_path)
     metrics = compute_metrics(record, scenario.metrics_window)
-    diverged, loop = loop_warnings(record, scenario)
+    unusable, loop = loop_warnings(record, scenario)
     summary = _summary(args, scenario, tuned, record, metrics, ran, mismatch + loop, out)
     write_record_csv(out / "record.csv", record)
     write_json(out / "summary.json", summary)
@@ -99,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
         plot_run(record, metrics, title, out / "run.png")
     if not args.json:
         print(f"wrote {out}/record.csv, " + ("" if args.no_plots else "run.png, ") + "summary.json")
-    return 1 if diverged else 0
+    return 1 if unusable else 0
 
 
 def _simulate(

@@ -3,7 +3,8 @@
 A comparison file::
 
     name: paper-comparison
-    scenario: reference1.yaml        # optimized on this (relative to this file)
+    scenario: reference1.yaml        # optimized on this (relative to this file, or a shipped
+                                     # scenario's name: reference1)
     validation: reference2.yaml      # the optimized sets applied here (Table 5); optional
     methods: [ce, ga, sa, cmaes, de]
     seed: 0
@@ -45,6 +46,7 @@ from twin_cosim.optimize.worker_specs import AGGREGATES
 from twin_cosim.pool_runs import prepare_campaign_worker
 from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table
 from twin_cosim.scenario import Scenario, ScenarioError, resolve_scenario
+from twin_cosim.scenario.shipped import find_scenario
 from twin_cosim.schema import load_yaml
 from twin_cosim.workers import ProcessPool, SerialPool, make_pool
 
@@ -131,21 +133,28 @@ def load_comparison(path: Path) -> Comparison:
     calibrated = data.get("plant_parameters")
     return Comparison(
         name=str(data.get("name", Path(path).stem)),
-        scenario=Path(path).parent / str(data["scenario"]),
-        validation=None if validation is None else Path(path).parent / str(validation),
+        scenario=_scenario_file(here, data["scenario"]),
+        validation=None if validation is None else _scenario_file(here, validation),
         methods=methods,
         seed=seed,
         budgets=budgets,
         plant_parameters=None if calibrated is None else here / str(calibrated),
         robust={
-            "scenarios": [str(here / str(f)) for f in others],
+            "scenarios": [str(_scenario_file(here, f)) for f in others],
             "tolerance": float(robust.get("tolerance", 0.0)),
             "samples": int(robust.get("samples", 1)),
             "aggregate": robust.get("objective", "worst"),
             "relative": robust.get("relative", False),
         },
-        holdout=[here / str(f) for f in holdout],
+        holdout=[_scenario_file(here, f) for f in holdout],
     )
+
+
+def _scenario_file(here: Path, given: object) -> Path:
+    """A scenario named in a campaign file: a file relative to the campaign file's folder, or
+    the name of a shipped scenario (``reference1``), as on the command line."""
+    path = here / str(given)
+    return path if path.exists() else find_scenario(str(given))
 
 
 def run_comparison(

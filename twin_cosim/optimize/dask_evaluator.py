@@ -14,15 +14,16 @@ Connecting is bounded: a scheduler that does not answer, or has no worker within
 from __future__ import annotations
 
 import logging
+import queue
 import threading
 from collections.abc import Iterator
 from concurrent.futures import CancelledError
 
 import numpy as np
-from distributed import Client, Reschedule, WorkerPlugin, get_worker
-from distributed import as_completed as dask_completed
+from distributed import Client, Future, Reschedule, WorkerPlugin, get_worker
 from distributed.comm.core import CommClosedError
 
+from twin_cosim.interrupts import deferred_signals, wait_interruptibly
 from twin_cosim.optimize.evaluator_protocol import Result, SchedulerError
 from twin_cosim.optimize.objective import Objective, ObjectiveSpec
 
@@ -134,10 +135,15 @@ class DaskEvaluator:
         SchedulerError
             When the connection to the scheduler is lost.
         """
+        finished: queue.Queue[Future] = queue.Queue()
         try:
-            futures = self.client.map(_evaluate_on_worker, list(candidates), pure=False)
+            with deferred_signals():  # Ctrl-C never lands inside the client's machinery
+                futures = self.client.map(_evaluate_on_worker, list(candidates), pure=False)
+                for future in futures:
+                    future.add_done_callback(finished.put)
             index = {future.key: i for i, future in enumerate(futures)}
-            for future in dask_completed(futures):
+            for _ in futures:
+                future = wait_interruptibly(lambda timeout_s: _next_within(finished, timeout_s))
                 yield index[future.key], future.result()
         except LOST as exc:
             first_line = (str(exc).splitlines() or [""])[0]
@@ -147,5 +153,15 @@ class DaskEvaluator:
             ) from None
 
     def close(self) -> None:
-        """Disconnect from the scheduler."""
-        self.client.close()
+        """Disconnect from the scheduler (its tasks of this client are released); a Ctrl-C or
+        SIGTERM meanwhile is raised once it is done."""
+        with deferred_signals():
+            self.client.close()
+
+
+def _next_within(finished: queue.Queue[Future], timeout_s: float) -> Future | None:
+    """The next finished future within ``timeout_s`` (s); None: none yet."""
+    try:
+        return finished.get(timeout=timeout_s)
+    except queue.Empty:
+        return None

@@ -5,7 +5,9 @@ A candidate's fitness (um) is
 - E_pk over the objective window when the run is valid;
 - penalty + E_pk when it violates the control-effort cap (IAU above the limit);
 - 2 x penalty when it fails: parameters the controller refuses, a run stopped because the error
-  left the allowed band (unstable loop), or an FMU error. The reason is kept with the result.
+  left the allowed band (unstable loop), a run that oscillates (a limit cycle or a chattering
+  current, :mod:`twin_cosim.oscillation`; status ``unstable``), or an FMU error. The reason is
+  kept with the result.
 
 Robust objective: with several scenarios and plant samples (relative factors on plant
 parameters, the first sample the nominal plant), every candidate runs on each scenario x sample
@@ -37,6 +39,7 @@ from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.config import OptimizeConfig, load_config
 from twin_cosim.optimize.early_stop import lower_bound_above, window_spans_run
 from twin_cosim.optimize.worker_specs import EvaluationTask, ObjectiveSpec
+from twin_cosim.oscillation import record_findings
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.scenario import Scenario
 
@@ -162,6 +165,9 @@ class Objective:
             except PlantError as exc:
                 return _result(failure, "failed", f"{case.label}: {exc}", None, steps)
             steps += case.steps
+            oscillating = record_findings(record, case.scenario.settings.current_limit)
+            if oscillating:
+                return _result(failure, "unstable", f"{case.label}: {oscillating[0]}", None, steps)
             metrics = compute_metrics(record, case.window).as_dict()
             scores[i], status, reason = self._score(metrics, case)
             runs[i] = {"case": case.label, "status": status, "reason": reason, **metrics}

@@ -18,8 +18,6 @@ from twin_cosim.optimize.campaign_folder import load_spec
 from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
 from twin_cosim.optimize.folder_lock import FolderLock
 
-pytestmark = pytest.mark.usefixtures("keep_sigterm")
-
 SHORT = scenario_text(move=0.2, back=False, optimize="abort_error_um: 50.0")
 
 
