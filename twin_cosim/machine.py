@@ -7,13 +7,16 @@ A machine is either
   error and current; or
 - a virtual machine: a YAML file whose plant stands for the machine, either a scenario (its
   ``plant`` section: FMU and parameters, as ``twin synth`` switches effects on) or a plant
-  parameter file (``model`` and ``parameters``). The scenario being simulated is run on that
-  plant with the same gains; only the start position is the scenario's.
+  parameter file (``model`` and ``parameters``; ``twin synth`` writes one, ``RUN.machine.yaml``),
+  or the answer ``twin synth`` writes beside its run (``RUN.truth.json``: the parameters it
+  changed from the scenario's plant). The scenario being simulated is run on that plant with
+  the same gains; only the start position is the scenario's.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -26,8 +29,8 @@ from twin_cosim.measured import check_against_reference, read_measured
 from twin_cosim.metrics import Metrics, compute_metrics
 from twin_cosim.plant import Plant
 from twin_cosim.scenario import Scenario, load_scenario
-from twin_cosim.scenario.plant_file import read_plant_parameters
-from twin_cosim.schema import load_yaml
+from twin_cosim.scenario.plant_file import check_values, read_plant_parameters
+from twin_cosim.schema import ScenarioError, load_yaml
 
 MEASURED_SUFFIXES = (".csv", ".mat")
 JUDGED = ("E_pk_um", "ITAE", "IAU")
@@ -35,6 +38,11 @@ JUDGED = ("E_pk_um", "ITAE", "IAU")
 
 def machine_scenario(scenario: Scenario, machine: Path) -> Scenario:
     """The scenario with the virtual machine's plant (FMU and parameters) in place of the twin's."""
+    if machine.suffix.lower() == ".json":
+        return dataclasses.replace(
+            scenario,
+            plant_parameters={**scenario.plant_parameters, **_truth_plant(scenario, machine)},
+        )
     data = load_yaml(machine)
     if isinstance(data, dict) and "reference" in data:
         plant = load_scenario(machine)
@@ -44,6 +52,21 @@ def machine_scenario(scenario: Scenario, machine: Path) -> Scenario:
         parameters = read_plant_parameters(machine, scenario.model_name()).parameters
     parameters["load_position_start"] = scenario.plant_parameters["load_position_start"]
     return dataclasses.replace(scenario, fmu=fmu, model=model, plant_parameters=parameters)
+
+
+def _truth_plant(scenario: Scenario, truth: Path) -> dict[str, float]:
+    """The plant parameters of the virtual machine ``twin synth`` recorded in ``RUN.truth.json``
+    (those it changed from the scenario's nominal plant)."""
+    try:
+        data = json.loads(truth.read_text())
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise ScenarioError(f"{truth}: not a twin synth answer (JSON): {exc}") from None
+    values = data.get("plant_parameters") if isinstance(data, dict) else None
+    if not isinstance(values, dict):
+        raise ScenarioError(
+            f"{truth}: plant_parameters: expected the mapping twin synth writes (RUN.truth.json)"
+        )
+    return check_values(values, scenario.model_name(), str(truth), "plant_parameters")
 
 
 def machine_metrics(

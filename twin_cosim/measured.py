@@ -254,12 +254,19 @@ def check_against_reference(run: MeasuredRun, reference: ReferenceGrid) -> None:
     ------
     MeasuredDataError
         When ``x_ref`` or ``x`` looks scaled by 1000 (mm instead of m), the run lasts longer
-        than the reference, or ``x_ref`` differs from the scenario's reference.
+        or shorter than the reference (within two samples), or ``x_ref`` differs from the
+        scenario's reference.
     """
     if run.t[-1] > reference.duration + 2 * run.period or run.t[0] < -run.period:
         raise MeasuredDataError(
             f"{run.source}: the run spans {run.t[0]:.4g} to {run.t[-1]:.4g} s, outside the "
             f"scenario's reference (0 to {reference.duration:.4g} s)"
+        )
+    if run.t[-1] < reference.duration - 2 * run.period or run.t[0] > run.period:
+        raise MeasuredDataError(
+            f"{run.source}: the run spans {run.t[0]:.4g} to {run.t[-1]:.4g} s, shorter than "
+            f"the scenario's reference (0 to {reference.duration:.4g} s): a run cut short "
+            "leaves out motion the scenario needs; record the whole reference"
         )
     expected = np.interp(run.t, reference.time, reference.position)
     for column, values in (("x_ref", run.x_ref), ("x", run.x)):

@@ -88,6 +88,39 @@ def test_run_of_another_scenario(tmp_path, scenario):
         check_against_reference(run, scenario.reference)
 
 
+def test_a_run_shorter_than_its_scenario_is_refused(tmp_path, scenario):
+    """The issue's case: the first part of a run (a cut CSV) leaves out motion the scenario
+    needs; the error names the file, its span and the span needed."""
+    frame = good_frame(scenario)
+    cut = frame[frame["t"] <= 0.53]
+    run = read_measured_csv(write(tmp_path, cut))
+    with pytest.raises(MeasuredDataError, match="shorter than the scenario's reference") as info:
+        check_against_reference(run, scenario.reference)
+    message = str(info.value)
+    assert "run.csv" in message and "0 to 0.53 s" in message
+    assert f"(0 to {scenario.reference.duration:.4g} s)" in message
+
+
+def test_simulate_on_a_cut_run_is_refused_naming_the_file(tmp_path, scenario, capsys):
+    from twin_cosim.cli import main
+
+    cut = good_frame(scenario).drop(columns="extra")
+    path = write(tmp_path, cut[cut["t"] <= 0.53])
+    status = main(
+        [
+            "simulate",
+            str(REFERENCE1),
+            "--machine",
+            str(path),
+            "--no-plots",
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
+    assert status == 2
+    assert f"{path}: the run spans 0 to 0.53 s, shorter" in capsys.readouterr().err
+
+
 def test_current_in_milliamps_warns(tmp_path, scenario):
     frame = good_frame(scenario)
     frame["current"] = 1500.0 * np.sin(frame["t"])

@@ -27,6 +27,12 @@ def add_arguments(subparsers) -> None:
         help="comma-separated subset of the campaign's methods (default: all of them)",
     )
     parser.add_argument(
+        "--budget",
+        type=whole_number(1),
+        help="evaluations of every method (default: the campaign file's budgets: {METHOD: N}, "
+        "else each method's own)",
+    )
+    parser.add_argument(
         "--workers", type=whole_number(1), help="local processes (default: all cores)"
     )
     parser.add_argument(
@@ -56,6 +62,10 @@ def run(args: argparse.Namespace) -> int:
         if args.plant_parameters:
             comparison = dataclasses.replace(
                 comparison, plant_parameters=Path(args.plant_parameters)
+            )
+        if args.budget:
+            comparison = dataclasses.replace(
+                comparison, budgets=dict.fromkeys(comparison.methods, args.budget)
             )
         out = out_folder(args.out, Path("out") / comparison.name)
         text = run_comparison(

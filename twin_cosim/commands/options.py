@@ -9,8 +9,9 @@ from pathlib import Path
 from twin_cosim.environment import DATA_ENV
 
 
-class HelpFormatter(argparse.HelpFormatter):
-    """Help that shows every option's default: the value, or what the help text says it is."""
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Help that shows every option's default: the value, or what the help text says it is;
+    descriptions and epilogs keep their lines."""
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""

@@ -42,7 +42,8 @@ def add_arguments(subparsers) -> None:
         "--machine",
         metavar="RUN_OR_PLANT",
         help="judge on a machine: a measured run (CSV/.mat) made with these gains, or a virtual "
-        "machine (a scenario or plant.yaml whose plant stands for the machine) (default: none)",
+        "machine (a scenario or plant.yaml whose plant stands for the machine, e.g. the "
+        "RUN.machine.yaml or RUN.truth.json twin synth writes) (default: none)",
     )
     parser.add_argument(
         "--program",
@@ -91,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
     else:
         _print_text(scenario.name, metrics, summary, args.machine)
-    for warning in summary["warnings"]:
+    for warning in loop:  # the plant mismatch was said as it was found
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
     if not args.no_plots:
         from twin_cosim.plots import plot_run

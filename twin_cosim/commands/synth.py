@@ -18,7 +18,26 @@ from twin_cosim.commands.options import (
 if TYPE_CHECKING:
     import pandas as pd
 
+    from twin_cosim.gap.synth import EffectSpec
     from twin_cosim.scenario import Scenario
+
+# The effect libraries of the plant models (models/<model>/card.yaml; a test checks this text).
+EFFECTS_HELP = """\
+effects of each plant model (NAME: its parameters):
+  drive2mass: stribeck (stribeck_friction, stribeck_speed), coulomb_change (delta_coulomb),
+    asymmetric_friction (coulomb_asymmetry), position_friction (cos_part, sin_part),
+    pitch_error (pitch_error_linear, cos_part, sin_part), torque_ripple (cos_part, sin_part),
+    current_lag (current_time_constant), dead_time (dead_time_steps), quantization
+    (position_resolution), backlash_change (delta_backlash), inertia_change (relative_change),
+    stiffness_change (relative_change)
+  emps: stribeck (stribeck_friction, stribeck_speed), coulomb_change (delta_coulomb),
+    asymmetric_friction (coulomb_asymmetry, viscous_asymmetry), viscous_change (delta_viscous),
+    offset_change (delta_offset), inertia_change (relative_change), compliance (mass_fraction,
+    coupling_frequency), torque_ripple (cos_part, sin_part), dead_time (dead_time_steps)
+  plant: any FMU parameter, e.g. plant:backlash=30e-6
+units and ranges: models/<model>/README.md; e.g.
+  --effect stribeck:stribeck_friction=0.2,stribeck_speed=0.5
+"""
 
 
 def add_arguments(subparsers) -> None:
@@ -26,13 +45,15 @@ def add_arguments(subparsers) -> None:
     parser = command_parser(
         subparsers, "synth", "the virtual machine: a measured run with known effects"
     )
+    parser.epilog = EFFECTS_HELP
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     parser.add_argument(
         "--effect",
         action="append",
         default=[],
         metavar="NAME:param=value,...",
-        help="effect to switch on (repeatable); NAME from the library or 'plant' (default: none)",
+        help="effect to switch on (repeatable); NAME from the plant model's library (listed "
+        "below) or 'plant' (default: none)",
     )
     _error_options(parser)
     plant_option(parser)
@@ -71,17 +92,18 @@ def _error_options(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Synthesize the run, write it and its known answer (``RUN.truth.json``)."""
-    from twin_cosim.gap.synth import parse_effect, synthesize
+    """Synthesize the run, write it, its known answer (``RUN.truth.json``) and the virtual
+    machine's plant file (``RUN.machine.yaml``)."""
+    from twin_cosim.gap.synth import synthesize
     from twin_cosim.measured import read_measured
     from twin_cosim.scenario import for_measured_run, resolve_scenario
 
-    out, truth = _files(args)
+    out, truth, machine = _files(args)
     scenario = resolve_scenario(args.scenario)
     warn_plant_mismatch(scenario, plant_path(args))
     if args.follow:
         scenario = for_measured_run(scenario, read_measured(args.follow))
-    effects = [parse_effect(text) for text in args.effect]
+    effects = [_effect(text, None if args.plant else scenario.model) for text in args.effect]
     synthesis = synthesize(
         scenario,
         effects,
@@ -97,25 +119,69 @@ def run(args: argparse.Namespace) -> int:
     else:
         synthesis.run.to_csv(out, index=False)
     write_json(truth, {**synthesis.truth, "followed": args.follow})
-    print(f"wrote {out} ({len(synthesis.run)} samples) and the known answer in {truth}")
+    wrote = _write_machine(machine, scenario, synthesis.truth, out, args.plant)
+    print(
+        f"wrote {out} ({len(synthesis.run)} samples), the known answer in {truth}"
+        + (
+            f" and the virtual machine's plant in {machine} (twin simulate --machine)"
+            if wrote
+            else ""
+        )
+    )
     return 0
 
 
-def _files(args: argparse.Namespace) -> tuple[Path, Path]:
-    """The run to write and its answer file, refused when they exist (unless ``--force``)."""
+def _write_machine(path: Path, scenario: Scenario, truth: dict, out: Path, fmu: str | None) -> bool:
+    """The virtual machine as a plant file (``--machine`` of ``twin simulate``, docs/transfer.md):
+    the scenario's plant parameters with those synth changed; False for an FMU (``--plant``)
+    of no model of the project."""
+    from twin_cosim.plant_model import model_names
+    from twin_cosim.scenario.plant_file import PlantParameters, write_plant_parameters
+
+    model = scenario.model_name(Path(fmu) if fmu else None)
+    if model not in model_names():
+        return False
+    nominal = {k: v for k, v in scenario.plant_parameters.items() if k != "load_position_start"}
+    created_by = {"command": "twin synth", "run": str(out), "effects": truth["effects"]}
+    parameters = {**nominal, **truth["plant_parameters"]}
+    write_plant_parameters(path, PlantParameters(model, parameters, created_by=created_by))
+    return True
+
+
+def _effect(text: str, model: str | None) -> EffectSpec:
+    """The ``--effect`` of ``text``: an effect of ``model``'s library (None, an FMU given with
+    ``--plant``: of any model's) or ``plant``."""
+    from twin_cosim.gap.synth import parse_effect
+    from twin_cosim.plant_model import plant_model
+
+    name = text.partition(":")[0]
+    if model is not None and name != "plant":
+        known = [h.name for h in plant_model(model).hypotheses]
+        if name not in known:
+            raise ValueError(
+                f"--effect {text!r}: {name!r} is not an effect of plant model {model!r}; "
+                f"expected 'plant' or one of {', '.join(known)} (twin synth --help)"
+            )
+    return parse_effect(text)
+
+
+def _files(args: argparse.Namespace) -> tuple[Path, Path, Path]:
+    """The run to write, its answer file and its machine's plant file, refused when they exist
+    (unless ``--force``)."""
     out = Path(args.out)
     truth = out.with_name(out.name + ".truth.json")
+    machine = out.with_name(out.name + ".machine.yaml")
     if out.is_dir():
         raise ValueError(f"--out {out}: is a folder; give the measured-run file to write")
     if out.suffix.lower() not in (".csv", ".mat"):
         raise ValueError(f"--out {out}: expected a .csv or an EMPS .mat file name")
-    for path in (out, truth):
+    for path in (out, truth, machine):
         if path.exists() and not args.force:
             raise ValueError(
                 f"--out {out}: {path} exists (it may be a real measured run); "
                 "give another --out, or --force to overwrite"
             )
-    return out, truth
+    return out, truth, machine
 
 
 def _write_emps(

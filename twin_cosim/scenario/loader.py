@@ -28,7 +28,11 @@ from pathlib import Path
 from typing import Any
 
 from twin_cosim.scenario.controller_section import controller_section
-from twin_cosim.scenario.plant_section import plant_section, with_plant_parameters
+from twin_cosim.scenario.plant_section import (
+    check_friction_below_peak_torque,
+    plant_section,
+    with_plant_parameters,
+)
 from twin_cosim.scenario.reference_section import reference_section
 from twin_cosim.scenario.resolved import Scenario
 from twin_cosim.scenario.shipped import find_scenario
@@ -71,6 +75,7 @@ def load_scenario(path: Path | str) -> Scenario:
         )
     plant = plant_section(check, data.get("plant"))
     tuned, settings = controller_section(check, plant, data.get("controller"))
+    check_friction_below_peak_torque(check, plant, settings.current_limit)
     run = check.mapping(data.get("run"), "run", {"metrics_window", "max_samples"})
     max_samples = check.number(run.get("max_samples", MAX_SAMPLES), "run.max_samples", minimum=2)
     chosen = reference_section(check, data["reference"], settings.position_period, int(max_samples))

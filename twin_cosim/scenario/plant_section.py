@@ -29,7 +29,11 @@ from typing import Any
 
 from fmu_build.build import DEFAULT_MODEL
 from twin_cosim.plant_model import fmu_identity, model_names, model_of, plant_model
-from twin_cosim.scenario.plant_file import PlantParametersError, read_plant_parameters
+from twin_cosim.scenario.plant_file import (
+    PlantParametersError,
+    check_values,
+    read_plant_parameters,
+)
 from twin_cosim.scenario.resolved import Scenario
 from twin_cosim.schema import Checker, ScenarioError
 
@@ -75,6 +79,11 @@ def plant_section(check: Checker, data: Any) -> PlantSection:
     model = None if fmu is not None else str(plant.get("model", DEFAULT_MODEL))
     if model is not None and model not in model_names():
         raise check.fail("plant.model", f"one of the project's models {model_names()}", model)
+    if model is not None:
+        try:  # each value in the model's range and unit, named by its key
+            check_values(parameters, model, str(source), f"{check.prefix}plant.parameters")
+        except PlantParametersError as exc:
+            raise ScenarioError(str(exc)) from exc
     parameters_file = None
     if "parameters_file" in plant:
         parameters_file = source.parent / str(plant["parameters_file"])
@@ -96,6 +105,44 @@ def _with_parameters_file(
             "plant.parameters", f"no name also set by plant.parameters_file {path}", twice
         )
     return {**calibrated, **parameters}
+
+
+def check_friction_below_peak_torque(
+    check: Checker, section: PlantSection, current_limit: float
+) -> None:
+    """The plant's friction torque must stay below the drive's peak torque (the current limit
+    times the torque constant): an axis that can never move is a parameter in the wrong unit
+    (``coulomb_friction: 625`` for 0.625 N.m), named by its key.
+
+    Raises
+    ------
+    ScenarioError
+        Naming each ``plant.parameters`` key that lifts the friction to the peak torque.
+    """
+    if section.model is None:
+        return
+    card = plant_model(section.model)
+    facts = card.drive_facts(section.parameters)
+    peak = current_limit * facts["torque_constant"]
+    if facts["friction_torque"] < peak:
+        return
+    starts = card.start_values()
+    culprits = [
+        name
+        for name in section.parameters
+        if name in starts
+        and card.drive_facts({**section.parameters, name: starts[name]})["friction_torque"] < peak
+    ]
+    keys = ", ".join(
+        f"{check.prefix}plant.parameters.{n} = {section.parameters[n]:g}" for n in culprits
+    )
+    raise ScenarioError(
+        f"{check.source}: {keys or check.prefix + 'plant.parameters'}: the friction torque "
+        f"{facts['friction_torque']:.4g} N.m reaches the drive's peak torque {peak:.4g} N.m "
+        f"(current limit {current_limit:g} A x torque constant {facts['torque_constant']:.4g} "
+        f"N.m/A): the axis could never move; is a value in another unit? (units: "
+        f"models/{section.model}/variables.yaml)"
+    )
 
 
 def drive_facts(check: Checker, section: PlantSection) -> dict[str, float]:
