@@ -13,14 +13,17 @@ import pandas as pd  # noqa: E402
 
 from twin_cosim.metrics import UM_PER_M, Metrics  # noqa: E402
 
-CLOSE_UP_HALF_WIDTH_S = 0.35
+# The close-up on a peak: the event starts tens of ms before it and settles within 0.2 s after
+CLOSE_UP_BEFORE_S = 0.06
+CLOSE_UP_AFTER_S = 0.24
 
 
 def _close_up(
     ax, records: Mapping[str, pd.DataFrame], centre: float, column: str, scale: float
 ) -> None:
     for label, record in records.items():
-        near = (record["t"] - centre).abs() <= CLOSE_UP_HALF_WIDTH_S
+        offset = record["t"] - centre
+        near = (offset >= -CLOSE_UP_BEFORE_S) & (offset <= CLOSE_UP_AFTER_S)
         ax.plot(record["t"][near], record[column][near] * scale, label=label, lw=1)
 
 
@@ -79,7 +82,7 @@ def plot_error_comparison(
     for ax in axes:
         ax.set_xlabel("t [s]")
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", fontsize=8)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)  # beside the data
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
