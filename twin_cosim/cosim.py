@@ -135,7 +135,7 @@ def run_reference_path(
     disturbance = _check_inputs(grid, disturbance, "disturbance torque")
     command_offset = _check_inputs(grid, command_offset, "command offset")
     p = controller.parameter_vector(tuned, settings)
-    s = controller.initial_state()
+    s = controller.initial_state(len(settings.filters))
     ratio = settings.speed_steps_per_position_step
     h = settings.speed_period
     vr_in = [int(v) for v in _value_references(plant, INPUT_NAMES)]
@@ -299,7 +299,7 @@ def run_fast_path(
     if calls is None:
         calls = _FAST_CALLS[plant] = FastCalls(plant)
     p = controller.parameter_vector(tuned, settings)
-    s = controller.initial_state()
+    s = controller.initial_state(len(settings.filters))
     record = np.empty((len(grid.position), len(RECORD_COLUMNS)))
     plant.start_run(plant_parameters)
     status, step = _closed_loop(

@@ -8,7 +8,8 @@ Layout (every section but ``reference`` is optional)::
     controller:
       parameters: {Kp_pos: 66.667, ...}      # the six tuned parameters, or the name of a set of
                                              # the paper's Table 3 (ft, ga, ce, sa); default: ft
-      settings: {current_limit: 20.0, ...}   # see twin_cosim.controller.ControllerSettings
+      settings: {current_limit: 20.0, ...}   # twin_cosim.scenario.controller_section: fixed
+                                             # settings and the current-setpoint filters
     reference: {...}                         # twin_cosim.scenario.reference_section
     run:
       metrics_window: [0.0, null]            # s; null: to the end
@@ -24,14 +25,11 @@ code that runs in this process: use scenario files from trusted sources only.
 from __future__ import annotations
 
 import re
-from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-from twin_cosim.controller import ControllerSettings
-from twin_cosim.plant_model import DRIVE_FACTS
+from twin_cosim.scenario.controller_section import controller_settings
 from twin_cosim.scenario.plant_section import (
-    PlantSection,
     drive_facts,
     plant_section,
     with_plant_parameters,
@@ -40,7 +38,7 @@ from twin_cosim.scenario.reference_section import reference_section
 from twin_cosim.scenario.resolved import Scenario
 from twin_cosim.scenario.shipped import find_scenario
 from twin_cosim.scenario.tuned_section import tuned_section
-from twin_cosim.schema import Checker, ScenarioError, load_yaml
+from twin_cosim.schema import Checker, load_yaml
 
 TOP_KEYS = {
     "name",
@@ -80,7 +78,7 @@ def load_scenario(path: Path | str) -> Scenario:
     plant = plant_section(check, data.get("plant"))
     control = check.mapping(data.get("controller"), "controller", {"parameters", "settings"})
     tuned = tuned_section(control.get("parameters", "ft"), f"{source}: controller.parameters")
-    settings = _settings(check, plant, control.get("settings"))
+    settings = controller_settings(check, drive_facts(check, plant), control.get("settings"))
     run = check.mapping(data.get("run"), "run", {"metrics_window", "max_samples"})
     max_samples = check.number(run.get("max_samples", MAX_SAMPLES), "run.max_samples", minimum=2)
     chosen = reference_section(check, data["reference"], settings.position_period, int(max_samples))
@@ -108,19 +106,6 @@ def load_scenario(path: Path | str) -> Scenario:
         model=plant.model,
         plant_parameters_file=plant.parameters_file,
     )
-
-
-def _settings(check: Checker, plant: PlantSection, raw: Any) -> ControllerSettings:
-    """Controller settings: the plant's drive facts, then ``controller.settings`` on top."""
-    given = check.mapping(raw, "controller.settings", {f.name for f in fields(ControllerSettings)})
-    facts = drive_facts(check, plant)
-    try:
-        return ControllerSettings(
-            **{name: facts[name] for name in DRIVE_FACTS if name in facts}
-            | {k: check.number(v, f"controller.settings.{k}") for k, v in given.items()}
-        )
-    except ValueError as exc:
-        raise ScenarioError(f"{check.source}: controller.settings: {exc}") from exc
 
 
 def _metrics_window(
