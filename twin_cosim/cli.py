@@ -1,4 +1,5 @@
-"""The ``twin`` command line: build, simulate, optimize, compare, synth, diagnose, table3.
+"""The ``twin`` command line: build, simulate, optimize, compare, synth, diagnose, table3, bode,
+calibrate, autotune.
 
 Each command is a module of :mod:`twin_cosim.commands` (its arguments and ``run``). Only the
 standard library and the light registries are imported at start, so that ``twin --help`` answers
@@ -13,11 +14,20 @@ import os
 import signal
 import sys
 
-from twin_cosim.commands import build, compare, diagnose, optimize, simulate, synth, table3
+from twin_cosim.commands import (
+    bode,
+    build,
+    compare,
+    diagnose,
+    optimize,
+    simulate,
+    synth,
+    table3,
+)
 from twin_cosim.commands.options import HelpFormatter
 from twin_cosim.environment import DATA_ENV
 
-COMMANDS = (build, simulate, optimize, compare, synth, diagnose, table3)  # in the help's order
+COMMANDS = (build, simulate, optimize, compare, synth, diagnose, table3, bode)  # the help's order
 
 
 def user_errors() -> tuple[type[Exception], ...]:

@@ -14,6 +14,7 @@ from twin_cosim.commands.options import (
     command_parser,
     data_option,
     out_folder,
+    params_option,
     plant_option,
     plant_parameters_option,
     plant_path,
@@ -31,10 +32,7 @@ def add_arguments(subparsers) -> None:
     """The ``simulate`` command and its options."""
     parser = command_parser(subparsers, "simulate", "run a scenario in closed loop")
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
-    parser.add_argument(
-        "--params",
-        help="ft|ga|ce|sa (paper Table 3) or a YAML/JSON file (default: the scenario's)",
-    )
+    params_option(parser)
     plant_option(parser)
     plant_parameters_option(parser)
     parser.add_argument(
@@ -59,10 +57,12 @@ def run(args: argparse.Namespace) -> int:
     from twin_cosim.metrics import compute_metrics
     from twin_cosim.plots import plot_run
     from twin_cosim.run_checks import loop_warnings
-    from twin_cosim.scenario import load_tuned_parameters, resolve_scenario
+    from twin_cosim.scenario import load_controller_set, resolve_scenario, with_controller_set
 
     scenario = resolve_scenario(args.scenario, args.plant_parameters, args.plant)
-    tuned = load_tuned_parameters(args.params) if args.params else scenario.tuned
+    if args.params:
+        scenario = with_controller_set(scenario, load_controller_set(args.params))
+    tuned = scenario.tuned
     mismatch = warn_plant_mismatch(scenario, plant_path(args))
     out = out_folder(args.out, Path("out") / scenario.name)
     out.mkdir(parents=True, exist_ok=True)

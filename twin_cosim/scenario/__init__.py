@@ -7,8 +7,11 @@ diagnose sections), loaded and checked once into a typed :class:`Scenario`.
   warning;
 - :mod:`~twin_cosim.scenario.plant_file`: ``plant.yaml`` files;
 - :mod:`~twin_cosim.scenario.reference_section`: segments, CSV and measured references;
-- :mod:`~twin_cosim.scenario.tuned_section`: the six tuned parameters and ``--params``;
-- :mod:`~twin_cosim.scenario.resolved`: the :class:`Scenario` value, :func:`for_measured_run`;
+- :mod:`~twin_cosim.scenario.tuned_section`: the six tuned parameters, controller sets
+  (``--params``);
+- :mod:`~twin_cosim.scenario.controller_section`: ``controller.settings``, current filters;
+- :mod:`~twin_cosim.scenario.resolved`: the :class:`Scenario` value, :func:`for_measured_run`,
+  :func:`with_controller_set`;
 - :mod:`~twin_cosim.scenario.shipped`: shipped scenarios by name.
 
 The YAML loader and checker shared with every other input file are :mod:`twin_cosim.schema`.
@@ -16,9 +19,9 @@ The YAML loader and checker shared with every other input file are :mod:`twin_co
 
 from twin_cosim.scenario.loader import load_scenario, resolve_scenario
 from twin_cosim.scenario.plant_section import plant_mismatch, with_plant_parameters
-from twin_cosim.scenario.resolved import Scenario, for_measured_run
+from twin_cosim.scenario.resolved import Scenario, for_measured_run, with_controller_set
 from twin_cosim.scenario.shipped import find_scenario
-from twin_cosim.scenario.tuned_section import load_tuned_parameters
+from twin_cosim.scenario.tuned_section import load_controller_set
 from twin_cosim.schema import ScenarioError
 
 __all__ = [
@@ -27,8 +30,9 @@ __all__ = [
     "find_scenario",
     "for_measured_run",
     "load_scenario",
-    "load_tuned_parameters",
+    "load_controller_set",
     "plant_mismatch",
     "resolve_scenario",
+    "with_controller_set",
     "with_plant_parameters",
 ]
