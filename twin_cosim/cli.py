@@ -17,6 +17,7 @@ import sys
 from twin_cosim.commands import (
     bode,
     build,
+    calibrate,
     compare,
     diagnose,
     optimize,
@@ -27,7 +28,7 @@ from twin_cosim.commands import (
 from twin_cosim.commands.options import HelpFormatter
 from twin_cosim.environment import DATA_ENV
 
-COMMANDS = (build, simulate, optimize, compare, synth, diagnose, table3, bode)  # the help's order
+COMMANDS = (build, simulate, optimize, compare, synth, diagnose, table3, bode, calibrate)
 
 
 def user_errors() -> tuple[type[Exception], ...]:

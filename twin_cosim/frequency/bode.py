@@ -27,7 +27,7 @@ from twin_cosim.frequency.measurement import (
     measure,
 )
 from twin_cosim.frequency.plots import plot_bode, plot_nyquist
-from twin_cosim.frequency.response import UNITS, FrequencyResponse
+from twin_cosim.frequency.response import PLANT_BAND, UNITS, FrequencyResponse
 from twin_cosim.frequency.two_mass import TwoMass
 from twin_cosim.plant import Plant
 from twin_cosim.plant_model import plant_model
@@ -56,7 +56,8 @@ class BodeResult:
         The linearised response at the measured lines; None when the card gives no linear model.
     margins : Margins or None
         Of the measured open loop; for the plant, of the speed loop made of the measured plant
-        and the speed controller; None for a closed loop.
+        (all its lines, up to the Nyquist frequency) and the speed controller; None for a closed
+        loop.
     linearised_margins : Margins or None
         The same of the linearised loop; None for a closed loop or without a linear model.
     amplitude : float
@@ -164,6 +165,9 @@ def bode(
             float(scenario.reference.position[0]),
         )
         wall = time.perf_counter() - start
+    margins = _measured_margins(scenario, measured)
+    if how.loop == "plant":  # the continuous plant, where the hold is divided out exactly enough
+        measured = measured.below(PLANT_BAND * 0.5 / scenario.settings.speed_period)
     linear = None
     if model.two_mass:
         linear_plant = TwoMass.of_plant(model.name, parameters)
@@ -177,7 +181,7 @@ def bode(
         linearised=None
         if linear is None
         else FrequencyResponse(how.loop, how.kind, f, linear.response(how.loop, how.kind, f)),
-        margins=_measured_margins(scenario, measured),
+        margins=margins,
         linearised_margins=None
         if linear is None or how.kind == "closed"
         else margins_of_system(linear.open_loop(_margins_loop(how.loop)), how.low_hz),

@@ -204,7 +204,9 @@ def read_frf(path: Path | str, coherence_floor: float = DEFAULT_COHERENCE_FLOOR)
     if not path.is_file():
         raise FrfFileError(f"{path}: FRF file not found")
     try:
-        frame = pd.read_csv(path, comment="#", dtype=str, skipinitialspace=True)
+        frame = pd.read_csv(
+            path, comment="#", dtype=str, skipinitialspace=True, keep_default_na=False
+        )
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise FrfFileError(f"{path}: not a CSV file with a header row: {exc}") from None
     columns = _columns(path, frame)
