@@ -15,6 +15,7 @@ import signal
 import sys
 
 from twin_cosim.commands import (
+    autotune,
     bode,
     build,
     calibrate,
@@ -28,7 +29,7 @@ from twin_cosim.commands import (
 from twin_cosim.commands.options import HelpFormatter
 from twin_cosim.environment import DATA_ENV
 
-COMMANDS = (build, simulate, optimize, compare, synth, diagnose, table3, bode, calibrate)
+COMMANDS = (build, simulate, optimize, compare, synth, diagnose, table3, bode, calibrate, autotune)
 
 
 def user_errors() -> tuple[type[Exception], ...]:

@@ -90,6 +90,7 @@ class Calibration:
             "frf": str(self.frf.source),
             "parameters": self.plant.parameters,
             "delay_s": self.fit.delay_s,
+            "current_lag_s": self.fit.lag_s,
             "rms_db": self.fit.rms_db,
             "rms_deg": self.fit.rms_deg,
             "lines_fitted": self.fit.lines,
@@ -147,8 +148,9 @@ def calibrate(
     )
     values = fit.parameters()
     source = (
-        f"fitted to the plant FRF {frf.source} (twin calibrate): eq. (3) with viscous friction "
-        f"and a delay, {fit.lines} lines, RMS error {fit.rms_db:.3g} dB and {fit.rms_deg:.3g} deg"
+        f"fitted to the plant FRF {frf.source} (twin calibrate): eq. (3) with viscous friction, "
+        f"a delay and a current lag, {fit.lines} lines, RMS error {fit.rms_db:.3g} dB and "
+        f"{fit.rms_deg:.3g} deg"
     )
     plant = PlantParameters(
         model=model,
@@ -159,6 +161,7 @@ def calibrate(
             "version": versions()["twin-cosim"],
             "frf": str(frf.source),
             "delay_s": fit.delay_s,
+            "current_lag_s": fit.lag_s,
             "masked_bands_hz": [list(band[:2]) for band in frf.masked_bands],
         },
     )

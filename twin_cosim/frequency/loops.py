@@ -19,6 +19,7 @@ the reversal pulse, the current limit, and the feedforwards (they do not act on 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -102,8 +103,10 @@ def lifted(system: Discrete, ratio: int) -> Discrete:
     return Discrete(power, total @ system.b, system.c, system.d, system.dt * ratio)
 
 
+@functools.cache
 def hold_discretised(plant: TwoMass, period: float, with_position: bool) -> Discrete:
-    """The plant discretised with a zero-order hold at ``period`` (s), its dead time included.
+    """The plant discretised with a zero-order hold at ``period`` (s), its dead time included
+    (computed once per plant and period).
 
     Raises
     ------

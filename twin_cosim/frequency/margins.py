@@ -9,10 +9,11 @@
 - peak sensitivity: the largest |S| = |1 / (1 + L)|, dB.
 
 From measured data (:func:`margins_of_data`) the crossings are interpolated between the
-measured lines, linearly in log-frequency (magnitude in dB, unwrapped phase); only crossings
-within the measured band are found. Of a linearised loop (:func:`margins_of_system`)
-python-control finds them on its response over a dense grid up to the Nyquist frequency; the
-bandwidth and peak sensitivity come from the same grid.
+measured lines, linearly in log-frequency (magnitude in dB, unwrapped phase; at most one phase
+crossing between neighbouring lines); only crossings within the measured band are found. Of a
+linearised loop (:func:`margins_of_system`) python-control finds them on its response over a
+dense grid up to the Nyquist frequency; the bandwidth and peak sensitivity come from the same
+grid.
 """
 
 from __future__ import annotations
@@ -94,17 +95,16 @@ def margins_of_data(frequency_hz: np.ndarray, loop: np.ndarray) -> Margins:
     magnitude_db = 20 * np.log10(np.abs(loop))
     phase = np.degrees(np.unwrap(np.angle(loop)))
     gains = []  # (|gain margin dB|, gain margin dB, frequency)
-    for i in range(len(f) - 1):
-        low, high = sorted((phase[i], phase[i + 1]))
-        for level in range(-180 + 360 * math.ceil((low + 180) / 360), int(high) + 1, 360):
-            if low <= level <= high and phase[i] != phase[i + 1]:
-                at = _log_crossing(f, phase, level, i)
-                margin = -_at(f, magnitude_db, at)
-                gains.append((abs(margin), margin, at))
+    turn = np.floor((phase + 180.0) / 360.0)  # -180 + 360 turn is the last level at or below
+    for i in np.flatnonzero(np.diff(turn) != 0):  # one level between neighbouring lines
+        level = -180.0 + 360.0 * max(turn[i], turn[i + 1])
+        at = _log_crossing(f, phase, level, int(i))
+        margin = -_at(f, magnitude_db, at)
+        gains.append((abs(margin), margin, at))
     if abs(np.angle(-loop[-1])) < 1e-9:  # real and negative at the last line (Nyquist)
         gains.append((abs(magnitude_db[-1]), -float(magnitude_db[-1]), float(f[-1])))
     phases = []  # (|phase margin|, phase margin, frequency)
-    for i in np.flatnonzero(np.diff(np.sign(magnitude_db))):
+    for i in np.flatnonzero(np.diff(np.sign(magnitude_db))):  # |L| crosses 1
         at = _log_crossing(f, magnitude_db, 0.0, int(i))
         margin = (_at(f, phase, at) % 360.0) - 180.0
         phases.append((abs(margin), margin, at))
@@ -120,23 +120,32 @@ def margins_of_data(frequency_hz: np.ndarray, loop: np.ndarray) -> Margins:
     )
 
 
-def dense_grid(low_hz: float, nyquist_hz: float) -> np.ndarray:
+def dense_grid(low_hz: float, nyquist_hz: float, points: int = DENSE_POINTS) -> np.ndarray:
     """Log-spaced frequencies from ``low_hz`` up to the Nyquist frequency itself, Hz."""
-    return np.geomspace(low_hz, nyquist_hz, DENSE_POINTS)
+    return np.geomspace(low_hz, nyquist_hz, points)
 
 
 def margins_of_system(system: Discrete, low_hz: float = 0.1) -> Margins:
     """The margins of a discrete open loop, its crossings found by python-control.
 
-    python-control's ``stability_margins`` runs on the loop's response on a dense grid (its
-    polynomial method is numerically unreliable for these loops, with their double pole at
-    z = 1); the Nyquist frequency, where a discrete loop is real, counts as a phase crossing
-    when the loop is negative there. ``low_hz`` is the grid's lowest frequency, Hz.
+    python-control's ``stability_margins`` runs on the loop's response on a dense grid up to the
+    Nyquist frequency (its polynomial method is numerically unreliable for these loops, with
+    their double pole at z = 1). ``low_hz`` is the grid's lowest frequency, Hz.
+    """
+    grid = dense_grid(low_hz, 0.5 / system.dt)
+    return margins_of_response(grid, system.siso(grid))
+
+
+def margins_of_response(frequency_hz: np.ndarray, loop: np.ndarray) -> Margins:
+    """The margins of a discrete open loop given on a dense grid up to its Nyquist frequency.
+
+    python-control finds the crossings below the last frequency; the last one, the Nyquist
+    frequency where a discrete loop is real, counts as a phase crossing when the loop is
+    negative there.
     """
     import control
 
-    grid = dense_grid(low_hz, 0.5 / system.dt)
-    loop = system.siso(grid)
+    grid = np.asarray(frequency_hz, dtype=np.float64)
     data = control.frd(loop[:-1], 2 * np.pi * grid[:-1])
     gm, pm, _, w_gm, w_pm, _ = control.stability_margins(data, returnall=True)
     gains = [
@@ -150,10 +159,10 @@ def margins_of_system(system: Discrete, low_hz: float = 0.1) -> Margins:
     gain = min(gains, default=(None, None, None))
     phase = min(phases, default=(None, None, None))
     return Margins(
-        gain_margin_db=gain[1],
+        gain_margin_db=None if gain[1] is None else float(gain[1]),
         phase_margin_deg=phase[1],
-        crossover_hz=phase[2],
-        phase_crossover_hz=gain[2],
+        crossover_hz=None if phase[2] is None else float(phase[2]),
+        phase_crossover_hz=None if gain[2] is None else float(gain[2]),
         bandwidth_hz=bandwidth_hz(grid, loop),
         peak_sensitivity_db=float(np.max(-20 * np.log10(np.abs(1.0 + loop)))),
     )

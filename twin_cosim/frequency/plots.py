@@ -24,24 +24,29 @@ def plot_bode(
 ) -> Path:
     """Magnitude, phase and (where measured) coherence against frequency; returns ``path``.
 
-    ``responses`` by label (the first drawn as points, a measurement; the others as lines);
-    ``margins`` marks the crossover and phase margin; ``coherence_floor`` draws that level.
+    ``responses`` by label: measured ones (with a coherence) drawn as points, computed ones as
+    lines; ``margins`` marks the crossover and phase margin; ``coherence_floor`` draws that
+    level.
     """
-    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True, height_ratios=[3, 2, 1])
+    measured = any(r.coherence is not None for r in responses.values())
+    rows, ratios = (3, [3, 2, 1]) if measured else (2, [3, 2])
+    fig, axes = plt.subplots(rows, 1, figsize=(9, 3 * rows), sharex=True, height_ratios=ratios)
     phases = _phases(list(responses.values()))
     for i, (label, r) in enumerate(responses.items()):
-        style = {"marker": ".", "ms": 3, "lw": 0.6} if i == 0 else {"lw": 1.2}
+        style = {"marker": ".", "ms": 3, "lw": 0.6} if r.coherence is not None else {"lw": 1.2}
         axes[0].semilogx(r.frequency_hz, r.magnitude_db, label=label, **style)
         axes[1].semilogx(r.frequency_hz, phases[i], **style)
         if r.coherence is not None:
             axes[2].semilogx(r.frequency_hz, r.coherence, label=label, **style)
     first = next(iter(responses.values()))
-    axes[0].set_ylabel(f"magnitude [dB re 1 {first.unit}]")
+    unit = "" if first.unit == "1" else f" re 1 {first.unit}"
+    axes[0].set_ylabel(f"magnitude [dB{unit}]")
     axes[1].set_ylabel("phase [deg]")
-    axes[2].set_ylabel("coherence")
-    axes[2].set_ylim(-0.05, 1.05)
-    axes[2].set_xlabel("frequency [Hz]")
-    if coherence_floor is not None:
+    axes[-1].set_xlabel("frequency [Hz]")
+    if measured:
+        axes[2].set_ylabel("coherence")
+        axes[2].set_ylim(-0.05, 1.05)
+    if measured and coherence_floor is not None:
         axes[2].axhline(coherence_floor, color="tab:red", lw=0.8, ls="--", label="floor")
     if margins is not None and margins.crossover_hz is not None:
         for ax in axes[:2]:
@@ -68,7 +73,8 @@ def plot_bode(
 
 
 def _phases(responses: list[FrequencyResponse]) -> list[np.ndarray]:
-    """Unwrapped phases (deg); the first shifted by whole turns to lie nearest the second's."""
+    """Unwrapped phases (deg); the first shifted by whole turns to lie nearest the second's
+    (a measurement whose low lines are noise can unwrap a turn away)."""
     phases = [np.degrees(np.unwrap(np.angle(r.response))) for r in responses]
     if len(phases) > 1 and len(phases[0]) == len(phases[1]):
         turns = np.round(np.median(phases[1] - phases[0]) / 360.0)
