@@ -6,11 +6,11 @@ from collections.abc import Mapping
 
 import pandas as pd
 
-from twin_cosim.controller import TunedParameters
+from twin_cosim.controller_set import ControllerSet
 from twin_cosim.cosim import run_scenario
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.plant import Plant
-from twin_cosim.scenario import Scenario
+from twin_cosim.scenario import Scenario, with_controller_set
 
 METRIC_COLUMNS = {
     "E_pk_um": "E_pk [um]",
@@ -31,9 +31,9 @@ def markdown_table(frame: pd.DataFrame, float_format: str = "{:.4g}") -> str:
 
 
 def evaluate_sets(
-    plant: Plant, scenarios: Mapping[str, Scenario], sets: Mapping[str, TunedParameters]
+    plant: Plant, scenarios: Mapping[str, Scenario], sets: Mapping[str, ControllerSet]
 ) -> tuple[pd.DataFrame, dict[tuple[str, str], pd.DataFrame]]:
-    """Run every parameter set on every scenario.
+    """Run every controller set (the six and any settings it changes) on every scenario.
 
     Parameters
     ----------
@@ -42,7 +42,7 @@ def evaluate_sets(
     scenarios
         Scenarios by label.
     sets
-        Parameter sets by name.
+        Controller sets by name.
 
     Returns
     -------
@@ -52,8 +52,8 @@ def evaluate_sets(
     """
     rows, records = [], {}
     for label, scenario in scenarios.items():
-        for name, tuned in sets.items():
-            record = run_scenario(plant, scenario, tuned)
+        for name, controller_set in sets.items():
+            record = run_scenario(plant, with_controller_set(scenario, controller_set))
             metrics = compute_metrics(record, scenario.metrics_window)
             records[(label, name)] = record
             rows.append(

@@ -68,6 +68,13 @@ def _campaign_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--resume", metavar="DIR", help="campaign folder to resume (default: a new campaign)"
     )
+    parser.add_argument(
+        "--start",
+        metavar="SET",
+        help="start from a controller set, e.g. the autotune.json of twin autotune: it becomes "
+        "every scenario's own set (start point and reference of the IAU cap) (default: the "
+        "scenario's set)",
+    )
 
 
 def _robust_options(parser: argparse.ArgumentParser) -> None:
@@ -142,6 +149,7 @@ def _given(args: argparse.Namespace) -> dict[str, Any]:
         "aggregate": args.objective,
         "relative": True if args.relative else None,
         "early_stop": False if args.no_early_stop else None,
+        "start": args.start,
     }
     return {k: v for k, v in given.items() if v is not None}
 

@@ -17,11 +17,12 @@ from twin_cosim.cosim import run_scenario
 from twin_cosim.frequency.autotune import (
     DESIGN_POINTS,
     LOW_HZ,
+    PHASE_MARGIN_DEG,
     Autotuned,
     autotune,
     design_plant,
 )
-from twin_cosim.frequency.frf_file import read_frf
+from twin_cosim.frequency.frf_file import DEFAULT_COHERENCE_FLOOR, read_frf
 from twin_cosim.frequency.loops import LinearLoops
 from twin_cosim.frequency.margins import dense_grid
 from twin_cosim.frequency.measurement import MeasurementSettings, measure
@@ -48,6 +49,37 @@ def twin_plant_frf(plant: Plant, scenario: Scenario) -> FrequencyResponse:
     return measured.below(PLANT_BAND * 0.5 / settings.speed_period)
 
 
+def propose(
+    plant: Plant,
+    scenario: Scenario,
+    frf: Path | None = None,
+    phase_margin: float = PHASE_MARGIN_DEG,
+    coherence_floor: float = DEFAULT_COHERENCE_FLOOR,
+) -> tuple[Autotuned, list[str]]:
+    """The tuner's proposal for ``scenario`` from ``frf`` (or the twin's measured plant FRF on
+    ``plant``), and the FRF file's masked bands in words."""
+    started = time.perf_counter()
+    if frf is None:
+        measured = twin_plant_frf(plant, scenario)
+        lines = (measured.frequency_hz, measured.response, measured.coherence)
+        settings = scenario.settings
+        source = (
+            f"twin bode {scenario.name} --loop plant --speed "
+            f"{MOTOR_SPEED_RAD_S * settings.travel_per_rad:.4g} --amplitude "
+            f"{EXCITATION_SHARE * settings.current_limit:.4g} (the twin, measured)"
+        )
+        notes: list[str] = []
+    else:
+        data = read_frf(frf, coherence_floor)
+        coherence = None if data.coherence is None else data.coherence[data.used]
+        lines = (data.frequency_hz[data.used], data.response[data.used], coherence)
+        source, notes = str(frf), data.notes(coherence_floor)
+    proposal = autotune(
+        *lines, scenario.tuned, scenario.settings, source, phase_margin, started=started
+    )
+    return proposal, notes
+
+
 def autotune_scenario(
     scenario: Scenario,
     frf: Path | None,
@@ -65,26 +97,8 @@ def autotune_scenario(
         and the whole wall time (``wall_s``, s).
     """
     started = time.perf_counter()
-    notes: list[str] = []
     with Plant(scenario.plant_fmu(fmu)) as plant:
-        if frf is None:
-            measured = twin_plant_frf(plant, scenario)
-            lines = (measured.frequency_hz, measured.response, measured.coherence)
-            source = (
-                f"twin bode {scenario.name} --loop plant --speed "
-                f"{MOTOR_SPEED_RAD_S * scenario.settings.travel_per_rad:.4g} --amplitude "
-                f"{EXCITATION_SHARE * scenario.settings.current_limit:.4g} (the twin, measured)"
-            )
-        else:
-            data = read_frf(frf, coherence_floor)
-            notes = data.notes(coherence_floor)
-            used = data.used
-            coherence = None if data.coherence is None else data.coherence[used]
-            lines = (data.frequency_hz[used], data.response[used], coherence)
-            source = str(frf)
-        proposal = autotune(
-            *lines, scenario.tuned, scenario.settings, source, phase_margin, started=started
-        )
+        proposal, notes = propose(plant, scenario, frf, phase_margin, coherence_floor)
         tuned_scenario = with_controller_set(scenario, proposal.controller_set)
         window = scenario.metrics_window
         metrics = compute_metrics(run_scenario(plant, tuned_scenario), window).as_dict()

@@ -11,14 +11,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from twin_cosim.controller import TunedParameters  # noqa: E402
 from twin_cosim.cosim import run_scenario  # noqa: E402
 from twin_cosim.metrics import compute_metrics  # noqa: E402
 from twin_cosim.optimize.campaign_folder import convergence  # noqa: E402
-from twin_cosim.optimize.campaign_spec import CampaignSpec  # noqa: E402
+from twin_cosim.optimize.campaign_spec import CampaignSpec, controller_set_of  # noqa: E402
 from twin_cosim.plant import Plant  # noqa: E402
 from twin_cosim.plots import plot_error_comparison  # noqa: E402
-from twin_cosim.scenario import Scenario  # noqa: E402
+from twin_cosim.scenario import Scenario, with_controller_set  # noqa: E402
 
 
 def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
@@ -58,7 +57,7 @@ def write_campaign_plots(out_dir: Path, spec: CampaignSpec, scenario: Scenario) 
         runs = {
             "scenario set": run_scenario(plant, scenario),
             f"best {spec.method}": run_scenario(
-                plant, scenario, TunedParameters(**result["best_params"])
+                plant, with_controller_set(scenario, controller_set_of(result))
             ),
         }
     peak = compute_metrics(runs["scenario set"], scenario.metrics_window).t_E_pk
