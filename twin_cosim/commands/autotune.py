@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from twin_cosim.commands.console import warn_plant_mismatch, write_json
+from twin_cosim.commands.console import command_line, warn_plant_mismatch, write_json
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
         "versions": versions(),
     }
     write_json(out / "autotune.json", summary)
-    command = f"twin autotune {args.scenario}" + (f" --frf {args.frf}" if args.frf else "")
+    command = command_line("autotune")
     plot = plot_design(proposal, scenario, out / "speed_loop.png", command)
     if args.json:
         print(json.dumps(summary))

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
-import sys
 from pathlib import Path
 
-from twin_cosim.commands.console import warn_plant_mismatch, write_json
+from twin_cosim.commands.console import command_line, warn_plant_mismatch, write_json
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
@@ -116,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     )
     out = out_folder(args.out, Path("out") / f"bode-{scenario.name}-{loop}-{args.kind}")
     result = bode(scenario, how, args.nonlinear == "on", plant_path(args))
-    command = shlex.join(["twin", "bode", *sys.argv[2:]]) if _from_console() else "twin bode"
+    command = command_line("bode")
     files = write_bode(result, out, command)
     summary = {
         **result.summary(),
@@ -132,8 +130,3 @@ def run(args: argparse.Namespace) -> int:
         print("\n".join(describe(result)))
         print(f"wrote {', '.join(files.values())}, {out / 'bode.json'}")
     return 0
-
-
-def _from_console() -> bool:
-    """Whether sys.argv is this command's line (the console script or python -m)."""
-    return len(sys.argv) > 1 and sys.argv[1] == "bode"

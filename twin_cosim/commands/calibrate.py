@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from twin_cosim.commands.console import write_json
+from twin_cosim.commands.console import command_line, write_json
 from twin_cosim.commands.options import command_parser, data_option, fraction, out_folder
 
 
@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     scenario = resolve_scenario(args.scenario)
     out = out_folder(args.out, Path("out") / f"calibrate-{scenario.name}")
     frf = read_frf(args.frf, args.coherence_floor)
-    command = f"twin calibrate {args.scenario} --frf {args.frf}"
+    command = command_line("calibrate")
     calibration = calibrate(scenario, frf, command, Path(args.beside) if args.beside else None)
     files = write_calibration_files(calibration, out)
     notes = frf.notes(args.coherence_floor)

@@ -171,7 +171,8 @@ def calibrate(
 
 
 def write_calibration_files(calibration: Calibration, out: Path) -> dict[str, str]:
-    """Write ``plant.yaml``, ``calibration.md`` and ``fit.png`` (FRF against the fit)."""
+    """Write ``plant.yaml``, ``calibration.md`` and ``fit.png`` (FRF against the fit, titled
+    with the command that made the calibration)."""
     out.mkdir(parents=True, exist_ok=True)
     files = {"plant": str(write_plant_parameters(out / "plant.yaml", calibration.plant))}
     (out / "calibration.md").write_text(calibration.markdown())
@@ -183,6 +184,6 @@ def write_calibration_files(calibration: Calibration, out: Path) -> dict[str, st
         "FRF file": FrequencyResponse("plant", "open", f, frf.response, frf.coherence),
         "fitted two-mass model": FrequencyResponse("plant", "open", f, fitted),
     }
-    title = f"{frf.source}: the two-mass fit (twin calibrate)"
+    title = f"{frf.source}: the two-mass fit\n{calibration.plant.created_by['command']}"
     files["plot"] = str(plot_bode(responses, title, out / "fit.png"))
     return files

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -62,7 +63,7 @@ def plot_bode(
             ),
             fontsize=9,
         )
-    axes[0].set_title(title, fontsize=9)
+    axes[0].set_title(_wrapped(title), fontsize=9)
     axes[0].legend(fontsize=8)
     for ax in axes:
         ax.grid(True, which="both", lw=0.3)
@@ -70,6 +71,11 @@ def plot_bode(
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def _wrapped(title: str, width: int = 110) -> str:
+    """A title's lines wrapped at ``width`` characters (a command line can be long)."""
+    return "\n".join(textwrap.fill(line, width) for line in title.splitlines())
 
 
 def _phases(responses: list[FrequencyResponse]) -> list[np.ndarray]:
@@ -96,7 +102,7 @@ def plot_nyquist(responses: Mapping[str, FrequencyResponse], title: str, path: P
     ax.set_aspect("equal")
     ax.set_xlabel("real")
     ax.set_ylabel("imaginary")
-    ax.set_title(title, fontsize=8)
+    ax.set_title(_wrapped(title, 80), fontsize=8)
     ax.grid(True, lw=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
