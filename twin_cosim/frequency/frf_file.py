@@ -8,11 +8,11 @@ Layout (``#`` lines are comments; a header row names the columns)::
     ...
 
 - ``f``: frequency, Hz, > 0 and increasing (also read as ``f_hz``, ``frequency``,
-  ``frequency_hz``);
+  ``frequency_hz``, ``freq``, ``freq_hz``);
 - the response, motor speed over motor torque (eq. (3)), as ``magnitude_db`` [dB re 1 rad/s per
-  N.m] and ``phase_deg`` [deg] (also ``magnitude``, ``mag_db``; ``phase``), or as ``real`` and
-  ``imag`` [rad/s per N.m] (also ``re``/``im``, ``imaginary``); both forms may be given when they
-  agree;
+  N.m] and ``phase_deg`` [deg] (also ``magnitude``, ``mag_db``, ``gain_db``; ``phase``), or as
+  ``real`` and ``imag`` [rad/s per N.m] (also ``re``/``im``, ``imaginary``); both forms may be
+  given when they agree;
 - ``coherence`` (optional), in [0, 1] (also ``gamma2``, ``coh``).
 
 Refused, with the file, the column and the frequency named: a missing column, a value that is
@@ -35,8 +35,8 @@ import pandas as pd
 from twin_cosim.frequency.response import FrequencyResponse
 
 ALIASES = {
-    "f": ("f", "f_hz", "frequency", "frequency_hz"),
-    "magnitude_db": ("magnitude_db", "magnitude", "mag_db"),
+    "f": ("f", "f_hz", "frequency", "frequency_hz", "freq", "freq_hz"),
+    "magnitude_db": ("magnitude_db", "magnitude", "mag_db", "gain_db"),
     "phase_deg": ("phase_deg", "phase"),
     "real": ("real", "re"),
     "imag": ("imag", "imaginary", "im"),

@@ -62,12 +62,6 @@ class Discrete:
         """The response of the first output to the first input, complex."""
         return self.response(frequency_hz)[:, 0, 0]
 
-    def to_control(self):
-        """The system as a python-control ``StateSpace`` (dt = this period)."""
-        import control
-
-        return control.ss(self.a, self.b, self.c, self.d, self.dt)
-
 
 def series(first: Discrete, second: Discrete) -> Discrete:
     """``first`` then ``second`` (the outputs of ``first`` feed ``second``)."""
@@ -207,10 +201,6 @@ class LinearLoops:
         plant = hold_discretised(self.plant, self.settings.speed_period, with_position=False)
         return series(speed_controller(self.tuned, self.settings), plant)
 
-    def speed_closed(self) -> Discrete:
-        """T_v: speed setpoint -> motor speed."""
-        return closed(self.speed_open())
-
     def position_open(self) -> Discrete:
         """L_x: position error -> scale reading, at the position-loop period (lifted)."""
         plant = hold_discretised(self.plant, self.settings.speed_period, with_position=True)
@@ -218,10 +208,6 @@ class LinearLoops:
         inner = lifted(speed_loop, self.ratio)
         gain = self.tuned.Kp_pos / self.settings.travel_per_rad
         return Discrete(inner.a, inner.b * gain, inner.c[1:], inner.d[1:] * gain, inner.dt)
-
-    def position_closed(self) -> Discrete:
-        """T_x: position setpoint -> scale reading."""
-        return closed(self.position_open())
 
     def open_loop(self, loop: str) -> Discrete:
         """The open loop of ``speed`` or ``position``."""
@@ -236,11 +222,6 @@ class LinearLoops:
             return self.plant_response(frequency_hz)
         system = self.open_loop(loop) if kind == "open" else closed(self.open_loop(loop))
         return system.siso(frequency_hz)
-
-    def nyquist_hz(self, loop: str) -> float:
-        """The Nyquist frequency of the loop's sample rate, Hz."""
-        period = self.settings.position_period if loop == "position" else self.settings.speed_period
-        return 0.5 / period
 
 
 def speed_loop_of_plant(

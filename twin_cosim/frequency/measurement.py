@@ -183,7 +183,6 @@ class _Layout:
 
     excitation: Multisine
     start: int  # first sample of the first realisation
-    rate_ratio: int  # speed samples per injection-loop sample
 
     def recorded(self, m: int) -> slice:
         """The recorded (second) period of realisation m."""
@@ -246,7 +245,7 @@ def measure(
     x_ref, v_ref, a_ref = _operating_point(how.speed, settings, lead_s, length_s, start_position)
     n_position = len(x_ref)
     n_speed = n_position * ratio
-    layout = _Layout(excitation, math.ceil(lead_s / period), ratio if at_speed_rate else 1)
+    layout = _Layout(excitation, math.ceil(lead_s / period))
     rng = np.random.default_rng(how.seed)
     injected = np.zeros(n_speed if at_speed_rate else n_position)
     for m in range(how.averages):

@@ -21,7 +21,6 @@ import numpy as np
 
 LOOPS = ("plant", "speed", "position")
 PLANT_BAND = 1 / 8  # of the Nyquist frequency: the continuous plant response is given below
-KINDS = ("open", "closed")
 UNITS = {"plant": "rad/s per N.m", "speed": "1", "position": "1"}
 DESCRIPTIONS = {
     ("plant", "open"): "motor speed over torque setpoint (eq. (3))",
