@@ -46,6 +46,20 @@ def test_serial_and_pool_give_the_same_campaign(short_scenario, tmp_path):
     assert (tmp_path / "pool" / "progress.json").exists()
 
 
+def test_the_log_is_synced_once_per_generation(short_scenario, tmp_path, monkeypatch):
+    """Every evaluation is flushed as it completes; the disk sync comes once per generation
+    (and at the close), not once per evaluation."""
+    import twin_cosim.optimize.evaluation_log as evaluation_log
+
+    synced = []
+    monkeypatch.setattr(evaluation_log.os, "fsync", lambda fd: synced.append(fd))
+    result = campaign(short_scenario, tmp_path, "synced", workers=1, budget=40)
+    progress = json.loads((tmp_path / "synced" / "progress.json").read_text())
+    lines = (tmp_path / "synced" / "evaluations.jsonl").read_text().splitlines()
+    assert len(lines) == result.evaluations == 40
+    assert len(synced) == progress["generation"] + 1  # each generation, then the close
+
+
 def test_a_pool_campaign_leaves_the_plant_to_its_workers(short_scenario, tmp_path):
     """With a process pool the reference runs and the evaluations run in the workers: the
     parent loads neither numba nor fmpy (it prepares while they start)."""
