@@ -43,6 +43,7 @@ from twin_cosim.optimize.evaluation_log import EvaluationLog
 from twin_cosim.optimize.evaluator_protocol import Evaluator
 from twin_cosim.optimize.evaluators import make_evaluator
 from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
+from twin_cosim.optimize.methods import refinement_settings
 from twin_cosim.optimize.worker_specs import ObjectiveSpec
 from twin_cosim.pool_runs import prepare_campaign_worker
 from twin_cosim.scenario import Scenario
@@ -184,7 +185,11 @@ def _evaluators(
 
 def _method_settings(spec: CampaignSpec, config: OptimizeConfig) -> dict[str, Any]:
     """The method's settings: the scenario's, the spec's on top, and the spec's budget."""
-    settings = {**config.methods.get(spec.method, {}), **spec.settings}
+    settings = {
+        **refinement_settings(spec.method, spec.start),
+        **config.methods.get(spec.method, {}),
+        **spec.settings,
+    }
     if spec.budget is not None:
         settings["budget"] = spec.budget
     return settings
