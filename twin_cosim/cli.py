@@ -1,5 +1,5 @@
 """The ``twin`` command line: build, simulate, circle, optimize, compare, synth, diagnose, table3,
-ssp.
+ssp, bode, calibrate, autotune.
 
 Each command is a module of :mod:`twin_cosim.commands` (its arguments and ``run``). Only the
 standard library and the light registries are imported at start, so that ``twin --help`` answers
@@ -16,7 +16,10 @@ import signal
 import sys
 
 from twin_cosim.commands import (
+    autotune,
+    bode,
     build,
+    calibrate,
     circle,
     compare,
     diagnose,
@@ -39,6 +42,9 @@ COMMANDS = (
     diagnose,
     table3,
     ssp,
+    bode,
+    calibrate,
+    autotune,
 )  # in the help's order
 
 

@@ -19,7 +19,11 @@ Speed loop, every ``speed_period`` (62.5 us), on the measured motor speed w [rad
 
     e   = w_cmd + d PP2 exp(-(t - t_flip) / PP3) - w                              [rad/s]
     I  += Ki_vel e                                (integral gain per speed-loop sample)
-    i   = clip(Kp_vel e + I + i_ff, -i_max, i_max), integrator frozen while clipped [A]
+    i   = clip(F(Kp_vel e + I + i_ff), -i_max, i_max), integrator frozen while clipped [A]
+
+F is the chain of current-setpoint filters (notch and low-pass sections, Tustin prewarped, see
+:mod:`twin_cosim.current_filters`); without filters F is the identity and the current is
+computed exactly as without the chain. The filters' states advance every sample, clipped or not.
 
 Units of the six tuned parameters K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H]:
 1/s, A/(rad/s), A/(rad/s) per speed-loop sample (Ki_vel / speed_period is the continuous integral
@@ -33,6 +37,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from twin_cosim import current_filters
+from twin_cosim.current_filters import CurrentFilter
 from twin_cosim.plant_model import plant_model
 
 TUNED_NAMES = ("Kp_pos", "Kp_vel", "Ki_vel", "PP2", "PP3", "f_H")
@@ -45,11 +51,14 @@ _DEFAULT_FACTS = plant_model().drive_facts()
 KP_POS, KP_VEL, KI_VEL, PP2, PP3, F_H = range(6)
 TRAVEL, FF_VELOCITY, FF_ACCELERATION, INERTIA, TORQUE_CONSTANT = range(6, 11)
 FRICTION_TORQUE, CURRENT_LIMIT = range(11, 13)
-PARAMETER_COUNT = 13
+FILTER_COUNT = 13  # number of current-setpoint filter sections, then their coefficients
+FILTER_COEFFICIENTS = 14  # [b0, b1, b2, a1, a2] of each section from here on
+PARAMETER_COUNT = 14  # without filter sections
 
 # Indices into the controller state vector.
 SPEED_CMD, CURRENT_FF, INTEGRAL, DIRECTION, FLIP_TIME = range(5)
-STATE_COUNT = 5
+FILTER_STATES = 5  # [z1, z2] of each filter section from here on
+STATE_COUNT = 5  # without filter sections
 
 
 @dataclass(frozen=True)
@@ -139,6 +148,10 @@ class ControllerSettings:
     speed_period : float
         Speed-loop period, s; must divide position_period. The plant model's sample period (the
         FMU is stepped at it).
+    filters : tuple
+        Current-setpoint filter sections (:class:`~twin_cosim.current_filters.Notch`,
+        :class:`~twin_cosim.current_filters.LowPass`) in the order the setpoint passes them;
+        each frequency below the speed loop's Nyquist frequency. None by default.
     """
 
     travel_per_rad: float = _DEFAULT_FACTS["travel_per_rad"]
@@ -150,9 +163,12 @@ class ControllerSettings:
     current_limit: float = 20.0
     position_period: float = 250e-6
     speed_period: float = _DEFAULT_FACTS["speed_period"]
+    filters: tuple[CurrentFilter, ...] = ()
 
     def __post_init__(self) -> None:
         for f in fields(self):
+            if f.name == "filters":
+                continue
             value = getattr(self, f.name)
             if not math.isfinite(value) or value < 0:
                 raise ValueError(
@@ -173,6 +189,7 @@ class ControllerSettings:
                 f"controller settings: position_period {self.position_period} s must be a whole "
                 f"multiple of speed_period {self.speed_period} s"
             )
+        current_filters.check_below_nyquist(self.filters, self.speed_period)
 
     @property
     def speed_steps_per_position_step(self) -> int:
@@ -181,8 +198,15 @@ class ControllerSettings:
 
 
 def parameter_vector(tuned: TunedParameters, settings: ControllerSettings) -> np.ndarray:
-    """The flat float64 parameter vector read by :func:`position_loop` and :func:`speed_loop`."""
-    p = np.empty(PARAMETER_COUNT, dtype=np.float64)
+    """The flat float64 parameter vector read by :func:`position_loop` and :func:`speed_loop`.
+
+    Its tail holds the filter sections: their number, then [b0, b1, b2, a1, a2] of each at the
+    speed-loop period.
+    """
+    sections = len(settings.filters)
+    p = np.empty(
+        PARAMETER_COUNT + current_filters.COEFFICIENTS_PER_SECTION * sections, dtype=np.float64
+    )
     p[:6] = tuned.as_array()
     p[TRAVEL] = settings.travel_per_rad
     p[FF_VELOCITY] = settings.ff_velocity
@@ -191,12 +215,21 @@ def parameter_vector(tuned: TunedParameters, settings: ControllerSettings) -> np
     p[TORQUE_CONSTANT] = settings.torque_constant
     p[FRICTION_TORQUE] = settings.friction_torque
     p[CURRENT_LIMIT] = settings.current_limit
+    p[FILTER_COUNT] = sections
+    for j, section in enumerate(settings.filters):
+        start = FILTER_COEFFICIENTS + current_filters.COEFFICIENTS_PER_SECTION * j
+        p[start : start + current_filters.COEFFICIENTS_PER_SECTION] = current_filters.coefficients(
+            section, settings.speed_period
+        )
     return p
 
 
-def initial_state() -> np.ndarray:
-    """Controller state at rest: no command, empty integrator, no direction yet."""
-    s = np.zeros(STATE_COUNT, dtype=np.float64)
+def initial_state(sections: int = 0) -> np.ndarray:
+    """Controller state at rest: no command, empty integrator, no direction yet, filters at 0.
+
+    ``sections`` is the number of current-setpoint filter sections.
+    """
+    s = np.zeros(STATE_COUNT + current_filters.STATES_PER_SECTION * sections, dtype=np.float64)
     s[FLIP_TIME] = -np.inf
     return s
 
@@ -246,6 +279,13 @@ def speed_loop(p: np.ndarray, s: np.ndarray, t: float, w: float) -> float:
     error = s[SPEED_CMD] + pulse - w
     integral = s[INTEGRAL] + p[KI_VEL] * error
     current = p[KP_VEL] * error + integral + s[CURRENT_FF]
+    for j in range(int(p[FILTER_COUNT])):  # direct form II transposed, one section at a time
+        c = FILTER_COEFFICIENTS + 5 * j
+        z = FILTER_STATES + 2 * j
+        filtered = p[c] * current + s[z]
+        s[z] = p[c + 1] * current - p[c + 3] * filtered + s[z + 1]
+        s[z + 1] = p[c + 2] * current - p[c + 4] * filtered
+        current = filtered
     limit = p[CURRENT_LIMIT]
     if current > limit:
         return limit

@@ -136,7 +136,7 @@ def run_reference_path(
     disturbance = _check_inputs(grid, disturbance, "disturbance torque")
     command_offset = _check_inputs(grid, command_offset, "command offset")
     p = controller.parameter_vector(tuned, settings)
-    s = controller.initial_state()
+    s = controller.initial_state(len(settings.filters))
     ratio = settings.speed_steps_per_position_step
     h = settings.speed_period
     vr_in = [int(v) for v in _value_references(plant, INPUT_NAMES)]
@@ -183,8 +183,9 @@ def run_reference_path(
     return _to_frame(record)
 
 
-_position_loop = numba.njit(cache=True)(controller.position_loop)
-_speed_loop = numba.njit(cache=True)(controller.speed_loop)
+# The controller's functions compiled; compiled loops that call them inline them.
+compiled_position_loop = numba.njit(cache=True)(controller.position_loop)
+compiled_speed_loop = numba.njit(cache=True)(controller.speed_loop)
 
 
 @numba.njit(cache=True)
@@ -215,7 +216,7 @@ def _closed_loop(
         return status, -1
     for i in range(x_ref.shape[0]):
         t = i * period
-        _position_loop(p, s, t, x_ref[i], v_ref[i], a_ref[i], outputs[_OUT_POSITION])
+        compiled_position_loop(p, s, t, x_ref[i], v_ref[i], a_ref[i], outputs[_OUT_POSITION])
         record[i, 0] = t
         record[i, 1] = x_ref[i]
         record[i, 2] = v_ref[i]
@@ -231,7 +232,7 @@ def _closed_loop(
         offset = command_offset[i]
         for j in range(ratio):
             k = i * ratio + j
-            current = _speed_loop(p, s, k * h, outputs[_OUT_SPEED])
+            current = compiled_speed_loop(p, s, k * h, outputs[_OUT_SPEED])
             inputs[_IN_CURRENT] = current + offset
             current_sum += current
             status = set_real(component, vr_in.ctypes, vr_in.shape[0], inputs.ctypes)
@@ -247,8 +248,8 @@ def _closed_loop(
     return 0, -1
 
 
-def drop_stale_compiled(loop) -> None:
-    """Delete cached machine code of a compiled ``loop`` when controller.py is newer than it.
+def drop_stale_compiled(loop: numba.core.registry.CPUDispatcher) -> None:
+    """Delete the cached machine code of a compiled ``loop`` when controller.py is newer.
 
     numba's cache checks only the source file of the cached function itself; a compiled loop
     inlines the controller functions of controller.py, so an edited controller would otherwise
@@ -256,8 +257,8 @@ def drop_stale_compiled(loop) -> None:
     """
     cache_dir = Path(loop._cache._cache_path)
     changed = Path(controller.__file__).stat().st_mtime
-    module = loop.py_func.__module__.rsplit(".", 1)[-1]
-    for path in cache_dir.glob(f"{module}.{loop.py_func.__name__}-*.nb[ic]"):
+    name = f"{Path(loop.py_func.__code__.co_filename).stem}.{loop.py_func.__qualname__}"
+    for path in cache_dir.glob(f"{name}-*.nb[ic]"):
         if path.stat().st_mtime < changed:
             path.unlink(missing_ok=True)
 
@@ -292,6 +293,23 @@ class FastCalls:
 _FAST_CALLS: weakref.WeakKeyDictionary[Plant, FastCalls] = weakref.WeakKeyDictionary()
 
 
+def fast_calls(plant: Plant) -> FastCalls:
+    """The C function pointers of ``plant``, made once per plant instance."""
+    calls = _FAST_CALLS.get(plant)
+    if calls is None:
+        calls = _FAST_CALLS[plant] = FastCalls(plant)
+    return calls
+
+
+def raise_plant_error(plant: Plant, status: int, step: int, speed_period: float) -> None:
+    """PlantError for a failed fmi2 call at speed-loop ``step``, with the FMU's log."""
+    log = "\n  ".join(plant.messages[-10:]) or "(no message logged)"
+    raise PlantError(
+        f"{plant.fmu_path}: fmi2 call failed with status {status} at speed-loop step {step} "
+        f"(t = {max(step, 0) * speed_period:.6f} s). FMU log:\n  {log}"
+    )
+
+
 def run_fast_path(
     plant: Plant,
     grid: ReferenceGrid,
@@ -305,11 +323,9 @@ def run_fast_path(
     """Closed-loop run compiled by numba; arguments and record as :func:`run_reference_path`."""
     disturbance = _check_inputs(grid, disturbance, "disturbance torque")
     command_offset = _check_inputs(grid, command_offset, "command offset")
-    calls = _FAST_CALLS.get(plant)
-    if calls is None:
-        calls = _FAST_CALLS[plant] = FastCalls(plant)
+    calls = fast_calls(plant)
     p = controller.parameter_vector(tuned, settings)
-    s = controller.initial_state()
+    s = controller.initial_state(len(settings.filters))
     record = np.empty((len(grid.position), len(RECORD_COLUMNS)))
     plant.start_run(plant_parameters)
     status, step = _closed_loop(
@@ -334,11 +350,7 @@ def run_fast_path(
     if status == _ABORTED:
         _raise_aborted(abort_error, step * settings.speed_period)
     if status != 0:
-        log = "\n  ".join(plant.messages[-10:]) or "(no message logged)"
-        raise PlantError(
-            f"{plant.fmu_path}: fmi2 call failed with status {status} at speed-loop step {step} "
-            f"(t = {max(step, 0) * settings.speed_period:.6f} s). FMU log:\n  {log}"
-        )
+        raise_plant_error(plant, status, step, settings.speed_period)
     return _to_frame(record)
 
 

@@ -9,7 +9,10 @@ A plant model is a folder ``models/<model>/`` with its C sources, its variable t
   formulas of the plant parameters;
 - ``motor_per_screw``: motor radians per screw radian (the screw angle of periodic effects);
 - ``calibrated``: parameters known only to the calibration tolerance;
-- ``effects``: the hypotheses of the gap diagnosis (:mod:`twin_cosim.hypotheses`).
+- ``effects``: the hypotheses of the gap diagnosis (:mod:`twin_cosim.hypotheses`);
+- ``linear`` (optional): for the frequency analysis (:mod:`twin_cosim.frequency`), the parameter
+  values that switch the nonlinearities off (``nonlinear_off``) and the linear two-mass system
+  (``two_mass``: :data:`TWO_MASS` as formulas of the parameters).
 
 :func:`plant_model` reads and checks both files once per process. Adding an effect to a model's
 library touches its folder (the FMU block in ``model.c`` and ``variables.yaml``, its entry in
@@ -32,7 +35,22 @@ from twin_cosim.schema import Checker, load_yaml
 
 # What the drive assumes about the plant, each a formula of the plant parameters in the card.
 DRIVE_FACTS = ("travel_per_rad", "inertia", "torque_constant", "friction_torque", "speed_period")
-CARD_KEYS = {"model", "drive", "motor_per_screw", "calibrated", "effects"}
+CARD_KEYS = {"model", "drive", "motor_per_screw", "calibrated", "effects", "linear"}
+# The linear two-mass system of a card's ``linear.two_mass``, motor-referred: J_M [kg.m2],
+# J_L [kg.m2], coupling stiffness [N.m/rad] and damping [N.m.s/rad], viscous friction on the load
+# [N.m.s/rad], torque constant [N.m/A], carriage travel per load radian at the scale [m/rad],
+# current-loop lag [s] and dead time [s] of the current.
+TWO_MASS = (
+    "motor_inertia",
+    "load_inertia",
+    "stiffness",
+    "damping",
+    "viscous_friction",
+    "torque_constant",
+    "travel_per_rad",
+    "current_lag",
+    "dead_time",
+)
 EFFECT_KEYS = {"signature", "parameters", "sets", "relative_size", "scan", "periodic_in"}
 PARAMETER_KEYS = {"name", "unit", "initial", "lower", "upper", "log"}
 PERIODIC_ANGLES = {"motor": "motor_order", "screw": "screw_order"}
@@ -62,6 +80,10 @@ class PlantModel:
         Parameters known only to the calibration tolerance.
     hypotheses : tuple of Hypothesis
         The effect library of the gap diagnosis, in the card's order.
+    nonlinear_off : dict
+        Parameter values that switch every nonlinearity off; empty without a linear model.
+    two_mass : dict
+        Quantity (:data:`TWO_MASS`) -> formula of the parameters; empty without a linear model.
     """
 
     name: str
@@ -70,6 +92,8 @@ class PlantModel:
     motor_per_screw: Formula
     calibrated: tuple[str, ...]
     hypotheses: tuple[Hypothesis, ...]
+    nonlinear_off: dict[str, float]
+    two_mass: dict[str, Formula]
 
     @property
     def parameters(self) -> dict[str, Variable]:
@@ -95,6 +119,22 @@ class PlantModel:
         """
         values = {**self.start_values(), **(parameters or {})}
         return {name: formula(values) for name, formula in self.drive.items()}
+
+    def linear_plant(self, parameters: Mapping[str, float] | None = None) -> dict[str, float]:
+        """The linear two-mass system at these parameter values (:data:`TWO_MASS`, SI units).
+
+        Raises
+        ------
+        PlantModelError
+            When the model's card gives no linear model.
+        """
+        if not self.two_mass:
+            raise PlantModelError(
+                f"plant model {self.name!r}: its card (models/{self.name}/card.yaml) gives no "
+                "linear model (linear.two_mass)"
+            )
+        values = {**self.start_values(), **(parameters or {})}
+        return {name: formula(values) for name, formula in self.two_mass.items()}
 
     def screw_angle(self, motor_angle: Any, parameters: Mapping[str, float] | None = None) -> Any:
         """The screw angle (rad) of a motor angle (rad, a number or an array)."""
@@ -156,6 +196,7 @@ def read_card(path: Path, name: str, table: VariableTable) -> PlantModel:
     if stray:
         raise check.fail("calibrated", "parameters of variables.yaml", stray)
     effects = check.mapping(data.get("effects"), "effects")
+    nonlinear_off, two_mass = _linear(check, data.get("linear"), parameters)
     return PlantModel(
         name=name,
         table=table,
@@ -167,6 +208,29 @@ def read_card(path: Path, name: str, table: VariableTable) -> PlantModel:
         hypotheses=tuple(
             _hypothesis(check, f"effects.{key}", key, body, known) for key, body in effects.items()
         ),
+        nonlinear_off=nonlinear_off,
+        two_mass=two_mass,
+    )
+
+
+def _linear(
+    check: Checker, data: Any, parameters: tuple[str, ...]
+) -> tuple[dict[str, float], dict[str, Formula]]:
+    """The card's ``linear`` section: the values that switch nonlinearities off, the formulas."""
+    if data is None:
+        return {}, {}
+    linear = check.mapping(data, "linear", {"nonlinear_off", "two_mass"})
+    off = check.mapping(linear.get("nonlinear_off"), "linear.nonlinear_off")
+    stray = sorted(set(off) - set(parameters))
+    if stray:
+        raise check.fail("linear.nonlinear_off", "parameters of variables.yaml", stray)
+    formulas = check.mapping(linear.get("two_mass"), "linear.two_mass", set(TWO_MASS))
+    missing = [name for name in TWO_MASS if name not in formulas]
+    if missing:
+        raise check.fail("linear.two_mass", f"a formula for each of {list(TWO_MASS)}", missing)
+    return (
+        {k: check.number(v, f"linear.nonlinear_off.{k}") for k, v in off.items()},
+        {k: _formula(check, f"linear.two_mass.{k}", formulas[k], parameters) for k in TWO_MASS},
     )
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -86,3 +86,43 @@ def run_records(
     """The records of ``tasks`` run on ``fmu`` by the pool's workers, in task order."""
     found = dict(pool.imap(tasks, RecordSpec(str(fmu))))
     return [found[i] for i in range(len(tasks))]
+
+
+@dataclass(frozen=True)
+class AutotuneSpec:
+    """The recipe of an :class:`AutotuneRuns` worker: the FMU its plant loads."""
+
+    fmu: str
+
+    def build(self) -> AutotuneRuns:
+        """The worker, in the process that runs it."""
+        return AutotuneRuns(self.fmu)
+
+
+class AutotuneRuns:
+    """A worker answering the auto-tuner's proposal for a scenario, from the twin's plant FRF
+    measured on its plant (:func:`twin_cosim.frequency.tuning.propose`)."""
+
+    def __init__(self, fmu: str) -> None:
+        from twin_cosim.frequency.tuning import propose  # in the workers only
+        from twin_cosim.plant import Plant
+
+        self.plant = Plant(fmu)
+        self.propose = propose
+
+    def __call__(self, scenario: Scenario) -> dict[str, Any]:
+        """The proposal's summary (``twin autotune``'s layout)."""
+        proposal, _ = self.propose(self.plant, scenario)
+        return proposal.summary()
+
+    def close(self) -> None:
+        """Free the plant."""
+        self.plant.close()
+
+
+def autotune_summary(
+    pool: SerialPool | ProcessPool, fmu: Path, scenario: Scenario
+) -> dict[str, Any]:
+    """The auto-tuner's proposal for ``scenario`` on ``fmu``, made by a worker of the pool."""
+    [(_, summary)] = pool.imap([scenario], AutotuneSpec(str(fmu)))
+    return summary

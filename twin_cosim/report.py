@@ -10,9 +10,10 @@ import pandas as pd
 
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.pool_runs import run_records
+from twin_cosim.scenario import with_controller_set
 
 if TYPE_CHECKING:
-    from twin_cosim.controller import TunedParameters
+    from twin_cosim.controller_set import ControllerSet
     from twin_cosim.scenario import Scenario
     from twin_cosim.workers import ProcessPool, SerialPool
 
@@ -38,9 +39,10 @@ def evaluate_sets(
     pool: SerialPool | ProcessPool,
     fmu: Path,
     scenarios: Mapping[str, Scenario],
-    sets: Mapping[str, TunedParameters],
+    sets: Mapping[str, ControllerSet],
 ) -> tuple[pd.DataFrame, dict[tuple[str, str], pd.DataFrame]]:
-    """Run every parameter set on every scenario, on the pool's workers.
+    """Run every controller set (the six and any settings it changes) on every scenario, on the
+    pool's workers.
 
     Parameters
     ----------
@@ -52,7 +54,7 @@ def evaluate_sets(
     scenarios
         Scenarios by label.
     sets
-        Parameter sets by name.
+        Controller sets by name.
 
     Returns
     -------
@@ -61,7 +63,7 @@ def evaluate_sets(
         records keyed by (scenario label, set name).
     """
     keys = [(label, name) for label in scenarios for name in sets]
-    tasks = [(scenarios[label], sets[name]) for label, name in keys]
+    tasks = [(with_controller_set(scenarios[label], sets[name]), None) for label, name in keys]
     records = dict(zip(keys, run_records(pool, fmu, tasks), strict=True))
     rows = []
     for label, name in keys:

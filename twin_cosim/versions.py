@@ -5,7 +5,7 @@ from __future__ import annotations
 import platform
 from importlib.metadata import PackageNotFoundError, version
 
-PACKAGES = ("twin-cosim", "fmpy", "numpy", "scipy", "numba", "pandas")
+PACKAGES = ("twin-cosim", "fmpy", "numpy", "scipy", "numba", "pandas", "control")
 
 
 def versions() -> dict[str, str]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shlex
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -34,6 +35,14 @@ def write_record_csv(path: Path, record: pd.DataFrame) -> None:
     line = ",".join(["%r"] * values.shape[1]) + "\n"
     header = ",".join(str(name) for name in record.columns) + "\n"
     path.write_text(header + "".join([line % tuple(row) for row in values.tolist()]))
+
+
+def command_line(name: str) -> str:
+    """The command line of ``twin NAME`` as typed (when this process is that command), for the
+    files that say what made them; ``twin NAME`` otherwise."""
+    if len(sys.argv) > 1 and sys.argv[1] == name:
+        return shlex.join(["twin", *sys.argv[1:]])
+    return f"twin {name}"
 
 
 def warn_plant_mismatch(scenario: Scenario, fmu: Path | None) -> list[str]:

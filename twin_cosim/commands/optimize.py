@@ -65,8 +65,10 @@ def _machine_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--start",
         metavar="SET_OR_FILE",
-        help="machine scenarios: start the search from these sets (ft|ga|ce|sa, or a file: one "
-        "set or axes: {X: ..., Y: ...}, e.g. an earlier result.json); the scores stay relative "
+        help="start from a controller set (ft|ga|ce|sa or a file). One axis: the set (e.g. the "
+        "autotune.json of twin autotune) becomes every scenario's own set, the start point and "
+        "the reference of the IAU cap. A machine (axes:): the search starts from these sets (one "
+        "set, or axes: {X: ..., Y: ...}, e.g. an earlier result.json), the scores stay relative "
         "to the scenario's own sets (default: the scenario's own sets)",
     )
 
@@ -140,8 +142,8 @@ def run(args: argparse.Namespace) -> int:
         from twin_cosim.commands.optimize_machine import run_machine_campaign
 
         return run_machine_campaign(args)
-    if args.program or args.target or args.start:
-        raise ValueError("--program, --target and --start: for a machine scenario (axes:)")
+    if args.program or args.target:
+        raise ValueError("--program and --target: for a machine scenario (axes:)")
     local = 1 if args.scheduler else args.workers  # with Dask: reference and plot runs here
     with make_pool(None, local, prepare_campaign_worker) as pool:
         return _run_on(args, pool)
@@ -195,6 +197,7 @@ def _given(args: argparse.Namespace) -> dict[str, Any]:
         "aggregate": args.objective,
         "relative": True if args.relative else None,
         "early_stop": False if args.no_early_stop else None,
+        "start": args.start,
     }
     return {k: v for k, v in given.items() if v is not None}
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Callable
 from pathlib import Path
 
@@ -55,6 +56,34 @@ def fraction(low: float, high: float) -> Callable[[str], float]:
         return value
 
     return parse
+
+
+def number_above(low: float, inclusive: bool = False) -> Callable[[str], float]:
+    """An argparse type: a finite number > ``low`` (>= when ``inclusive``)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not math.isfinite(value) or value < low or (value == low and not inclusive):
+            relation = ">=" if inclusive else ">"
+            raise argparse.ArgumentTypeError(
+                f"expected a finite number {relation} {low:g}, got {text!r}"
+            )
+        return value
+
+    return parse
+
+
+def params_option(parser: argparse.ArgumentParser) -> None:
+    """``--params``: a controller set instead of the scenario's."""
+    parser.add_argument(
+        "--params",
+        help="ft|ga|ce|sa (paper Table 3) or a YAML/JSON file: the six parameters, or what "
+        "twin autotune or twin optimize wrote (with its filters and feedforwards) "
+        "(default: the scenario's)",
+    )
 
 
 def out_folder(option: str | None, default: Path) -> Path:

@@ -15,6 +15,7 @@ from twin_cosim.commands.options import (
     data_option,
     no_plots_option,
     out_folder,
+    params_option,
     plant_option,
     plant_parameters_option,
     plant_path,
@@ -32,10 +33,7 @@ def add_arguments(subparsers) -> None:
     """The ``simulate`` command and its options."""
     parser = command_parser(subparsers, "simulate", "run a scenario in closed loop")
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
-    parser.add_argument(
-        "--params",
-        help="ft|ga|ce|sa (paper Table 3) or a YAML/JSON file (default: the scenario's)",
-    )
+    params_option(parser)
     plant_option(parser)
     plant_parameters_option(parser)
     parser.add_argument(
@@ -75,10 +73,12 @@ def run(args: argparse.Namespace) -> int:
         return run_program_command(args)
     from twin_cosim.metrics import compute_metrics
     from twin_cosim.run_checks import loop_warnings
-    from twin_cosim.scenario import load_tuned_parameters, resolve_scenario
+    from twin_cosim.scenario import load_controller_set, resolve_scenario, with_controller_set
 
     scenario = resolve_scenario(args.scenario, args.plant_parameters, args.plant)
-    tuned = load_tuned_parameters(args.params) if args.params else scenario.tuned
+    if args.params:
+        scenario = with_controller_set(scenario, load_controller_set(args.params))
+    tuned = scenario.tuned
     mismatch = warn_plant_mismatch(scenario, plant_path(args))
     out = out_folder(args.out, Path("out") / scenario.name)
     out.mkdir(parents=True, exist_ok=True)

@@ -18,7 +18,7 @@ from twin_cosim.commands.options import (
 if TYPE_CHECKING:
     import pandas as pd
 
-    from twin_cosim.controller import TunedParameters
+    from twin_cosim.controller_set import ControllerSet
     from twin_cosim.scenario import Scenario
 
 
@@ -37,6 +37,7 @@ def add_arguments(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run every set on every scenario; write table3.md, table3.csv and the error plots."""
     from twin_cosim import paper
+    from twin_cosim.controller_set import ControllerSet
     from twin_cosim.report import evaluate_sets, markdown_table
     from twin_cosim.scenario import resolve_scenario
     from twin_cosim.workers import SerialPool
@@ -46,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
         warn_plant_mismatch(scenario, plant_path(args))
     out = out_folder(args.out, Path("out") / "table3")
     out.mkdir(parents=True, exist_ok=True)
-    sets = {name.upper(): tuned for name, tuned in paper.TABLE3.items()}
+    sets = {name.upper(): ControllerSet(tuned) for name, tuned in paper.TABLE3.items()}
     first = next(iter(scenarios.values()))
     with SerialPool() as pool:
         table, records = evaluate_sets(pool, first.plant_fmu(plant_path(args)), scenarios, sets)
@@ -65,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _plot_errors(
     scenarios: dict[str, Scenario],
-    sets: dict[str, TunedParameters],
+    sets: dict[str, ControllerSet],
     records: dict[tuple[str, str], pd.DataFrame],
     out: Path,
 ) -> None:

@@ -150,7 +150,7 @@ def _config(check: Checker, data: dict[str, Any], machine: MachineScenario) -> O
             data.get("penalty_um", 1.0e6), "optimize.penalty_um", positive=True
         ),
         methods=check.mapping(data.get("methods"), "optimize.methods"),
-        names=names,
+        tuned_names=names,
     )
 
 

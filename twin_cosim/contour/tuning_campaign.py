@@ -37,6 +37,7 @@ from twin_cosim.optimize.evaluation_log import EvaluationLog
 from twin_cosim.optimize.evaluators import make_evaluator
 from twin_cosim.optimize.fingerprints import fmu_fingerprint, settings_fingerprint
 from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
+from twin_cosim.optimize.methods import refinement_settings
 from twin_cosim.scenario import load_axes_parameters, load_machine
 from twin_cosim.scenario.machine import MachineScenario
 from twin_cosim.workers import make_pool
@@ -169,7 +170,10 @@ def run_contour_campaign(
     program = read_program(spec.program, machine.axis_names) if spec.program else None
     objective = ContourObjectiveSpec(machine, settings, cases_of(settings, program))
     config = settings.config
-    method_settings = {**config.methods.get(spec.method, {})}
+    method_settings = {
+        **refinement_settings(spec.method, spec.start),
+        **config.methods.get(spec.method, {}),
+    }
     if spec.budget is not None:
         method_settings["budget"] = spec.budget
     first = machine

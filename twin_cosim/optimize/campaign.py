@@ -17,7 +17,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from twin_cosim.controller import TUNED_NAMES, TunedParameters
+from twin_cosim import current_filters
 from twin_cosim.optimize.algorithms import make_optimizer
 from twin_cosim.optimize.algorithms.base import Optimizer
 from twin_cosim.optimize.campaign_folder import (
@@ -43,6 +43,7 @@ from twin_cosim.optimize.evaluation_log import EvaluationLog
 from twin_cosim.optimize.evaluator_protocol import Evaluator
 from twin_cosim.optimize.evaluators import make_evaluator
 from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
+from twin_cosim.optimize.methods import refinement_settings
 from twin_cosim.optimize.worker_specs import ObjectiveSpec
 from twin_cosim.pool_runs import prepare_campaign_worker
 from twin_cosim.scenario import Scenario
@@ -184,7 +185,11 @@ def _evaluators(
 
 def _method_settings(spec: CampaignSpec, config: OptimizeConfig) -> dict[str, Any]:
     """The method's settings: the scenario's, the spec's on top, and the spec's budget."""
-    settings = {**config.methods.get(spec.method, {}), **spec.settings}
+    settings = {
+        **refinement_settings(spec.method, spec.start),
+        **config.methods.get(spec.method, {}),
+        **spec.settings,
+    }
     if spec.budget is not None:
         settings["budget"] = spec.budget
     return settings
@@ -194,11 +199,10 @@ def _make_optimizer(
     spec: CampaignSpec, config: OptimizeConfig, scenario: Scenario, settings: dict[str, Any]
 ) -> Optimizer:
     """The optimizer, started from the scenario's parameters when they lie inside the bounds."""
-    x0 = (
-        config.to_unit(scenario.tuned.as_array()) if within_bounds(config, scenario.tuned) else None
-    )
+    start = config.start(scenario.tuned, scenario.settings)
+    x0 = config.to_unit(start) if within_bounds(config, start) else None
     try:
-        return make_optimizer(spec.method, len(TUNED_NAMES), spec.seed, x0, **settings)
+        return make_optimizer(spec.method, len(config.names), spec.seed, x0, **settings)
     except (TypeError, ValueError) as exc:
         raise CampaignError(f"method {spec.method} with settings {settings}: {exc}") from exc
 
@@ -229,7 +233,7 @@ def _run_locked(
             log.close()
         raise
     reused, wall_s = run_loop(optimizer, config, log, evaluator, early_stop, out_dir, progress)
-    result = _result(spec, out_dir, header, config, optimizer, log, reused, wall_s)
+    result = _result(spec, out_dir, header, (config, scenarios[0]), optimizer, log, reused, wall_s)
     write_result(out_dir, result)
     return result
 
@@ -238,7 +242,7 @@ def _result(
     spec: CampaignSpec,
     out_dir: Path,
     header: dict[str, Any],
-    config: OptimizeConfig,
+    objective: tuple[OptimizeConfig, Scenario],
     optimizer: Optimizer,
     log: EvaluationLog,
     reused: int,
@@ -246,15 +250,17 @@ def _result(
 ) -> CampaignResult:
     """The outcome of a finished loop: the best candidate, its log entry, the counts, the time.
 
-    ``reused`` counts the evaluations answered from entries logged before this run, ``wall_s``
-    is the loop's wall time (s).
+    ``objective`` is the configuration and the first scenario; ``reused`` counts the
+    evaluations answered from entries logged before this run, ``wall_s`` is the loop's wall
+    time (s).
     """
+    config, scenario = objective
     best_unit, best_fitness = optimizer.best
     best_x = config.from_unit(best_unit)
     best_entry = log.lookup(best_x)
     return CampaignResult(
         method=spec.method,
-        best_params=TunedParameters.from_array(best_x).as_dict(),
+        best_params=config.parameters(best_x),
         fitness=best_fitness,
         status=best_entry["status"],
         metrics=best_entry["metrics"],
@@ -265,7 +271,16 @@ def _result(
         wall_s=wall_s,
         reference=header["reference"]["metrics"],
         out_dir=str(out_dir),
+        settings=_best_settings(config, best_x, scenario),
     )
+
+
+def _best_settings(config: OptimizeConfig, best_x, scenario: Scenario) -> dict[str, Any]:
+    """The filters of the best candidate when the campaign tuned filter dimensions, else {}."""
+    if not config.filters:
+        return {}
+    _, settings = config.candidate(best_x, scenario.settings)
+    return {"filters": [current_filters.as_dict(f) for f in settings.filters]}
 
 
 def _header(

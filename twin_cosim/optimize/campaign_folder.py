@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import json
 import zipfile
-from dataclasses import asdict
+from dataclasses import MISSING, asdict, fields
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +36,7 @@ from twin_cosim.optimize.fingerprints import (
     scenario_fingerprint,
     settings_fingerprint,
 )
-from twin_cosim.scenario import Scenario
+from twin_cosim.scenario import Scenario, load_controller_set
 
 HEADER = "campaign.json"
 
@@ -113,6 +113,8 @@ def fingerprints(
     if not fmu.is_file() or not zipfile.is_zipfile(fmu):
         raise CampaignError(f"{fmu}: plant FMU not found or not an FMU (zip archive)")
     chosen = {"method": spec.method, "seed": spec.seed, "settings": settings}
+    if spec.start is not None:  # the start set's content, not its path
+        chosen["start"] = load_controller_set(spec.start).as_dict()
     return {
         "scenario": scenario_fingerprint(scenario),
         "plant_fmu": fmu_fingerprint(fmu),
@@ -126,12 +128,13 @@ def check_same_options(out_dir: Path, header: dict[str, Any], spec: CampaignSpec
     The scenario and the plant FMU may be given under other paths: their contents are checked
     (:func:`check_same_inputs`).
     """
+    defaults = {f.name: f.default for f in fields(CampaignSpec) if f.default is not MISSING}
     stored = {k: v for k, v in header["spec"].items() if k not in ("scenario", "fmu")}
     given = {k: v for k, v in asdict(spec).items() if k not in ("scenario", "fmu")}
-    differ = {
-        k: (given.get(k), stored.get(k))
+    differ = {  # a campaign stored before an option existed has that option's default
+        k: (given.get(k, defaults.get(k)), stored.get(k, defaults.get(k)))
         for k in sorted(set(given) | set(stored))
-        if k not in given or k not in stored or given[k] != stored[k]
+        if given.get(k, defaults.get(k)) != stored.get(k, defaults.get(k))
     }
     if differ:
         raise CampaignError(
@@ -188,7 +191,7 @@ def write_progress(
         "generation": optimizer.generation,
         "evaluations": optimizer.evaluations,
         "best_fitness_um": best_fitness,
-        "best_params": config.named(config.from_unit(best_unit)),
+        "best_params": config.parameters(config.from_unit(best_unit)),
         "elapsed_s": elapsed,
     }
     partial = out_dir / "progress.json.partial"

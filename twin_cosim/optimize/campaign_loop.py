@@ -69,7 +69,8 @@ class AskTellLoop:
         self.reused = 0  # answers from entries logged before this run
 
     def run(self, out_dir: Path, start: float) -> None:
-        """Ask and tell until the optimizer stops; ``progress.json`` after every generation.
+        """Ask and tell until the optimizer stops; the log synced to disk and ``progress.json``
+        written after every generation.
 
         ``start`` is the loop's start (``time.perf_counter()``, s).
         """
@@ -79,6 +80,7 @@ class AskTellLoop:
             if len(unit) == 0:
                 break
             optimizer.tell(self._generation(self.config.from_unit(unit)))
+            self.log.sync()
             write_progress(out_dir, optimizer, self.config, time.perf_counter() - start)
             self.bar.set_postfix(gen=optimizer.generation, best_um=f"{optimizer.best[1]:.3f}")
 

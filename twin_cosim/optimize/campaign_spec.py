@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any
+
+from twin_cosim import current_filters
+from twin_cosim.controller import TUNED_NAMES, TunedParameters
+from twin_cosim.controller_set import ControllerSet
 
 
 class CampaignError(ValueError):
@@ -43,6 +48,9 @@ class CampaignSpec:
         plant sample, in units of the first scenario's nominal reference E_pk (um).
     early_stop : bool
         Stop runs early where that is exact.
+    start : str or None
+        A controller-set file (e.g. ``twin autotune``'s) the campaign starts from: its set
+        becomes every scenario's own (the start point and the reference of the IAU cap).
     """
 
     scenario: str
@@ -58,6 +66,7 @@ class CampaignSpec:
     aggregate: str = "worst"
     relative: bool = False
     early_stop: bool = True
+    start: str | None = None
 
 
 @dataclass
@@ -69,7 +78,8 @@ class CampaignResult:
     method : str
         The optimizer's name.
     best_params : dict
-        The best candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] by name (physical units).
+        The best candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] by name (physical units),
+        then its filter dimensions (``filter<k>.<parameter>``), if any were tuned.
     fitness : float
         Its fitness, um (E_pk, plus any penalty).
     status : str
@@ -90,6 +100,9 @@ class CampaignResult:
         Metrics of the scenario's own parameter set (Fine-Tune by default) on the first case.
     out_dir : str
         The campaign folder.
+    settings : dict
+        The controller settings the best candidate changed: ``filters`` (as a scenario writes
+        them) when filter dimensions were tuned, else empty.
     """
 
     method: str
@@ -104,7 +117,17 @@ class CampaignResult:
     wall_s: float
     reference: dict[str, float]
     out_dir: str
+    settings: dict[str, Any] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return asdict(self)
+
+
+def controller_set_of(result: Mapping[str, Any]) -> ControllerSet:
+    """The controller set of a campaign's result (``result.json``): the six, any filters."""
+    six = TunedParameters(**{name: result["best_params"][name] for name in TUNED_NAMES})
+    filters = (result.get("settings") or {}).get("filters")
+    if filters is None:
+        return ControllerSet(six)
+    return ControllerSet(six, {"filters": tuple(current_filters.from_dict(f) for f in filters)})

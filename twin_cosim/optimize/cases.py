@@ -22,7 +22,12 @@ from twin_cosim.optimize.config import (
 )
 from twin_cosim.optimize.early_stop import EXACT_METHODS, window_spans_run
 from twin_cosim.optimize.worker_specs import AGGREGATES, ObjectiveSpec, ReferenceSpec
-from twin_cosim.scenario import Scenario, resolve_scenario
+from twin_cosim.scenario import (
+    Scenario,
+    load_controller_set,
+    resolve_scenario,
+    with_controller_set,
+)
 from twin_cosim.scenario.plant_file import read_plant_parameters
 
 if TYPE_CHECKING:
@@ -30,11 +35,16 @@ if TYPE_CHECKING:
 
 
 def campaign_scenarios(spec: CampaignSpec) -> tuple[Scenario, ...]:
-    """The campaign's scenarios (``scenario`` first), resolved with its plant parameter file."""
-    return tuple(
+    """The campaign's scenarios (``scenario`` first), resolved with its plant parameter file;
+    with a start set (``spec.start``), each runs that set as its own."""
+    scenarios = tuple(
         resolve_scenario(path, spec.plant_parameters, spec.fmu)
         for path in (spec.scenario, *spec.scenarios)
     )
+    if spec.start is None:
+        return scenarios
+    start = load_controller_set(spec.start)
+    return tuple(with_controller_set(scenario, start) for scenario in scenarios)
 
 
 def robust_settings(spec: CampaignSpec, scenarios: tuple[Scenario, ...]) -> dict[str, Any]:

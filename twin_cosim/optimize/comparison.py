@@ -18,11 +18,13 @@ A comparison file::
       relative: false                #   E_pk relative to the reference set's, case by case
     holdout: [reference2.yaml]       # optional held-out scenarios: one table each
 
-Each method's campaign lives in ``<out>/<method>/`` and is resumed or reused when present.
+Each method's campaign lives in ``<out>/<method>/`` and is resumed or reused when present, and
+so is the AT set (``<out>/autotune.json``).
 Writes ``tables.md`` (Table 3: parameters; Table 4: reference metrics, wall time, evaluations;
 Table 5: validation metrics; one table per held-out scenario, with what of its motion lies beyond
 that of the tuning trajectories (:mod:`twin_cosim.motion_envelope`); each with the scenario's own
-set, Fine-Tune by default, as "FT"),
+set, Fine-Tune by default, as "FT", and the industrial baseline of ``twin autotune``, tuned from
+the twin's plant FRF, as "AT"),
 ``tables.json``, ``convergence.png``, ``errors_optimized.png`` and ``errors_validation.png``.
 """
 
@@ -35,17 +37,19 @@ from typing import Any
 
 import pandas as pd
 
-from twin_cosim.controller import TUNED_NAMES, TunedParameters
+from twin_cosim import current_filters
+from twin_cosim.controller import TUNED_NAMES
+from twin_cosim.controller_set import ControllerSet
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.motion_envelope import MARGIN, envelope_of, outside
 from twin_cosim.optimize.campaign import run_campaign
-from twin_cosim.optimize.campaign_spec import CampaignSpec
+from twin_cosim.optimize.campaign_spec import CampaignSpec, controller_set_of
 from twin_cosim.optimize.config import check_uncertainty
 from twin_cosim.optimize.methods import METHOD_NAMES
 from twin_cosim.optimize.worker_specs import AGGREGATES
-from twin_cosim.pool_runs import prepare_campaign_worker
+from twin_cosim.pool_runs import autotune_summary, prepare_campaign_worker
 from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table
-from twin_cosim.scenario import Scenario, ScenarioError, resolve_scenario
+from twin_cosim.scenario import Scenario, ScenarioError, load_controller_set, resolve_scenario
 from twin_cosim.scenario.shipped import find_scenario
 from twin_cosim.schema import load_yaml
 from twin_cosim.workers import ProcessPool, SerialPool, make_pool
@@ -197,27 +201,33 @@ def _compare(
     results = _campaigns(comparison, out, methods, scheduler, progress, pool)
     calibrated = _text(comparison.plant_parameters)
     scenario = resolve_scenario(comparison.scenario, calibrated)
-    sets = {"FT": scenario.tuned} | {
-        m.upper(): TunedParameters(**results[m]["best_params"]) for m in methods
-    }
     scenarios = {"optimized": scenario}
     if comparison.validation:
         scenarios["validation"] = resolve_scenario(comparison.validation, calibrated)
     for path in comparison.holdout:
         held = resolve_scenario(path, calibrated)
         scenarios[f"holdout {held.name}"] = held
-    table, records = evaluate_sets(pool, scenario.plant_fmu(), scenarios, sets)
-    params = pd.DataFrame({name: tuned.as_dict() for name, tuned in sets.items()}).T[
+    fmu = scenario.plant_fmu()
+    autotuned = _autotuned(pool, fmu, scenario, out / "autotune.json")
+    sets = {
+        "FT": ControllerSet(scenario.tuned),
+        "AT": load_controller_set(str(out / "autotune.json")),
+    } | {m.upper(): controller_set_of(results[m]) for m in methods}
+    table, records = evaluate_sets(pool, fmu, scenarios, sets)
+    params = pd.DataFrame({name: s.tuned.as_dict() for name, s in sets.items()}).T[
         list(TUNED_NAMES)
     ]
     params.index.name = "method"
     reference = table.loc["optimized"].copy()
-    reference["wall [s]"] = ["-"] + [f"{results[m]['wall_s']:.1f}" for m in methods]
-    reference["evaluations"] = ["-"] + [str(results[m]["evaluations"]) for m in methods]
+    reference["wall [s]"] = ["-", f"{autotuned['wall_s']:.1f}"] + [
+        f"{results[m]['wall_s']:.1f}" for m in methods
+    ]
+    reference["evaluations"] = ["-", "1 FRF"] + [str(results[m]["evaluations"]) for m in methods]
     reference.index.name = "method"
     text = (
         f"# {comparison.name}\n\nOptimized on {scenario.name} with seed {comparison.seed}.\n\n"
         f"## Table 3: optimized parameters\n\n{markdown_table(params)}\n"
+        f"{_autotune_note(sets['AT'])}\n"
         f"## Table 4: {scenario.name}\n\n{markdown_table(reference)}\n"
     )
     if comparison.validation:
@@ -251,6 +261,7 @@ def _compare(
                 "parameters": params.to_dict(orient="index"),
                 "metrics": {f"{s}/{m}": row.to_dict() for (s, m), row in table.iterrows()},
                 "campaigns": results,
+                "autotune": autotuned,
                 "metric_units": METRIC_COLUMNS,
                 "holdout_beyond_tuning_motion": beyond,
             },
@@ -298,7 +309,7 @@ def _plot(
     out: Path,
     methods: list[str],
     scenarios: dict[str, Scenario],
-    sets: dict[str, TunedParameters],
+    sets: dict[str, ControllerSet],
     records: dict[tuple[str, str], pd.DataFrame],
 ) -> None:
     """``convergence.png`` and the error plots of every scenario (``errors_<label>.png``)."""
@@ -315,6 +326,33 @@ def _plot(
             f"{s.name}: position error per method",
             out / f"errors_{label.replace(' ', '_')}.png",
         )
+
+
+def _autotuned(
+    pool: SerialPool | ProcessPool, fmu: Path, scenario: Scenario, path: Path
+) -> dict[str, Any]:
+    """The AT set's summary (``twin autotune``'s layout): read from ``path`` when a comparison
+    wrote it before, else tuned by a worker of the pool from the twin's plant FRF and written
+    there."""
+    if path.is_file():
+        return json.loads(path.read_text())
+    summary = autotune_summary(pool, fmu, scenario)
+    path.write_text(json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
+def _autotune_note(controller_set: ControllerSet) -> str:
+    """What the AT set changes beyond the six, in words."""
+    overrides = controller_set.overrides
+    filters = ", ".join(
+        f"{f['type']} at {f['frequency_hz']:.4g} Hz"
+        for f in map(current_filters.as_dict, overrides["filters"])
+    )
+    return (
+        f"AT (twin autotune, from the twin's plant FRF) also sets the current filters "
+        f"({filters or 'none'}) and the feedforwards (velocity and acceleration gain 1, inertia "
+        f"{overrides['inertia']:.4g} kg.m2).\n"
+    )
 
 
 def _text(path: Path | None) -> str | None:

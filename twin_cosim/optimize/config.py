@@ -11,13 +11,16 @@ work as it is::
         PP2: [0.0, 5.0]            # rad/s
         PP3: [0.001, 0.1]          # s
         f_H: [0.0, 0.5]            # rad/s
+        filter1.frequency_hz: [80.0, 160.0]   # optional: a current filter's parameter tuned
+                                              # too (twin_cosim.optimize.filter_dimensions)
       window: null                 # [t0, tF] s of the objective; null: the scenario's window
       iau_cap: 1.05                # IAU at most 1.05 x the Fine-Tune set's IAU; null: no cap
       abort_error_um: 1000.0       # a run whose |error| exceeds this is stopped: unstable
       penalty_um: 1.0e+6           # violation: penalty + E_pk; failure: 2 x penalty
       methods: {ce: {q: 0.1}}      # per-method setting overrides (see docs/optimizers.md)
 
-The objective is eq. (12): minimise E_pk (um) over the window, subject to the IAU cap.
+The objective is eq. (12): minimise E_pk (um) over the window, subject to the IAU cap. A
+candidate is the six of eq. (7), then any filter dimensions.
 """
 
 from __future__ import annotations
@@ -27,7 +30,14 @@ from typing import Any
 
 import numpy as np
 
-from twin_cosim.controller import TUNED_NAMES, TunedParameters
+from twin_cosim.controller import TUNED_NAMES, ControllerSettings, TunedParameters
+from twin_cosim.optimize.filter_dimensions import (
+    FilterDimension,
+    check_bounds,
+    parse_dimension,
+    start_values,
+    with_filters,
+)
 from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario import Scenario
 from twin_cosim.schema import Checker
@@ -50,7 +60,8 @@ class OptimizeConfig:
     Attributes
     ----------
     lower, upper : numpy.ndarray
-        Physical bounds of [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] (units of the controller).
+        Physical bounds of [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] (units of the controller),
+        then of the filter dimensions.
     window : tuple
         Objective window (t0, tF) in s; tF None: to the end.
     iau_cap : float or None
@@ -61,9 +72,11 @@ class OptimizeConfig:
         Penalty (um) of a constraint violation; a failure scores twice this.
     methods : dict
         Per-method setting overrides.
-    names : tuple of str
-        Name of each parameter, in the order of the bounds (the six tuned parameters; a
+    tuned_names : tuple of str
+        Name of each tuned controller parameter, in the order of the bounds (the six; a
         machine's campaign names them per axis, ``X.Kp_pos``).
+    filters : tuple of FilterDimension
+        Current-filter parameters tuned after those (none: the tuned parameters alone).
     """
 
     lower: np.ndarray
@@ -73,7 +86,34 @@ class OptimizeConfig:
     abort_error_um: float = 1000.0
     penalty_um: float = 1.0e6
     methods: dict[str, dict[str, Any]] = field(default_factory=dict)
-    names: tuple[str, ...] = TUNED_NAMES
+    tuned_names: tuple[str, ...] = TUNED_NAMES
+    filters: tuple[FilterDimension, ...] = ()
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The tuned dimensions: the controller parameters, then the filter dimensions."""
+        return self.tuned_names + tuple(d.name for d in self.filters)
+
+    def parameters(self, x: np.ndarray) -> dict[str, float]:
+        """A candidate (physical units) by dimension name."""
+        return {name: float(v) for name, v in zip(self.names, x, strict=True)}
+
+    def candidate(
+        self, x: np.ndarray, settings: ControllerSettings
+    ) -> tuple[TunedParameters, ControllerSettings]:
+        """The six and the settings (its filter dimensions applied) of a candidate.
+
+        Raises
+        ------
+        ValueError
+            When the controller refuses the values.
+        """
+        tuned = TunedParameters.from_array(np.asarray(x)[: len(TUNED_NAMES)])
+        return tuned, with_filters(settings, self.filters, np.asarray(x)[len(TUNED_NAMES) :])
+
+    def start(self, tuned: TunedParameters, settings: ControllerSettings) -> np.ndarray:
+        """The candidate of a set: its six, then its filter values."""
+        return np.concatenate([tuned.as_array(), start_values(settings, self.filters)])
 
     def to_unit(self, x: np.ndarray) -> np.ndarray:
         """Physical parameters -> normalised [0, 1] box."""
@@ -84,10 +124,6 @@ class OptimizeConfig:
         return self.lower + np.clip(np.asarray(u, dtype=np.float64), 0.0, 1.0) * (
             self.upper - self.lower
         )
-
-    def named(self, x: np.ndarray) -> dict[str, float]:
-        """Physical parameters by name."""
-        return {n: float(v) for n, v in zip(self.names, x, strict=True)}
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready form (for the campaign's record)."""
@@ -118,19 +154,34 @@ def load_config(scenario: Scenario) -> OptimizeConfig:
     raw_bounds = data.get("bounds") or {}
     if not isinstance(raw_bounds, dict):
         raise check.fail("optimize.bounds", f"a mapping of {list(TUNED_NAMES)}")
+    filters: list[FilterDimension] = []
     for name, pair in raw_bounds.items():
-        if name not in bounds:
-            raise check.fail("optimize.bounds", f"{list(TUNED_NAMES)}; unknown parameter {name!r}")
+        try:
+            dimension = parse_dimension(str(name), scenario.settings.filters)
+        except ValueError as exc:
+            raise check.error(f"{check.source}: optimize.bounds.{exc}") from None
+        if name not in bounds and dimension is None:
+            raise check.fail(
+                "optimize.bounds",
+                f"{list(TUNED_NAMES)} or filter<k>.<parameter>; unknown parameter {name!r}",
+            )
         if not isinstance(pair, list) or len(pair) != 2:
             raise check.fail(f"optimize.bounds.{name}", "[low, high]", pair)
         low = check.number(pair[0], f"optimize.bounds.{name}[0]")
         high = check.number(pair[1], f"optimize.bounds.{name}[1]")
         if not low < high:
             raise check.fail(f"optimize.bounds.{name}", "low < high", pair)
+        if dimension is not None:
+            try:
+                check_bounds(dimension, (low, high), scenario.settings)
+            except ValueError as exc:
+                raise check.error(f"{check.source}: optimize.bounds.{name}: {exc}") from None
+            filters.append(dimension)
         bounds[name] = (low, high)
-    lower = np.array([bounds[n][0] for n in TUNED_NAMES])
-    upper = np.array([bounds[n][1] for n in TUNED_NAMES])
-    for name, low in zip(TUNED_NAMES, lower, strict=True):
+    names = TUNED_NAMES + tuple(d.name for d in filters)
+    lower = np.array([bounds[n][0] for n in names])
+    upper = np.array([bounds[n][1] for n in names])
+    for name, low in zip(TUNED_NAMES, lower[: len(TUNED_NAMES)], strict=True):
         positive_only = name in ("Kp_pos", "Kp_vel", "PP3")
         if low < 0 or (positive_only and low <= 0):
             raise check.fail(
@@ -167,12 +218,12 @@ def load_config(scenario: Scenario) -> OptimizeConfig:
             data.get("penalty_um", 1.0e6), "optimize.penalty_um", positive=True
         ),
         methods=methods,
+        filters=tuple(filters),
     )
 
 
-def within_bounds(config: OptimizeConfig, tuned: TunedParameters) -> bool:
-    """Whether a parameter set lies inside the bounds."""
-    x = tuned.as_array()
+def within_bounds(config: OptimizeConfig, x: np.ndarray) -> bool:
+    """Whether a candidate (physical units, every dimension) lies inside the bounds."""
     return bool(np.all((x >= config.lower) & (x <= config.upper)))
 
 

@@ -1,7 +1,9 @@
 """The append-only log of a campaign's evaluations, which is also its checkpoint.
 
-Each completed evaluation is appended as one JSON line and flushed to disk (fsync) at once, so a
-crash, even ``kill -9`` in the middle of a generation, loses no completed evaluation. A campaign
+Each completed evaluation is appended as one JSON line and flushed to the operating system at
+once, so a process that dies, even by ``kill -9`` in the middle of a generation, loses no
+completed evaluation; the campaign syncs the file to disk (fsync) after every generation, so a
+crash of the machine itself loses at most the generation under way. A campaign
 resumes by replaying its optimizer from the seed: every batch the optimizer asks for again is
 answered from this log, keyed by the exact bits of the candidate, and only what is missing is
 computed. A torn last line (the write that was cut off) is ignored.
@@ -81,7 +83,8 @@ class EvaluationLog:
         return self._by_key.get(candidate_key(x))
 
     def append(self, x: np.ndarray, result: dict[str, Any], generation: int) -> dict[str, Any]:
-        """Log one completed evaluation durably; returns the stored entry."""
+        """Log one completed evaluation (flushed: it outlives this process); returns the stored
+        entry."""
         entry = {
             "key": candidate_key(x),
             "x": [float(v) for v in x],
@@ -90,11 +93,16 @@ class EvaluationLog:
         }
         self._file.write(json.dumps(entry) + "\n")
         self._file.flush()
-        os.fsync(self._file.fileno())
         self.entries.append(entry)
         self._by_key[entry["key"]] = entry
         return entry
 
+    def sync(self) -> None:
+        """Write what was appended to disk (it outlives a crash of the machine)."""
+        os.fsync(self._file.fileno())
+
     def close(self) -> None:
-        """Close the file."""
+        """Sync and close the file."""
+        if not self._file.closed:
+            self.sync()
         self._file.close()

@@ -20,3 +20,11 @@ METHOD_NAMES = tuple(METHODS)
 def method_list() -> str:
     """The names for a message: ``ce, ga, sa, cmaes or de``."""
     return ", ".join(METHOD_NAMES[:-1]) + f" or {METHOD_NAMES[-1]}"
+
+
+def refinement_settings(method: str, start: str | None) -> dict[str, bool]:
+    """Settings a campaign adds when it refines a given start set (``--start``): CMA-ES then
+    evaluates the start point with its first generation (``inject_start``), so the search ranks
+    it with the others and never ends worse than where it started. The paper's methods keep
+    their own start."""
+    return {"inject_start": True} if start is not None and method == "cmaes" else {}

@@ -27,13 +27,14 @@ failure's score, also above the cutoff).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from twin_cosim.controller import TunedParameters
+from twin_cosim.controller import ControllerSettings
 from twin_cosim.cosim import RunAborted, run_scenario
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.config import OptimizeConfig, load_config
@@ -119,7 +120,8 @@ class Objective:
         return {"case": case.label, **compute_metrics(record, case.window).as_dict()}
 
     def __call__(self, task: np.ndarray | EvaluationTask) -> dict[str, Any]:
-        """Evaluate one candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] (physical units).
+        """Evaluate one candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H, filter dimensions...]
+        (physical units).
 
         Returns
         -------
@@ -135,7 +137,7 @@ class Objective:
             cutoff = math.inf
         failure = 2.0 * self.config.penalty_um
         try:
-            tuned = TunedParameters.from_array(x)
+            candidates = [self.config.candidate(x, case.scenario.settings) for case in self.cases]
         except ValueError as exc:
             return _result(failure, "failed", str(exc), None, 0)
         n = len(self.cases)
@@ -147,10 +149,11 @@ class Objective:
             case = self.cases[i]
             allowed = cutoff if worst_case else n * cutoff - sum(scores.values())
             abort_um = min(self.config.abort_error_um, max(allowed, 0.0) / case.scale)
+            tuned, settings = candidates[i]
             try:
                 record = run_scenario(
                     self.plant,
-                    case.scenario,
+                    _with_settings(case.scenario, settings),
                     tuned,
                     plant_overrides=case.overrides,
                     abort_error=abort_um * 1e-6,
@@ -216,6 +219,15 @@ class Objective:
     def close(self) -> None:
         """Free the plant."""
         self.plant.close()
+
+
+def _with_settings(scenario: Scenario, settings: ControllerSettings) -> Scenario:
+    """The scenario with a candidate's settings (itself when they are its own)."""
+    return (
+        scenario
+        if settings is scenario.settings
+        else dataclasses.replace(scenario, settings=settings)
+    )
 
 
 def _steps_until(case: _Case, time_s: float) -> int:

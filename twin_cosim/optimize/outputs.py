@@ -11,13 +11,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from twin_cosim.controller import TunedParameters  # noqa: E402
 from twin_cosim.metrics import compute_metrics  # noqa: E402
 from twin_cosim.optimize.campaign_folder import convergence  # noqa: E402
-from twin_cosim.optimize.campaign_spec import CampaignSpec  # noqa: E402
+from twin_cosim.optimize.campaign_spec import CampaignSpec, controller_set_of  # noqa: E402
 from twin_cosim.plots import plot_error_comparison  # noqa: E402
 from twin_cosim.pool_runs import run_records  # noqa: E402
-from twin_cosim.scenario import Scenario  # noqa: E402
+from twin_cosim.scenario import Scenario, with_controller_set  # noqa: E402
 from twin_cosim.workers import ProcessPool, SerialPool  # noqa: E402
 
 
@@ -57,8 +56,8 @@ def write_campaign_plots(
     """
     out_dir = Path(out_dir)
     result = json.loads((out_dir / "result.json").read_text())
-    best = TunedParameters(**result["best_params"])
-    records = run_records(pool, scenario.plant_fmu(spec.fmu), [(scenario, None), (scenario, best)])
+    best = with_controller_set(scenario, controller_set_of(result))
+    records = run_records(pool, scenario.plant_fmu(spec.fmu), [(scenario, None), (best, None)])
     plot_convergence({spec.method: out_dir}, out_dir / "convergence.png")
     runs = {"scenario set": records[0], f"best {spec.method}": records[1]}
     peak = compute_metrics(runs["scenario set"], scenario.metrics_window).t_E_pk

@@ -30,7 +30,8 @@ RUN_MODULE = "twin_cosim.optimize.objective"
 
 @dataclass(frozen=True)
 class EvaluationTask:
-    """A candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] and the cutoff (um) of its fitness."""
+    """A candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] (then any filter dimensions) and the
+    cutoff (um) of its fitness."""
 
     x: np.ndarray
     cutoff_um: float = math.inf

@@ -8,7 +8,8 @@ Layout (every section but ``reference`` is optional)::
     controller:
       parameters: {Kp_pos: 66.667, ...}      # the six tuned parameters, or the name of a set of
                                              # the paper's Table 3 (ft, ga, ce, sa); default: ft
-      settings: {current_limit: 20.0, ...}   # see twin_cosim.controller.ControllerSettings
+      settings: {current_limit: 20.0, ...}   # twin_cosim.scenario.controller_section: fixed
+                                             # settings and the current-setpoint filters
     reference: {...}                         # twin_cosim.scenario.reference_section
     run:
       metrics_window: [0.0, null]            # s; null: to the end

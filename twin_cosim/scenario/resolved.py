@@ -11,6 +11,7 @@ import numpy as np
 
 from fmu_build.build import build_fmu
 from twin_cosim.controller import ControllerSettings, TunedParameters
+from twin_cosim.controller_set import ControllerSet
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant_model import model_of
 from twin_cosim.reference import ReferenceError, ReferenceGrid, interpolate
@@ -100,6 +101,22 @@ class Scenario:
         if override is not None or self.model is None:
             return model_of(override if override is not None else self.fmu)
         return self.model
+
+
+def with_controller_set(scenario: Scenario, controller_set: ControllerSet) -> Scenario:
+    """The scenario run by another controller set (its six and its setting overrides).
+
+    Raises
+    ------
+    ScenarioError
+        When the overrides do not make valid settings (e.g. a filter above the Nyquist
+        frequency of the scenario's speed loop).
+    """
+    try:
+        settings = controller_set.settings_for(scenario.settings)
+    except ValueError as exc:
+        raise ScenarioError(f"{scenario.source}: with the controller set: {exc}") from exc
+    return dataclasses.replace(scenario, tuned=controller_set.tuned, settings=settings)
 
 
 def for_measured_run(scenario: Scenario, run: MeasuredRun) -> Scenario:

@@ -1,4 +1,5 @@
-"""The six tuned parameters: ``controller.parameters`` of a scenario and ``--params``."""
+"""The six tuned parameters: ``controller.parameters`` of a scenario, and controller sets
+(``--params``, ``--start``): the six and the fixed settings a tuner changed."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ from typing import Any
 
 from twin_cosim import paper
 from twin_cosim.controller import TUNED_NAMES, TunedParameters
-from twin_cosim.schema import ScenarioError, load_yaml
+from twin_cosim.controller_set import ControllerSet
+from twin_cosim.scenario.settings_section import SETTING_NAMES, filters_section
+from twin_cosim.schema import Checker, ScenarioError, load_yaml
 
 
 def tuned_section(data: Any, where: str) -> TunedParameters:
@@ -50,23 +53,42 @@ def tuned_from_mapping(data: Any, where: str) -> TunedParameters:
         raise ScenarioError(f"{where}: {exc}") from exc
 
 
-def load_tuned_parameters(spec: str) -> TunedParameters:
-    """Parameters for ``--params``: a Table 3 set name (ft, ga, ce, sa) or a YAML/JSON file.
+def load_controller_set(spec: str) -> ControllerSet:
+    """A controller set for ``--params``: a Table 3 set name (ft, ga, ce, sa) or a file.
 
-    The file holds the six names at the top level or under ``best_params`` (the summary that
-    ``twin optimize`` writes).
+    The YAML/JSON file holds the six names at the top level, or under ``params`` (what
+    ``twin autotune`` prints) or ``best_params`` (what ``twin optimize`` writes), with the fixed
+    settings it changes under ``settings`` (:mod:`twin_cosim.controller_set`).
     """
     if spec.lower() in paper.TABLE3:
-        return paper.TABLE3[spec.lower()]
+        return ControllerSet(paper.TABLE3[spec.lower()])
     path = Path(spec)
     if not path.is_file():
         raise ScenarioError(
             f"--params {spec}: neither a set of Table 3 {sorted(paper.TABLE3)} nor a file"
         )
     data = load_yaml(path)
-    if isinstance(data, dict) and "best_params" in data:
-        return tuned_from_mapping(data["best_params"], f"{path}: best_params")
-    return tuned_from_mapping(data, str(path))
+    for key in ("params", "best_params"):
+        if isinstance(data, dict) and key in data:
+            block = data[key]  # filter dimensions of a campaign (filter1.frequency_hz) aside
+            if isinstance(block, dict):
+                block = {k: v for k, v in block.items() if "." not in str(k)}
+            tuned = tuned_from_mapping(block, f"{path}: {key}")
+            return ControllerSet(tuned, settings_overrides(path, data.get("settings")))
+    return ControllerSet(tuned_from_mapping(data, str(path)))
+
+
+def settings_overrides(path: Path, data: Any) -> dict[str, Any]:
+    """The ``settings`` of a controller-set file: fields of ControllerSettings, filters as
+    sections; errors name the file and the key."""
+    check = Checker(path)
+    given = check.mapping(data, "settings", SETTING_NAMES)
+    overrides: dict[str, Any] = {
+        k: check.number(v, f"settings.{k}") for k, v in given.items() if k != "filters"
+    }
+    if "filters" in given:
+        overrides["filters"] = filters_section(check, given["filters"], "settings.filters")
+    return overrides
 
 
 def load_axes_parameters(spec: str, axes: tuple[str, ...]) -> dict[str, TunedParameters]:

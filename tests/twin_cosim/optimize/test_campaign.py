@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 from scenario_texts import scenario_text
 
+from twin_cosim import paper
 from twin_cosim.optimize.campaign import run_campaign
 from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
 from twin_cosim.optimize.comparison import load_comparison, run_comparison
@@ -44,6 +45,30 @@ def test_serial_and_pool_give_the_same_campaign(short_scenario, tmp_path):
     assert serial.evaluations == pool.evaluations == 60
     assert serial.fitness < serial.reference["E_pk_um"]
     assert (tmp_path / "pool" / "progress.json").exists()
+
+
+def test_the_log_is_synced_once_per_generation(short_scenario, tmp_path, monkeypatch):
+    """Every evaluation is flushed as it completes; the disk sync comes once per generation
+    (and at the close), not once per evaluation."""
+    import twin_cosim.optimize.evaluation_log as evaluation_log
+
+    synced = []
+    monkeypatch.setattr(evaluation_log.os, "fsync", lambda fd: synced.append(fd))
+    result = campaign(short_scenario, tmp_path, "synced", workers=1, budget=40)
+    progress = json.loads((tmp_path / "synced" / "progress.json").read_text())
+    lines = (tmp_path / "synced" / "evaluations.jsonl").read_text().splitlines()
+    assert len(lines) == result.evaluations == 40
+    assert len(synced) == progress["generation"] + 1  # each generation, then the close
+
+
+def test_a_cmaes_refinement_evaluates_its_start_first(short_scenario, tmp_path):
+    """``--start`` with CMA-ES: the start set is the first evaluation, so the campaign's best
+    is never worse than the set it refines."""
+    spec = CampaignSpec(short_scenario, "cmaes", seed=3, budget=12, start="ga")
+    result = run_campaign(spec, tmp_path / "refine", workers=1, progress=False)
+    first = json.loads((tmp_path / "refine" / "evaluations.jsonl").read_text().splitlines()[0])
+    assert first["x"] == pytest.approx(list(paper.TABLE3["ga"].as_array()), rel=1e-12)
+    assert result.fitness <= first["fitness"]
 
 
 def test_a_pool_campaign_leaves_the_plant_to_its_workers(short_scenario, tmp_path):

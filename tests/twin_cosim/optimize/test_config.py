@@ -27,7 +27,7 @@ def config_of(tmp_path, optimize: str):
 def test_defaults_hold_every_table3_set():
     config = load_config(load_scenario(REFERENCE1))
     assert config.iau_cap == 1.05
-    assert all(within_bounds(config, tuned) for tuned in TABLE3.values())
+    assert all(within_bounds(config, tuned.as_array()) for tuned in TABLE3.values())
     assert config.window == (0.0, None)
 
 

@@ -15,8 +15,8 @@ from twin_cosim.environment import DATA_ENV
 from twin_cosim.scenario import (
     ScenarioError,
     find_scenario,
+    load_controller_set,
     load_scenario,
-    load_tuned_parameters,
     plant_mismatch,
 )
 
@@ -109,12 +109,12 @@ def test_malformed_yaml(tmp_path):
 
 
 def test_params_from_table3_or_file(tmp_path):
-    assert load_tuned_parameters("GA") == paper.TABLE3["ga"]
+    assert load_controller_set("GA").tuned == paper.TABLE3["ga"]
     path = tmp_path / "best.json"
     path.write_text('{"best_params": ' + str(paper.TABLE3["ce"].as_dict()).replace("'", '"') + "}")
-    assert load_tuned_parameters(str(path)) == paper.TABLE3["ce"]
+    assert load_controller_set(str(path)).tuned == paper.TABLE3["ce"]
     with pytest.raises(ScenarioError, match="neither a set of Table 3"):
-        load_tuned_parameters("xx")
+        load_controller_set("xx")
 
 
 def test_shipped_scenarios_are_found_by_name():

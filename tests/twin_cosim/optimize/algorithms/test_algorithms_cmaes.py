@@ -52,3 +52,23 @@ def test_pycma_termination_sets_stop_reason():
         opt.tell(np.sum((opt.ask() - 0.3) ** 2, axis=1))
     assert opt.stop_reason.startswith("pycma: tol")
     assert opt.best[1] < 1e-10
+
+
+def test_an_injected_start_is_evaluated_and_never_lost():
+    """Refining a start that is already the optimum: with ``inject_start`` the first generation
+    holds the start and the best stays there; without it the start is only the samples' mean."""
+    start = np.full(6, 0.3)
+    refined = CMAES(6, 2, start, inject_start=True, sigma0=0.3)
+    first = refined.ask()
+    assert np.array_equal(first[0], start)
+    refined.tell(sphere(first))
+    asks(refined, 3)
+    assert refined.best[1] == 0.0
+    plain = CMAES(6, 2, start, sigma0=0.3)
+    assert not np.any(np.all(plain.ask() == start, axis=1))
+
+
+def test_a_start_near_the_bounds_is_injected_as_it_is():
+    """pycma's bound transform bends values near 0 and 1; the injected start is not bent."""
+    start = np.array([0.01, 0.5, 0.999, 0.0, 1.0, 0.3])
+    assert np.allclose(CMAES(6, 4, start, inject_start=True).ask()[0], start, atol=1e-12)

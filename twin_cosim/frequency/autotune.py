@@ -1,0 +1,312 @@
+"""``twin autotune``: an FRF auto-tuner, the way an industrial tuner sets a drive.
+
+From the plant's FRF (a file, or measured on the twin at an operating speed with a small
+excitation, so that friction slides and backlash stays closed) the two-mass model is fitted
+(:mod:`twin_cosim.frequency.fit`); the design model is that plant, its delay in whole
+speed-loop periods, held at the speed-loop period (:mod:`twin_cosim.frequency.loops`). Then:
+
+1. **speed loop**: the rigid-body rule Kp_vel = (J_M + J_L) w_c / K_t for a crossover w_c and an
+   integral time T_n = alpha / w_c (Ki_vel = Kp_vel T / T_n per sample, T the speed-loop
+   period), on a grid of w_c, for each alpha of :data:`INTEGRAL_FACTORS` and each
+   current-filter chain: none, or a notch on the first resonance f_02 (its depth the
+   resonance's rise over the rigid-body line, its bandwidth a quarter or a half of f_02). A
+   design is admissible when its loop keeps the phase-margin target, :data:`GAIN_MARGIN_DB` and
+   :data:`PEAK_SENSITIVITY_DB` both with the load coupled and with the motor alone (the backlash
+   open: the loop gain rises by (J_M + J_L) / J_M). Fed back from the motor speed, a two-mass
+   resonance is phase-stabilised (collocated: the plant's phase stays within +-90 degrees)
+   until lags (current loop, dead time, the hold, a filter) eat that phase at the resonance;
+   that is where a notch is needed, and where only the notched designs stay admissible;
+2. **position loop**: for each admissible speed design, the highest Kp_pos whose loop (the speed
+   loop closed inside, lifted to the position-loop period) keeps
+   :data:`POSITION_PHASE_MARGIN_DEG`, :data:`POSITION_GAIN_MARGIN_DB` and a closed-loop peak of
+   at most :data:`POSITION_PEAK_DB` (no overshoot to speak of), read in one pass from the loop
+   at Kp_pos = 1 (:func:`position_gain_limit`). The design of the highest Kp_pos wins (the
+   machine-tool tuner's figure: the following error is v / Kp_pos), then the higher integral
+   gain (stiffer against load torques), then the higher crossover;
+3. **feedforwards**: velocity and acceleration at gain 1, the acceleration's inertia the fitted
+   J_M + J_L.
+
+PP2, PP3 and f_H, the reversal compensation, stay the scenario's: no frequency response
+measures them. The set's margins are read from the design loops' responses on a dense grid up to
+the Nyquist frequency (as :func:`~twin_cosim.frequency.margins.margins_of_data` reads them,
+which agrees with python-control; tested); its metrics come from a run of the scenario.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from twin_cosim import current_filters
+from twin_cosim.controller import ControllerSettings, TunedParameters
+from twin_cosim.controller_set import ControllerSet
+from twin_cosim.current_filters import Notch
+from twin_cosim.frequency.fit import TwoMassFit, fit_two_mass
+from twin_cosim.frequency.loops import Discrete, LinearLoops, hold_discretised
+from twin_cosim.frequency.margins import Margins, dense_grid, margins_of_data
+from twin_cosim.frequency.two_mass import TwoMass
+
+PHASE_MARGIN_DEG = 50.0  # default target of the speed loop
+GAIN_MARGIN_DB = 10.0
+PEAK_SENSITIVITY_DB = 6.0
+POSITION_PHASE_MARGIN_DEG = 60.0
+POSITION_PEAK_DB = 1.0
+POSITION_GAIN_MARGIN_DB = 6.0
+INTEGRAL_FACTORS = (2.0, 4.0)  # alpha: T_n = alpha / w_c
+NOTCH_WIDTHS = (0.25, 0.5)  # bandwidth over the resonance frequency f_02
+NOTCH_DEPTH_DB = (-40.0, -6.0)  # the notch's depth is kept within these
+CROSSOVERS = 30  # crossover frequencies tried, log-spaced from MIN_CROSSOVER_HZ
+MIN_CROSSOVER_HZ = 5.0
+MAX_CROSSOVER = 0.2  # of the speed loop's Nyquist frequency
+LOW_HZ = 0.5  # lowest frequency of the design grid
+GRID_GUARD = 0.98  # the position gain stays this share below its limit read on the grid
+DESIGN_POINTS = 1500  # frequencies of the design grid, log-spaced up to the Nyquist frequency
+
+
+@dataclass(frozen=True)
+class SpeedDesign:
+    """One speed-loop design: its gains, filters and margins on the design model."""
+
+    Kp_vel: float
+    Ki_vel: float
+    filters: tuple[current_filters.CurrentFilter, ...]
+    margins: Margins
+
+
+@dataclass(frozen=True)
+class Autotuned:
+    """What the tuner proposes and why.
+
+    Attributes
+    ----------
+    controller_set : ControllerSet
+        The six parameters and the settings it sets (filters, feedforwards).
+    fit : TwoMassFit
+        The plant fitted to the FRF.
+    speed_margins : Margins
+        Of the speed loop on the design model.
+    position_margins : Margins
+        Of the position loop on the design model.
+    source : str
+        Where the FRF came from.
+    wall_s : float
+        The tuner's wall time (measurement included), s.
+    """
+
+    controller_set: ControllerSet
+    fit: TwoMassFit
+    speed_margins: Margins
+    position_margins: Margins
+    source: str
+    wall_s: float
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready: the set (a controller-set file's layout), margins, the fitted plant."""
+        return {
+            **self.controller_set.as_dict(),
+            "margins": self.speed_margins.as_dict(),
+            "position_margins": self.position_margins.as_dict(),
+            "plant_fit": {
+                **self.fit.parameters(),
+                "resonance_hz": self.fit.plant.resonance_hz,
+                "delay_s": self.fit.delay_s,
+                "current_lag_s": self.fit.lag_s,
+                "rms_db": self.fit.rms_db,
+                "rms_deg": self.fit.rms_deg,
+            },
+            "frf": self.source,
+            "wall_s": self.wall_s,
+        }
+
+
+def design_plant(fit: TwoMassFit, settings: ControllerSettings) -> TwoMass:
+    """The design model: the fitted plant with the drive's torque constant and travel, its
+    current lag, and its delay in whole speed-loop periods."""
+    steps = max(0, round(fit.delay_s / settings.speed_period))
+    return fit.plant.with_values(
+        torque_constant=settings.torque_constant,
+        travel_per_rad=settings.travel_per_rad,
+        current_lag=fit.lag_s,
+        dead_time=steps * settings.speed_period,
+    )
+
+
+def notch_candidates(plant: TwoMass) -> list[tuple[current_filters.CurrentFilter, ...]]:
+    """The filter chains tried: none, and a notch on the first resonance of each width."""
+    f_r = plant.resonance_hz
+    j_total = plant.motor_inertia + plant.load_inertia
+    rise = abs(plant.speed_per_torque(np.array([f_r]))[0]) * 2 * math.pi * f_r * j_total
+    depth = float(np.clip(-20 * math.log10(rise), *NOTCH_DEPTH_DB))
+    chains: list[tuple[current_filters.CurrentFilter, ...]] = [()]
+    for width in NOTCH_WIDTHS:
+        chains.append((Notch(float(f_r), width * float(f_r), depth),))
+    return chains
+
+
+def motor_alone(plant: TwoMass) -> TwoMass:
+    """The motor without its load (backlash open): J_L and the coupling nearly nothing."""
+    return plant.with_values(load_inertia=plant.load_inertia * 1e-9, stiffness=0.0, damping=0.0)
+
+
+def _pi_response(kp: float, ki: float, f: np.ndarray, period: float) -> np.ndarray:
+    """Kp + Ki z / (z - 1) at z = exp(j 2 pi f T)."""
+    z = np.exp(2j * np.pi * f * period)
+    return kp + ki * z / (z - 1.0)
+
+
+def _acceptable(m: Margins, phase_margin: float) -> bool:
+    return (
+        m.phase_margin_deg is not None
+        and m.phase_margin_deg >= phase_margin
+        and (m.gain_margin_db is None or m.gain_margin_db >= GAIN_MARGIN_DB)
+        and m.peak_sensitivity_db <= PEAK_SENSITIVITY_DB
+    )
+
+
+def speed_designs(
+    plant: TwoMass, settings: ControllerSettings, phase_margin: float
+) -> list[SpeedDesign]:
+    """Every speed-loop design on the grid that keeps the margins, coupled and decoupled."""
+    period = settings.speed_period
+    grid = dense_grid(LOW_HZ, 0.5 / period, DESIGN_POINTS)
+    coupled = hold_discretised(plant, period, with_position=False).siso(grid)
+    alone = hold_discretised(motor_alone(plant), period, with_position=False).siso(grid)
+    j_total = plant.motor_inertia + plant.load_inertia
+    designs = []
+    for chain in notch_candidates(plant):
+        chain_response = current_filters.chain_response(chain, grid, period)
+        for alpha in INTEGRAL_FACTORS:
+            for f_c in np.geomspace(MIN_CROSSOVER_HZ, MAX_CROSSOVER * 0.5 / period, CROSSOVERS):
+                w_c = 2 * math.pi * f_c
+                kp = j_total * w_c / settings.torque_constant
+                ki = kp * period * w_c / alpha
+                controller = _pi_response(kp, ki, grid, period) * chain_response
+                margins = margins_of_data(grid, controller * coupled)
+                decoupled = margins_of_data(grid, controller * alone)
+                if _acceptable(margins, phase_margin) and _acceptable(decoupled, phase_margin):
+                    designs.append(SpeedDesign(float(kp), float(ki), chain, margins))
+    if not designs:
+        raise ValueError(
+            f"autotune: no speed-loop crossover keeps a phase margin of {phase_margin:g} deg, "
+            f"a gain margin of {GAIN_MARGIN_DB:g} dB and a peak sensitivity of "
+            f"{PEAK_SENSITIVITY_DB:g} dB on this plant"
+        )
+    return designs
+
+
+def position_gain_limit(frequency_hz: np.ndarray, unit_loop: np.ndarray) -> float:
+    """The highest Kp_pos (1/s) for which the position loop Kp_pos G keeps its margins.
+
+    ``unit_loop`` is G, the loop at Kp_pos = 1 (its phase does not depend on Kp_pos). Each
+    condition bounds Kp_pos at every frequency:
+
+    - gain margin: Kp |G| <= 10^(-GM/20) where G is real and negative (phase crossovers);
+    - phase margin: Kp |G| < 1 wherever 180 deg + the phase of G is below the target (no gain
+      crossover there);
+    - closed-loop peak: |Kp G / (1 + Kp G)| <= M, i.e. Kp outside the roots of
+      (M^2 - 1) |G|^2 Kp^2 + 2 M^2 Re(G) Kp + M^2 = 0.
+    """
+    g = unit_loop
+    magnitude = np.abs(g)
+    phase = np.degrees(np.unwrap(np.angle(g)))
+    bounds = [math.inf]
+    turn = np.floor((phase + 180.0) / 360.0)
+    for i in np.flatnonzero(np.diff(turn) != 0):
+        level = -180.0 + 360.0 * max(turn[i], turn[i + 1])
+        share = (level - phase[i]) / (phase[i + 1] - phase[i])
+        at = magnitude[i] * (magnitude[i + 1] / magnitude[i]) ** share
+        bounds.append(10 ** (-POSITION_GAIN_MARGIN_DB / 20) / at)
+    short = (np.mod(phase, 360.0) - 180.0) < POSITION_PHASE_MARGIN_DEG
+    if short.any():
+        bounds.append(1.0 / float(np.max(magnitude[short])))
+    m2 = 10 ** (POSITION_PEAK_DB / 10)
+    a = (m2 - 1.0) * magnitude**2
+    b = 2.0 * m2 * g.real
+    root = b**2 - 4.0 * a * m2
+    crossing = (root >= 0) & (g.real < 0)
+    if crossing.any():
+        bounds.append(float(np.min((-b[crossing] - np.sqrt(root[crossing])) / (2 * a[crossing]))))
+    return min(bounds)
+
+
+def position_gain(plant: TwoMass, speed: TunedParameters, settings: ControllerSettings) -> float:
+    """The highest Kp_pos (1/s) the position loop allows with the speed loop of ``speed``."""
+    unit = LinearLoops(plant, speed_with(speed, Kp_pos=1.0), settings).position_open()
+    grid = dense_grid(LOW_HZ, 0.5 / unit.dt, DESIGN_POINTS)
+    return GRID_GUARD * position_gain_limit(grid, unit.siso(grid))
+
+
+def design_margins(system: Discrete) -> Margins:
+    """A design loop's margins from its response on the design grid (the data method, which
+    agrees with python-control's and spares importing it: tested)."""
+    grid = dense_grid(LOW_HZ, 0.5 / system.dt, DESIGN_POINTS)
+    return margins_of_data(grid, system.siso(grid))
+
+
+def speed_with(tuned: TunedParameters, **changes: float) -> TunedParameters:
+    """``tuned`` with some of its six parameters changed."""
+    return TunedParameters(**{**tuned.as_dict(), **changes})
+
+
+def autotune(
+    frequency_hz: np.ndarray,
+    response: np.ndarray,
+    coherence: np.ndarray | None,
+    scenario_tuned: TunedParameters,
+    settings: ControllerSettings,
+    source: str,
+    phase_margin: float = PHASE_MARGIN_DEG,
+    started: float | None = None,
+) -> Autotuned:
+    """Tune from a plant FRF (motor speed over torque setpoint, rad/s per N.m).
+
+    Parameters
+    ----------
+    frequency_hz, response, coherence
+        The FRF's lines to fit (Hz, complex, gamma^2 or None).
+    scenario_tuned
+        The scenario's set: its PP2, PP3 and f_H are kept.
+    settings
+        The scenario's controller settings (periods, torque constant, travel).
+    source
+        Where the FRF came from (reported).
+    phase_margin
+        The speed loop's phase-margin target, degrees.
+    started
+        ``time.perf_counter()`` when the tuning began (a measurement included); now when None.
+    """
+    started = time.perf_counter() if started is None else started
+    fit = fit_two_mass(frequency_hz, response, coherence)
+    plant = design_plant(fit, settings)
+    inertia = plant.motor_inertia + plant.load_inertia
+    best = None  # (Kp_pos, Ki_vel, crossover): the highest position gain, then stiffness
+    for design in speed_designs(plant, settings, phase_margin):
+        overrides = {
+            "filters": design.filters,
+            "ff_velocity": 1.0,
+            "ff_acceleration": 1.0,
+            "inertia": inertia,
+        }
+        design_settings = dataclasses.replace(settings, **overrides)
+        gains = speed_with(scenario_tuned, Kp_vel=design.Kp_vel, Ki_vel=design.Ki_vel)
+        kp_pos = position_gain(plant, gains, design_settings)
+        key = (round(kp_pos, 6), design.Ki_vel, design.margins.crossover_hz)
+        if math.isfinite(kp_pos) and (best is None or key > best[0]):
+            best = (key, speed_with(gains, Kp_pos=kp_pos), overrides, design_settings)
+    if best is None:
+        raise ValueError("autotune: no position gain keeps the position loop's margins")
+    _, tuned, overrides, design_settings = best
+    loops = LinearLoops(plant, tuned, design_settings)
+    return Autotuned(
+        controller_set=ControllerSet(tuned, overrides),
+        fit=fit,
+        speed_margins=design_margins(loops.speed_open()),
+        position_margins=design_margins(loops.position_open()),
+        source=source,
+        wall_s=time.perf_counter() - started,
+    )
