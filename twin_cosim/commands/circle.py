@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
-import sys
 from pathlib import Path
+from typing import Any
 
-from twin_cosim.commands.console import write_json
-from twin_cosim.commands.options import command_parser, out_folder
+from twin_cosim.commands.console import command_line, write_json
+from twin_cosim.commands.options import command_parser, no_plots_option, out_folder
 
 
 def _positive(text: str) -> float:
@@ -53,6 +52,7 @@ def add_arguments(subparsers) -> None:
     )
     parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<name>-circle)")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    no_plots_option(parser)
     parser.add_argument(
         "--reference-path",
         action="store_true",
@@ -65,14 +65,14 @@ def run(args: argparse.Namespace) -> int:
     """Run the circle(s), write circle.json, circle.png and the records; print the result."""
     from twin_cosim.contour.circle_report import circular_test
 
-    command = "twin circle " + " ".join(shlex.quote(a) for a in sys.argv[2:])
+    command = command_line("circle")
     default = Path("out") / f"{Path(args.scenario).stem}-circle"
     out = out_folder(args.out, default)
     if args.measured:
         return _measured(args, out, command)
     if args.radius is None or args.feed is None:
         raise ValueError("--radius MM and --feed MM_PER_MIN are required (unless --measured)")
-    summary = circular_test(
+    summary, draw = circular_test(
         args.scenario,
         args.radius,
         args.feed,
@@ -85,7 +85,15 @@ def run(args: argparse.Namespace) -> int:
     write_json(out / "circle.json", summary)
     if args.json:
         print(json.dumps(summary))
-        return 0
+    else:
+        _print_circle(args, summary, out)
+    if not args.no_plots:
+        draw()
+    return 0
+
+
+def _print_circle(args: argparse.Namespace, summary: dict[str, Any], out: Path) -> None:
+    """The circle's figures and spikes, for people."""
     print(
         f"circle R {args.radius:g} mm at {args.feed:g} mm/min: G {summary['G_um']:.2f} um, "
         f"F {summary['F_um']:.2f} um"
@@ -96,8 +104,8 @@ def run(args: argparse.Namespace) -> int:
             f"  {spike['direction']:>3} {spike['angle_deg']:5.0f} deg ({spike['axis']} reverses): "
             f"spike {spike['height_um']:+.2f} um, {spike['width_ms']:.1f} ms"
         )
-    print(f"wrote {out}/circle.json, circle.png, contour_<direction>.csv")
-    return 0
+    plot = "" if args.no_plots else ", circle.png"
+    print(f"wrote {out}/circle.json{plot}, contour_<direction>.csv")
 
 
 def _measured(args: argparse.Namespace, out: Path, command: str) -> int:

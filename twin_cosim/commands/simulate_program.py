@@ -11,21 +11,20 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
-from twin_cosim.commands.console import write_json
+from twin_cosim.commands.console import command_line, write_json
 from twin_cosim.commands.options import out_folder
 
 _SINGLE_AXIS_OPTIONS = ("plant", "plant_parameters", "machine")
 
 
 def run_program_command(args: argparse.Namespace) -> int:
-    """Run the program, write the records, plot and summary; print the summary."""
-    from twin_cosim.contour.contour_plot import plot_contour
+    """Run the program, write the records and summary, print the summary, then plot (unless
+    ``--no-plots``)."""
     from twin_cosim.contour.gcode import read_program
     from twin_cosim.contour.machine_run import (
         MachinePlants,
@@ -63,11 +62,9 @@ def run_program_command(args: argparse.Namespace) -> int:
         for name, frame in record.axes.items()
         if not (peak := float(abs(frame["error"]).max()) * 1e6) <= band_um
     ]
-    command = "twin simulate " + " ".join(shlex.quote(a) for a in sys.argv[2:])
     record.contour.to_csv(out / "contour.csv", index=False)
     for name, frame in record.axes.items():
         frame.to_csv(out / f"{name}.csv", index=False)
-    plot_contour(record, f"{machine.name}: {source.name}", command, out / "contour.png")
     summary: dict[str, Any] = {
         "scenario": str(machine.source),
         "program": str(source),
@@ -76,7 +73,8 @@ def run_program_command(args: argparse.Namespace) -> int:
         "params": {a.name: a.tuned.as_dict() for a in machine.axes},
         "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
         "wall_s": wall,
-        "outputs": {"contour": str(out / "contour.csv"), "plot": str(out / "contour.png")},
+        "outputs": {"contour": str(out / "contour.csv")}
+        | ({} if args.no_plots else {"plot": str(out / "contour.png")}),
         "warnings": warnings,
         "versions": versions(),
     }
@@ -91,7 +89,13 @@ def run_program_command(args: argparse.Namespace) -> int:
             + ", ".join(f"{n} E_pk {m['E_pk_um']:.2f} um" for n, m in summary["axes"].items())
             + f" ({wall:.2f} s wall)"
         )
-        print(f"wrote {out}/contour.csv, contour.png, summary.json")
+        plot = "" if args.no_plots else ", contour.png"
+        print(f"wrote {out}/contour.csv{plot}, summary.json")
     for warning in warnings:
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
+    if not args.no_plots:
+        from twin_cosim.contour.contour_plot import plot_contour  # matplotlib: only to draw
+
+        title = f"{machine.name}: {source.name}"
+        plot_contour(record, title, command_line("simulate"), out / "contour.png")
     return 1 if warnings else 0

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from twin_cosim.contour.circle_test import DIRECTIONS, MM_PER_MIN, CircleSpec, run_circle
 from twin_cosim.contour.iso230 import hysteresis
 from twin_cosim.contour.machine_run import MachinePlants
-from twin_cosim.contour.polar_plot import plot_circle
 from twin_cosim.scenario import load_axes_parameters, load_machine
 
 
@@ -21,8 +21,8 @@ def circular_test(
     out: Path,
     command: str,
     fast: bool = True,
-) -> dict[str, Any]:
-    """Run the test, write ``contour_<direction>.csv`` and ``circle.png`` into ``out``.
+) -> tuple[dict[str, Any], Callable[[], None]]:
+    """Run the test, write ``contour_<direction>.csv`` into ``out``.
 
     Parameters
     ----------
@@ -43,11 +43,12 @@ def circular_test(
 
     Returns
     -------
-    dict
-        ``G_um``, ``F_um`` (the largest over the directions), ``H_um`` (both directions),
-        ``spikes`` (each direction's quadrant transitions: ``direction``, ``angle_deg``,
-        ``axis``, ``height_um``, ``width_ms``, ``peak_deg``), ``directions`` (each one's
-        figures and servo-mismatch signature), radius, feed, parameters and outputs.
+    tuple
+        The summary: ``G_um``, ``F_um`` (the largest over the directions), ``H_um`` (both
+        directions), ``spikes`` (each direction's quadrant transitions: ``direction``,
+        ``angle_deg``, ``axis``, ``height_um``, ``width_ms``, ``peak_deg``), ``directions``
+        (each one's figures and servo-mismatch signature), radius, feed, parameters and
+        outputs; and what draws ``circle.png`` (called after the summary is saved, or not).
     """
     machine = load_machine(scenario)
     if params:
@@ -62,8 +63,13 @@ def circular_test(
             run.record.contour.to_csv(out / f"contour_{name}.csv", index=False)
             results.append(run.result)
     h = hysteresis(*results) if len(results) == 2 else None
-    labelled = [(r.direction.upper(), r) for r in results]
-    plot_circle(labelled, radius_mm, h, command, out / "circle.png")
+
+    def draw() -> None:
+        from twin_cosim.contour.polar_plot import plot_circle  # matplotlib: only to draw
+
+        labelled = [(r.direction.upper(), r) for r in results]
+        plot_circle(labelled, radius_mm, h, command, out / "circle.png")
+
     summary: dict[str, Any] = {
         "scenario": str(machine.source),
         "radius_mm": radius_mm,
@@ -79,7 +85,7 @@ def circular_test(
     summary["directions"] = {r.direction: r.summary() for r in results}
     summary["params"] = {a.name: a.tuned.as_dict() for a in machine.axes}
     summary["outputs"] = {"plot": str(out / "circle.png"), "folder": str(out)}
-    return summary
+    return summary, draw
 
 
 def measured_circular_test(
@@ -97,6 +103,8 @@ def measured_circular_test(
     out.mkdir(parents=True, exist_ok=True)
     found = diagnose_circle(machine, test, fast, workers=1)
     paths = found.pop("paths")
+    from twin_cosim.contour.polar_plot import plot_circle  # matplotlib: only to draw
+
     plot_circle(
         [("machine", paths["machine"]), ("twin", paths["twin"])],
         test.radius * 1e3,

@@ -30,6 +30,8 @@ from twin_cosim.cosim import (
     RECORD_COLUMNS,
     FastCalls,
     RunAborted,
+    compiled_position_loop,
+    compiled_speed_loop,
     drop_stale_compiled,
 )
 from twin_cosim.plant import Plant, PlantError
@@ -181,10 +183,6 @@ def run_axes_reference(
     return _frames(axes, record)
 
 
-_position_loop = numba.njit(cache=True)(controller.position_loop)
-_speed_loop = numba.njit(cache=True)(controller.speed_loop)
-
-
 @numba.njit(cache=True)
 def _lockstep_loop(
     set_reals,
@@ -216,7 +214,7 @@ def _lockstep_loop(
         t = i * period
         for a in range(n_axes):
             position = outputs[a, _OUT_POSITION]
-            _position_loop(p[a], s[a], t, x_ref[a, i], v_ref[a, i], a_ref[a, i], position)
+            compiled_position_loop(p[a], s[a], t, x_ref[a, i], v_ref[a, i], a_ref[a, i], position)
             record[a, i, 0] = t
             record[a, i, 1] = x_ref[a, i]
             record[a, i, 2] = v_ref[a, i]
@@ -231,7 +229,7 @@ def _lockstep_loop(
         for j in range(ratio):
             k = i * ratio + j
             for a in range(n_axes):
-                current = _speed_loop(p[a], s[a], k * h, outputs[a, _OUT_SPEED])
+                current = compiled_speed_loop(p[a], s[a], k * h, outputs[a, _OUT_SPEED])
                 inputs[a, _IN_CURRENT] = current
                 current_sum[a] += current
                 status = set_reals[a](

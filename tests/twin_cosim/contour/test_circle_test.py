@@ -84,5 +84,12 @@ def test_twin_circle_prints_g_f_h_and_the_spikes(twin_cli, tmp_path):
         "--out", str(tmp_path / "cw"), "--json",
     )  # fmt: skip
     assert "H_um" not in json.loads(one.stdout)
+    bare = twin_cli(
+        "circle", "xy_table", "--radius", "5", "--feed", "2000", "--direction", "cw",
+        "--out", str(tmp_path / "bare"), "--json", "--no-plots",
+    )  # fmt: skip
+    assert json.loads(bare.stdout)["G_um"] == json.loads(one.stdout)["G_um"]
+    assert (tmp_path / "bare" / "circle.json").is_file()
+    assert not (tmp_path / "bare" / "circle.png").exists()
     bad = twin_cli("circle", "reference1", "--radius", "5", "--feed", "500", "--out", str(tmp_path))
     assert bad.returncode == 2 and "axes" in bad.stderr and "Traceback" not in bad.stderr

@@ -28,6 +28,13 @@ def test_simulate_a_program_prints_contour_and_axis_metrics(twin_cli, tmp_path):
     assert summary["axes"]["Y"]["E_pk_um"] > 0
     assert (tmp_path / "o" / "contour.png").is_file()
     assert (tmp_path / "o" / "X.csv").is_file()
+    bare = twin_cli(
+        "simulate", "xy_table", "--program", str(program), "--out", str(tmp_path / "b"),
+        "--json", "--no-plots",
+    )  # fmt: skip
+    assert json.loads(bare.stdout)["contour_error_max_um"] == summary["contour_error_max_um"]
+    assert not (tmp_path / "b" / "contour.png").exists()
+    assert (tmp_path / "b" / "summary.json").is_file()
 
 
 def test_a_line_outside_the_subset_exits_2_naming_line_and_word(twin_cli, tmp_path):
