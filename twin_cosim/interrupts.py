@@ -10,14 +10,16 @@ follows waits for ever (issue 18). So:
   it there, outside the machinery;
 - :func:`wait_interruptibly`: a wait for workers made of short waits inside such a block, so
   that a signal meanwhile ends the wait at once and is raised between two short waits;
-- :func:`stop_handlers`: the handlers of a command: the first Ctrl-C (KeyboardInterrupt) or
-  SIGTERM (:class:`Terminated`) is raised, later ones are absorbed while the command shuts down
-  (``timeout -s INT`` signals the command, then its group: two signals, one wish).
+- :func:`stop_handlers`: the handlers of a command: a Ctrl-C (KeyboardInterrupt) or SIGTERM
+  (:class:`Terminated`) is raised, and absorbed while one is being handled (``timeout -s INT``
+  signals the command, then its group: two signals, one wish); one that Python dropped (raised
+  in a weakref callback) is raised again at the next wait for workers.
 """
 
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -73,6 +75,7 @@ def wait_interruptibly(wait_some: Callable[[float], T | None]) -> T:
     on; one that comes ends the waiting and is raised at most :data:`POLL_S` later.
     """
     while True:
+        raise_requested_stop()
         with deferred_signals() as deferral:
             while deferral.signum is None:
                 answer = wait_some(POLL_S)
@@ -80,29 +83,48 @@ def wait_interruptibly(wait_some: Callable[[float], T | None]) -> T:
                     return answer
 
 
-_stopping = False  # a stop signal was raised; later ones are absorbed
+_requested: int | None = None  # the stop signal a command was given (None: none yet)
 
 
 def _stop(signum: int, frame: Any) -> None:
-    global _stopping
-    if _stopping:
+    """A command's handler: raise the stop, unless one is being handled (a second signal
+    during the shutdown the first began)."""
+    global _requested
+    if isinstance(sys.exc_info()[1], KeyboardInterrupt):
         return
-    _stopping = True
+    _requested = signum
+    _raise_stop(signum)
+
+
+def _raise_stop(signum: int) -> None:
     if signum == signal.SIGTERM:
         raise Terminated(f"signal {signum}")
     raise KeyboardInterrupt
 
 
+def raise_requested_stop() -> None:
+    """Raise the stop signal a command was given again, if it was lost.
+
+    Python drops an exception raised where it cannot propagate (a weakref callback, a
+    ``__del__``: "Exception ignored in ..."); a Ctrl-C raised there would be lost. Each wait
+    for workers (:func:`wait_interruptibly`) calls this, so the command stops there.
+    """
+    if _requested is not None:
+        _raise_stop(_requested)
+
+
 @contextmanager
 def stop_handlers() -> Iterator[None]:
-    """In this block the first Ctrl-C or SIGTERM raises (KeyboardInterrupt, :class:`Terminated`)
-    and later ones are absorbed, so that a second signal never breaks the shutdown the first
-    began; the handlers before are restored at the end."""
-    global _stopping
-    _stopping = False
+    """In this block a Ctrl-C or SIGTERM raises (KeyboardInterrupt, :class:`Terminated`), except
+    while one is being handled, so that a second signal never breaks the shutdown the first
+    began; one Python dropped is raised again by :func:`raise_requested_stop`. The handlers
+    before are restored at the end."""
+    global _requested
+    _requested = None
     previous = {signum: signal.signal(signum, _stop) for signum in STOP_SIGNALS}
     try:
         yield
     finally:
+        _requested = None
         for signum, handler in previous.items():
             signal.signal(signum, handler)

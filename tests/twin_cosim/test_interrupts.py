@@ -43,14 +43,32 @@ def test_a_wait_ends_on_a_signal_from_another_thread():
 
 def test_a_second_signal_is_absorbed_while_the_first_is_handled():
     """``timeout -s INT`` signals a command, then its group: the shutdown the first signal began
-    runs to its end."""
+    (its ``finally`` and ``except`` blocks) runs to its end."""
     shut_down = False
     with stop_handlers():
-        with pytest.raises(KeyboardInterrupt):
+        try:
             signal.raise_signal(signal.SIGINT)
             pytest.fail("not raised")
-        signal.raise_signal(signal.SIGINT)  # during the shutdown: absorbed
-        signal.raise_signal(signal.SIGTERM)
-        shut_down = True
+        except KeyboardInterrupt:
+            signal.raise_signal(signal.SIGINT)  # during the shutdown: absorbed
+            signal.raise_signal(signal.SIGTERM)
+            shut_down = True
     assert shut_down
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+class Dropped:
+    """An object whose finalizer receives the Ctrl-C (Python drops what it raises there)."""
+
+    def __del__(self) -> None:
+        signal.raise_signal(signal.SIGINT)
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_a_ctrl_c_python_dropped_stops_the_next_wait():
+    """Seen on a Dask campaign: the Ctrl-C landed in a weakref callback ("Exception ignored
+    in ..."), and the campaign ran to its end."""
+    with stop_handlers():
+        Dropped()  # its finalizer runs here, and the KeyboardInterrupt it raises is dropped
+        with pytest.raises(KeyboardInterrupt):
+            wait_interruptibly(lambda timeout_s: "answered")
