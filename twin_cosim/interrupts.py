@@ -122,9 +122,18 @@ def stop_handlers() -> Iterator[None]:
     global _requested
     _requested = None
     previous = {signum: signal.signal(signum, _stop) for signum in STOP_SIGNALS}
+    previous_hook = sys.unraisablehook
+
+    def drop_quietly(unraisable: Any) -> None:
+        """A stop Python dropped is raised again (:func:`raise_requested_stop`): no traceback."""
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            previous_hook(unraisable)
+
+    sys.unraisablehook = drop_quietly
     try:
         yield
     finally:
         _requested = None
+        sys.unraisablehook = previous_hook
         for signum, handler in previous.items():
             signal.signal(signum, handler)
