@@ -160,6 +160,20 @@ class FitTask:
 
 
 @dataclass(frozen=True)
+class JointFitTask:
+    """Refit accepted effects together, each on top of the FMU parameters of those before it.
+
+    ``start`` holds each hypothesis' fitted values (physical units) and ``contexts`` its
+    data-derived settings; scanned hypotheses keep their values, the others are refitted
+    together by least squares from ``start``.
+    """
+
+    hypotheses: tuple[str, ...]
+    start: tuple[tuple[float, ...], ...]
+    contexts: tuple[dict[str, float], ...]
+
+
+@dataclass(frozen=True)
 class FitResult:
     """Outcome of a fit: fitted values by name, the FMU parameters, the training cost."""
 
@@ -243,10 +257,73 @@ class Replayer:
             return np.full(n, self.failure_residual)
         return normalised_residual(records, self.spec.training)
 
-    def __call__(self, task: SimulateTask | FitTask) -> Any:
+    def __call__(self, task: SimulateTask | FitTask | JointFitTask) -> Any:
         if isinstance(task, SimulateTask):
             return self.simulate(task)
+        if isinstance(task, JointFitTask):
+            return self.joint_fit(task)
         return self.fit(task)
+
+    def joint_fit(self, task: JointFitTask) -> FitResult:
+        """Refit several hypotheses together (values by ``hypothesis.parameter``)."""
+        hypotheses = [bounded(self.hypotheses[n], self.spec.ranges) for n in task.hypotheses]
+        free = [h.kind == "continuous" for h in hypotheses]
+        starts = [np.array(v, dtype=float) for v in task.start]
+
+        def values_of(u: np.ndarray) -> list[np.ndarray]:
+            values, at = [], 0
+            for h, start, fitted in zip(hypotheses, starts, free, strict=True):
+                if fitted:
+                    values.append(h.from_unit(u[at : at + len(start)]))
+                    at += len(start)
+                else:
+                    values.append(start)
+            return values
+
+        def overrides_of(values: list[np.ndarray]) -> dict[str, float]:
+            overrides: dict[str, float] = {}
+            for h, v, context in zip(hypotheses, values, task.contexts, strict=True):
+                overrides |= h.to_plant(v, {**self.spec.nominal, **overrides}, context)
+            return overrides
+
+        u0 = np.concatenate(
+            [
+                np.clip([p.to_unit(x) for p, x in zip(h.parameters, s, strict=True)], 0.0, 1.0)
+                for h, s, fitted in zip(hypotheses, starts, free, strict=True)
+                if fitted
+            ]
+            or [np.zeros(0)]
+        )
+        start = self.training_residual(overrides_of(starts))
+        self.failure_residual = max(
+            FAILURE_FLOOR, FAILURE_FACTOR * float(np.sqrt(np.mean(start**2)))
+        )
+        values, cost, replays, message = starts, float(np.mean(start**2)), 1, "nothing to refit"
+        if len(u0):
+            solution = least_squares(
+                lambda u: self.training_residual(overrides_of(values_of(u))),
+                u0,
+                bounds=(0.0, 1.0),
+                diff_step=FIT_STEP,
+                max_nfev=FIT_EVALUATIONS,
+                x_scale=1.0,
+            )
+            if float(np.mean(solution.fun**2)) < cost:
+                values, cost = values_of(solution.x), float(np.mean(solution.fun**2))
+            replays += int(solution.nfev + (solution.njev or 0) * len(u0))
+            message = solution.message
+        return FitResult(
+            "+".join(task.hypotheses),
+            {
+                f"{h.name}.{name}": value
+                for h, v in zip(hypotheses, values, strict=True)
+                for name, value in h.named(v).items()
+            },
+            clipped(overrides_of(values), self.spec.ranges),
+            cost,
+            replays,
+            message,
+        )
 
     def fit(self, task: FitTask) -> FitResult:
         """Fit a hypothesis by least squares on replays, or by scanning its discrete values."""
