@@ -38,7 +38,10 @@ import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-SHIPPED = {"diagnosis": ROOT / "scenarios" / "diagnosis.yaml", "sweep": ROOT / "scenarios" / "sweep.yaml"}
+SHIPPED = {
+    "diagnosis": ROOT / "scenarios" / "diagnosis.yaml",
+    "sweep": ROOT / "scenarios" / "sweep.yaml",
+}
 PERTURB = 0.02  # calibration error, relative
 EFFECT_COUNTS = (0, 1, 2, 3)
 COUNT_WEIGHTS = (0.15, 0.3, 0.3, 0.25)

@@ -51,9 +51,9 @@ def from_diagnosis(
         The JSON summary of ``twin diagnose``: ``steps`` (accepted effects, each with its
         cumulative FMU ``plant_parameters``, ``fitted`` hypothesis, fitted ``params`` and
         held-out figures), ``final_plant_parameters`` (the kept effects' FMU parameters after
-        joint refits and the backward pass, which win), ``noise.plant_parameters``, ``rounds`` (the last one's
-        ``calibration.coefficients``: the correction of each calibrated parameter in units of
-        the tolerance) and ``thresholds.calibration_tolerance``.
+        joint refits and the backward pass, which win), ``noise.plant_parameters``, ``rounds``
+        (the last one's ``calibration.coefficients``: the correction of each calibrated
+        parameter in units of the tolerance) and ``thresholds.calibration_tolerance``.
     model
         The plant model the diagnosis ran on.
     created_by
