@@ -222,6 +222,8 @@ def _row(c, round_: Round) -> dict[str, Any]:
         "reduction_beyond_calibration": c.reduction_beyond_calibration,
         "evidence_z": c.evidence_z,
         "critical_z": c.critical_z,
+        "excess_share": c.excess_share,
+        "fair_share": c.fair_share,
         "size_above_tolerance": c.size_above_tolerance,
         "explained_normalised_rms": c.explained,
         "calibration_floor_normalised_rms": round_.calibration.explained,
@@ -250,6 +252,7 @@ def _step(r: Round, dropped: list[str]) -> dict[str, Any]:
         "reduction_beyond_calibration": best.reduction_beyond_calibration,
         "evidence_z": best.evidence_z,
         "critical_z": best.critical_z,
+        "excess_share": best.excess_share,
         "dropped_in_backward_pass": best.name in dropped,
         "ranking": [_row(c, r) for c in r.candidates],
     }

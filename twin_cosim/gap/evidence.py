@@ -14,13 +14,16 @@ standard deviation of sqrt(2 / n_eff) (a scaled chi-square), and the gap is sign
 floors' own uncertainty, :data:`FLOOR_UNCERTAINTY`, is added to the allowance).
 
 **Does an effect help?** The drop of the energy left after the best calibration correction,
-D = |e0|^2 - |e1|^2 (e0 without the effect, e1 with it, both recalibrated), against the spread
-that the noise left with the effect gives it: with c = e0 - e1 the change the effect predicts,
-D = 2 <e1, c> + |c|^2, and over blocks of :data:`BLOCK_S` (longer than the residual's correlation
-time, so blocks are nearly independent) the standard deviation of 2 <e1, c> is estimated by
-sqrt(sum_b (2 <e1_b, c_b>)^2) from the residual itself, whatever its spectrum. z = D / that is
-compared with the one-sided quantile at the level divided by the number of hypotheses judged
-(Bonferroni): testing more candidates asks more of each.
+D = |e0|^2 - |e1|^2 (e0 without the effect, e1 with it, both recalibrated), against what noise
+at the floors can make of it: with c = e0 - e1 the change the effect predicts, D = 2 <e0, c> -
+|c|^2, and noise n in e0 gives 2 <n, c> a standard deviation of 2 |c| / sqrt(2 n_eff) (n_eff
+independent samples per signal). z = D / that is compared with the one-sided quantile at the
+level divided by the number of hypotheses judged (Bonferroni): testing more candidates asks more
+of each. Noise is not all that a wrong hypothesis can fit: the residual left by other effects is
+structured, and a wrong hypothesis explains a little of it far beyond the noise. So an effect
+must also explain at least its fair share of the excess energy above the noise,
+D / (|e0|^2 - 1) >= 1 / m for m hypotheses judged (:func:`fair_share`): under no effect the
+excess would have no reason to fall to one hypothesis more than to the others.
 """
 
 from __future__ import annotations
@@ -31,7 +34,6 @@ import numpy as np
 from scipy.stats import norm
 
 EFFECTIVE_SAMPLE_SPACING_S = 0.01  # s: one independent residual sample per 10 ms
-BLOCK_S = 0.05  # s: blocks of the held-out residual for the spread of an improvement
 FLOOR_UNCERTAINTY = 0.1  # relative uncertainty of the floors' energy (robust spread estimates)
 
 
@@ -50,40 +52,42 @@ def gap_threshold(duration_s: float, level: float) -> float:
     level
         Significance level (one-sided).
     """
-    n_eff = max(2.0 * duration_s / EFFECTIVE_SAMPLE_SPACING_S, 1.0)  # two signals
+    n_eff = 2.0 * effective_samples(duration_s)  # two signals
     return math.sqrt(1.0 + FLOOR_UNCERTAINTY + critical_z(level) * math.sqrt(2.0 / n_eff))
 
 
-def block_labels(samples: int, dt: float) -> np.ndarray:
-    """Block of each entry of a normalised vector [position (samples), current (samples)].
-
-    Parameters
-    ----------
-    samples
-        Held-out samples (the length of each half).
-    dt
-        Sample period, s.
-    """
-    per_block = max(int(round(BLOCK_S / dt)), 1)
-    labels = np.arange(samples) // per_block
-    return np.concatenate([labels, labels])
+def effective_samples(duration_s: float) -> float:
+    """Independent residual samples per signal in ``duration_s`` (s) of held-out data."""
+    return max(duration_s / EFFECTIVE_SAMPLE_SPACING_S, 1.0)
 
 
-def improvement_z(before: np.ndarray, after: np.ndarray, blocks: np.ndarray) -> float:
-    """Evidence (z) that ``after`` fits better than ``before`` beyond the noise left.
+def improvement_z(before: np.ndarray, after: np.ndarray, duration_s: float) -> float:
+    """Evidence (z) that ``after`` fits better than ``before`` beyond the noise.
 
     Parameters
     ----------
     before, after
         Normalised residual vectors left after the best calibration correction, without and
         with the effect.
-    blocks
-        Block label of each entry (:func:`block_labels`).
+    duration_s
+        Held-out duration, s (summed over runs).
     """
     change = before - after
     drop = float(before @ before - after @ after)
-    spread = np.bincount(blocks, weights=2.0 * after * change)
-    variance = float(spread @ spread)
-    if variance <= 0.0:
-        return math.inf if drop > 0.0 else 0.0
-    return drop / math.sqrt(variance)
+    spread = 2.0 * float(np.linalg.norm(change)) / math.sqrt(2.0 * effective_samples(duration_s))
+    if spread <= 0.0:
+        return 0.0
+    return drop / spread
+
+
+def excess_share(before: np.ndarray, after: np.ndarray) -> float:
+    """Share of the energy above the noise (|before|^2 - 1) that ``after`` removes."""
+    excess = float(before @ before) - 1.0
+    if excess <= 0.0:
+        return 0.0
+    return float(before @ before - after @ after) / excess
+
+
+def fair_share(hypotheses: int) -> float:
+    """The least share of the excess energy an effect must explain among ``hypotheses``."""
+    return 1.0 / max(hypotheses, 1)

@@ -18,7 +18,8 @@ An effect is *accepted* when, on the held-out data,
 3. it improves the fit beyond the noise, after the best calibration correction with and without
    it (what calibration error can explain is not the effect's to claim): its evidence z
    (:func:`twin_cosim.gap.evidence.improvement_z`) reaches the one-sided quantile of
-   ``acceptance_level`` shared by the hypotheses judged in the round (Bonferroni); and a change
+   ``acceptance_level`` shared by the hypotheses judged in the round (Bonferroni), and it removes
+   at least its fair share (1 / the library's size) of the energy above the noise; and a change
    of a calibrated parameter itself (Coulomb level, backlash, inertia, stiffness) exceeds the
    tolerance;
 4. it is consistent: it makes neither the position nor the current held-out RMS worse than
@@ -34,7 +35,8 @@ together on the training data (each on top of the FMU parameters of those before
 joint fit is kept when it judges better on the held-out data. When the forward rounds end, a
 backward pass refits the model without each accepted effect in turn; an effect whose removal
 does not hurt the held-out fit beyond the noise (its marginal evidence z below the quantile of
-``acceptance_level`` shared by the accepted effects) is dropped, the weakest first. Each kept
+``acceptance_level`` shared by the accepted effects, or its marginal share of the energy above
+the noise below the fair share) is dropped, the weakest first. Each kept
 effect's marginal contribution in the joint model is reported.
 """
 
@@ -56,8 +58,9 @@ from twin_cosim.gap.context import DiagnosisContext, training_residuals
 from twin_cosim.gap.effects import DEFAULT_CONTEXT, library_for
 from twin_cosim.gap.evidence import (
     EFFECTIVE_SAMPLE_SPACING_S,
-    block_labels,
     critical_z,
+    excess_share,
+    fair_share,
     gap_threshold,
     improvement_z,
 )
@@ -119,12 +122,6 @@ class Judging:
         """Held-out time, s (summed over the runs)."""
         return sum(float(r.t[-1] - r.t[0]) for r in self.runs)
 
-    @property
-    def blocks(self) -> np.ndarray:
-        """Block label of each entry of a normalised held-out vector."""
-        samples = sum(len(r.t) for r in self.runs)
-        return block_labels(samples, float(np.median(np.diff(self.runs[0].t))))
-
     def significant(
         self, left: float, metrics: list[MetricComparison], settings: DiagnosisSettings
     ) -> bool:
@@ -141,8 +138,10 @@ class Candidate:
     ``holdout_rms`` and ``explained`` are normalised RMS values (1 = noise at the floors);
     ``reduction`` and ``reduction_beyond_calibration`` are fractions; ``evidence_z`` is the
     evidence of the improvement beyond the noise (:func:`~twin_cosim.gap.evidence.improvement_z`)
-    and ``critical_z`` what acceptance asks of it; ``position_rms_um`` is the held-out position
-    gap in um and ``current_rms`` the held-out current gap in A (V for EMPS).
+    and ``critical_z`` what acceptance asks of it; ``excess_share`` is the share of the energy
+    above the noise it removes and ``fair_share`` what acceptance asks of it;
+    ``position_rms_um`` is the held-out position gap in um and ``current_rms`` the held-out
+    current gap in A (V for EMPS).
     """
 
     fit: FitResult
@@ -153,6 +152,8 @@ class Candidate:
     reduction_beyond_calibration: float = 0.0
     evidence_z: float = 0.0
     critical_z: float = math.inf
+    excess_share: float = 0.0
+    fair_share: float = 1.0
     size_above_tolerance: bool = True
     consistent: bool = True
     explained: float = 0.0
@@ -218,12 +219,14 @@ class Marginal:
     """What one kept effect adds to the joint model on the held-out data.
 
     ``evidence_z``: the evidence that the model with it fits better than the model refitted
-    without it; ``left_without`` and ``left_with``: the normalised RMS the best calibration
+    without it; ``excess_share``: the share of the energy above the noise it removes from the
+    model without it; ``left_without`` and ``left_with``: the normalised RMS the best calibration
     correction leaves without and with it.
     """
 
     effect: str
     evidence_z: float
+    excess_share: float
     left_without: float
     left_with: float
 
@@ -244,7 +247,7 @@ class Selection:
     dropped: list[str] = field(default_factory=list)
 
 
-@dataclass(frozen=True)
+@dataclass
 class _Accepted:
     """An accepted effect: its group, fitted values (physical units) and context."""
 
@@ -319,6 +322,7 @@ class Selector:
         self.settings = settings
         self.base_context = hypothesis_context
         self.progress = progress
+        self._bases: dict[tuple, CalibrationBasis] = {}
 
     def expected_tasks(self) -> int:
         """Pool tasks of a selection that accepts the most effects (for progress bars)."""
@@ -330,7 +334,14 @@ class Selector:
         return per_round * (rounds + 1) + 2 * first + 2 * later * (rounds - 1)
 
     def basis(self, base: dict[str, float]) -> CalibrationBasis:
-        """Calibration directions around the parameter set ``nominal + base``."""
+        """Calibration directions around the parameter set ``nominal + base`` (each set's
+        replayed once: the joint refits and the backward pass ask for the same sets again)."""
+        key = tuple(sorted(base.items()))
+        if key not in self._bases:
+            self._bases[key] = self._new_basis(base)
+        return self._bases[key]
+
+    def _new_basis(self, base: dict[str, float]) -> CalibrationBasis:
         tolerance = self.settings.calibration_tolerance
         current = {**self.nominal, **base}
         moves = [
@@ -410,9 +421,14 @@ class Selector:
                 if abs(c.reduction - best.reduction) < settings.group_reduction_margin
                 and _correlation(c.change, best.change) >= settings.group_correlation
             ]
-            accepted.append(_Accepted(current.accepted, tuple(best.fit.values.values()), context))
+            for earlier in accepted:  # the data now tell it apart from an earlier look-alike
+                if best.name in earlier.group[1:]:
+                    earlier.group.remove(best.name)
+            accepted.append(
+                _Accepted(list(current.accepted), tuple(best.fit.values.values()), context)
+            )
             base, replays = self._joint(accepted, dict(best.fit.overrides))
-            remaining = self._next_candidates(current, current.accepted, remaining)
+            remaining = self._next_candidates(current, best.name, remaining)
         accepted, base, replays, marginal, dropped = self._backward(accepted, base, replays)
         vector = self.judging.vector(self.judging.residuals(replays))
         floor = floor_of(self.basis(base), vector)
@@ -467,7 +483,8 @@ class Selector:
         """Drop, weakest first, accepted effects whose removal does not hurt the held-out fit
         beyond the noise; the kept effects' marginal contributions. A single effect is kept: it
         passed the stricter test of its round."""
-        blocks, dropped = self.judging.blocks, []
+        duration, dropped = self.judging.duration_s, []
+        least_share = fair_share(len(self.library))
         while accepted:
             with_all = self._left(base, replays)
             trials = []
@@ -476,24 +493,38 @@ class Selector:
                 overrides = self._refit(others)
                 without = self._replay(overrides)
                 left = self._left(overrides, without)
-                z = improvement_z(left, with_all, blocks)
-                trials.append((z, j, overrides, without, float(np.linalg.norm(left))))
-            critical = critical_z(self.settings.acceptance_level, len(accepted))
+                z, share = improvement_z(left, with_all, duration), excess_share(left, with_all)
+                strength = min(
+                    z / critical_z(self.settings.acceptance_level, len(accepted)),
+                    share / least_share,
+                )
+                trials.append(
+                    (
+                        strength,
+                        j,
+                        overrides,
+                        without,
+                        Marginal(
+                            accepted[j].name,
+                            z,
+                            share,
+                            float(np.linalg.norm(left)),
+                            float(np.linalg.norm(with_all)),
+                        ),
+                    )
+                )
             weakest = min(trials, key=lambda trial: trial[0])
-            if len(accepted) == 1 or weakest[0] >= critical:
-                marginal = [
-                    Marginal(accepted[j].name, z, left, float(np.linalg.norm(with_all)))
-                    for z, j, _, _, left in trials
-                ]
-                return accepted, base, replays, marginal, dropped
+            if len(accepted) == 1 or weakest[0] >= 1.0:
+                return accepted, base, replays, [trial[4] for trial in trials], dropped
             _, j, base, replays, _ = weakest
             dropped.append(accepted[j].name)
             accepted = accepted[:j] + accepted[j + 1 :]
         return accepted, base, replays, [], dropped
 
-    def _next_candidates(self, done: Round, group: list[str], remaining: list[str]) -> list[str]:
-        """Periodic hypotheses and the best of the round by held-out reduction."""
-        left = [n for n in remaining if n not in group]
+    def _next_candidates(self, done: Round, fitted: str, remaining: list[str]) -> list[str]:
+        """Periodic hypotheses and the best of the round by held-out reduction; a look-alike of
+        the accepted effect stays a candidate (two effects at once can look alike alone)."""
+        left = [n for n in remaining if n != fitted]
         periodic = [n for n in left if self.library[n].periodic_in]
         ranked = sorted(
             (c for c in done.candidates if c.name in left and c.name not in periodic),
@@ -552,8 +583,10 @@ class Selector:
         left_with = basis.correction(after_vector)[1]
         without, with_ = float(np.linalg.norm(left_without)), float(np.linalg.norm(left_with))
         candidate.reduction_beyond_calibration = 1.0 - with_ / without if without > 0 else 0.0
-        candidate.evidence_z = improvement_z(left_without, left_with, self.judging.blocks)
+        candidate.evidence_z = improvement_z(left_without, left_with, self.judging.duration_s)
         candidate.critical_z = critical
+        candidate.excess_share = excess_share(left_without, left_with)
+        candidate.fair_share = fair_share(len(self.library))
         candidate.position_rms_um = after.position_rms_um()
         candidate.current_rms = after.current_rms()
         worse_x = rms(after.position) - settings.worsen_limit * rms(held.position)  # m
@@ -563,6 +596,7 @@ class Selector:
         candidate.passes = (
             candidate.reduction > 0.0
             and candidate.evidence_z >= critical
+            and candidate.excess_share >= candidate.fair_share
             and candidate.size_above_tolerance
             and candidate.consistent
         )
