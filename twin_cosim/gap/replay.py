@@ -21,6 +21,7 @@ valid fit.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,6 +32,7 @@ from scipy.optimize import differential_evolution, least_squares
 
 from twin_cosim.cosim import RunAborted, run_scenario
 from twin_cosim.gap.effects import library_for
+from twin_cosim.gap.evidence import EFFECTIVE_SAMPLE_SPACING_S
 from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
@@ -161,16 +163,22 @@ class FitTask:
 
 @dataclass(frozen=True)
 class JointFitTask:
-    """Refit accepted effects together, each on top of the FMU parameters of those before it.
+    """Refit accepted effects together with the calibrated parameters, each effect on top of the
+    FMU parameters of those before it.
 
     ``start`` holds each hypothesis' fitted values (physical units) and ``contexts`` its
     data-derived settings; scanned hypotheses keep their values, the others are refitted
-    together by least squares from ``start``.
+    together by least squares from ``start``. Each of ``calibrated`` moves by a factor
+    (1 + a tolerance) under a Gaussian prior of width the tolerance (calibration error is a
+    nuisance the training data may correct, at a price): the cost is the mean squared normalised
+    training residual plus |a|^2 over the training's independent samples.
     """
 
     hypotheses: tuple[str, ...]
     start: tuple[tuple[float, ...], ...]
     contexts: tuple[dict[str, float], ...]
+    calibrated: tuple[str, ...] = ()
+    tolerance: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -280,11 +288,26 @@ class Replayer:
                     values.append(start)
             return values
 
-        def overrides_of(values: list[np.ndarray]) -> dict[str, float]:
-            overrides: dict[str, float] = {}
+        calibrated = task.calibrated
+        effect_count = sum(len(s) for s, fitted in zip(starts, free, strict=True) if fitted)
+
+        def overrides_of(values: list[np.ndarray], a: np.ndarray) -> dict[str, float]:
+            overrides = {
+                name: self.spec.nominal[name] * (1.0 + a_j * task.tolerance)
+                for name, a_j in zip(calibrated, a, strict=True)
+            }
             for h, v, context in zip(hypotheses, values, task.contexts, strict=True):
                 overrides |= h.to_plant(v, {**self.spec.nominal, **overrides}, context)
             return overrides
+
+        samples = sum(2 * len(t) for t in self.spec.training.t)
+        seconds = sum(float(t[-1] - t[0]) for t in self.spec.training.t)
+        prior = math.sqrt(samples / max(seconds / EFFECTIVE_SAMPLE_SPACING_S, 1.0))
+
+        def residual(u: np.ndarray) -> np.ndarray:
+            a = u[effect_count:]
+            training = self.training_residual(overrides_of(values_of(u), a))
+            return np.concatenate([training, prior * a])
 
         u0 = np.concatenate(
             [
@@ -292,34 +315,42 @@ class Replayer:
                 for h, s, fitted in zip(hypotheses, starts, free, strict=True)
                 if fitted
             ]
-            or [np.zeros(0)]
+            + [np.zeros(len(calibrated))]
         )
-        start = self.training_residual(overrides_of(starts))
+        start = self.training_residual(overrides_of(starts, np.zeros(len(calibrated))))
         self.failure_residual = max(
             FAILURE_FLOOR, FAILURE_FACTOR * float(np.sqrt(np.mean(start**2)))
         )
-        values, cost, replays, message = starts, float(np.mean(start**2)), 1, "nothing to refit"
+        best, cost, replays, message = u0, float(np.mean(start**2)), 1, "nothing to refit"
         if len(u0):
+            lower = np.r_[np.zeros(effect_count), -np.ones(len(calibrated))]
+            upper = np.ones(len(u0))
             solution = least_squares(
-                lambda u: self.training_residual(overrides_of(values_of(u))),
+                residual,
                 u0,
-                bounds=(0.0, 1.0),
+                bounds=(lower, upper),
                 diff_step=FIT_STEP,
                 max_nfev=FIT_EVALUATIONS,
                 x_scale=1.0,
             )
-            if float(np.mean(solution.fun**2)) < cost:
-                values, cost = values_of(solution.x), float(np.mean(solution.fun**2))
+            found = float(np.sum(solution.fun**2)) / samples
+            if found < cost:
+                best, cost = solution.x, found
             replays += int(solution.nfev + (solution.njev or 0) * len(u0))
             message = solution.message
+        values = values_of(best)
         return FitResult(
             "+".join(task.hypotheses),
             {
                 f"{h.name}.{name}": value
                 for h, v in zip(hypotheses, values, strict=True)
                 for name, value in h.named(v).items()
+            }
+            | {
+                f"calibration.{n}": float(a)
+                for n, a in zip(calibrated, best[effect_count:], strict=True)
             },
-            clipped(overrides_of(values), self.spec.ranges),
+            clipped(overrides_of(values, best[effect_count:]), self.spec.ranges),
             cost,
             replays,
             message,

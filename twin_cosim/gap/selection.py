@@ -452,13 +452,14 @@ class Selector:
         return self.basis(overrides).correction(vector)[1]
 
     def _refit(self, accepted: list[_Accepted]) -> dict[str, float]:
-        """The FMU parameters of effects refitted together on the training data."""
-        if not accepted:
-            return {}
+        """The FMU parameters of effects refitted together on the training data, with the
+        calibrated parameters under their prior."""
         task = JointFitTask(
             tuple(a.name for a in accepted),
             tuple(a.values for a in accepted),
             tuple(a.context for a in accepted),
+            tuple(self.calibrated),
+            self.settings.calibration_tolerance,
         )
         return _imap(self.pool, [task], self.progress)[0].overrides
 
@@ -468,8 +469,6 @@ class Selector:
         """The accepted effects' parameters: refitted together when that judges better on the
         held-out data than the sequential fit, and their replays."""
         replays = self._replay(sequential)
-        if len(accepted) < 2:
-            return sequential, replays
         joint = self._refit(accepted)
         joint_replays = self._replay(joint)
         left_joint = np.linalg.norm(self._left(joint, joint_replays))
