@@ -109,7 +109,7 @@ def random_excitation(seed: int, path: Path) -> Path:
     dwell).
     """
     rng = np.random.default_rng(seed)
-    slow, fast = sorted(rng.uniform(0.01, 0.045, size=2))
+    slow, fast = (float(v) for v in sorted(rng.uniform(0.01, 0.045, size=2)))
     accel = float(rng.uniform(0.1, 0.5))
     reverse = float(rng.uniform(0.05, 0.2))
     dwell = round(float(rng.uniform(0.2, 0.4)), 3)
