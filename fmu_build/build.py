@@ -21,6 +21,7 @@ that concurrent builds of the same model never expose a partial FMU.
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import os
 import shutil
 import subprocess
@@ -62,10 +63,12 @@ class BuildError(RuntimeError):
 
 
 def fmi_headers_dir() -> Path:
-    """The FMI 2.0 headers that the installed fmpy ships (``fmpy/c-code``)."""
-    import fmpy
-
-    path = Path(fmpy.__file__).parent / "c-code"
+    """The FMI 2.0 headers that the installed fmpy ships (``fmpy/c-code``), found without
+    importing fmpy (a command that finds its FMU built does not load it)."""
+    spec = importlib.util.find_spec("fmpy")
+    if spec is None or not spec.submodule_search_locations:
+        raise BuildError("fmpy is not installed: its FMI 2.0 headers are needed")
+    path = Path(spec.submodule_search_locations[0]) / "c-code"
     if not (path / "fmi2Functions.h").is_file():
         raise BuildError(f"{path}: fmi2Functions.h not found; is fmpy installed completely?")
     return path

@@ -24,6 +24,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import pandas as pd
+from numba.core.registry import cpu_target
 
 from twin_cosim import controller
 from twin_cosim.controller import ControllerSettings, TunedParameters
@@ -246,21 +247,30 @@ def _closed_loop(
     return 0, -1
 
 
-def _drop_stale_compiled_loop() -> None:
-    """Delete cached machine code of the loop when controller.py is newer than it.
+def drop_stale_compiled(loop) -> None:
+    """Delete cached machine code of a compiled ``loop`` when controller.py is newer than it.
 
-    numba's cache checks only the source file of the cached function itself; the compiled loop
+    numba's cache checks only the source file of the cached function itself; a compiled loop
     inlines the controller functions of controller.py, so an edited controller would otherwise
     keep running its old compiled form.
     """
-    cache_dir = Path(_closed_loop._cache._cache_path)
+    cache_dir = Path(loop._cache._cache_path)
     changed = Path(controller.__file__).stat().st_mtime
-    for path in cache_dir.glob("cosim._closed_loop-*.nb[ic]"):
+    module = loop.py_func.__module__.rsplit(".", 1)[-1]
+    for path in cache_dir.glob(f"{module}.{loop.py_func.__name__}-*.nb[ic]"):
         if path.stat().st_mtime < changed:
             path.unlink(missing_ok=True)
 
 
-_drop_stale_compiled_loop()
+drop_stale_compiled(_closed_loop)
+
+
+def ready_compiled_loop() -> None:
+    """Ready numba's compiler target now, as the first run would (most of the cost of loading
+    the cached loop, about 0.3 s): a process that is about to run (a pool's worker while its
+    parent prepares) calls this ahead, so that its first run only loads the cached machine code.
+    """
+    cpu_target.target_context.refresh()
 
 
 class FastCalls:

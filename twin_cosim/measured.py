@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from twin_cosim.reference import ReferenceGrid
 
@@ -99,6 +98,8 @@ def read_measured_csv(path: Path | str) -> MeasuredRun:
         On an unreadable file, missing columns, non-numeric or non-finite values (rows named),
         non-monotonic or irregular time, or too few samples.
     """
+    import pandas as pd  # a CSV run only: pandas stays off the start of other commands
+
     path = Path(path)
     try:
         table = pd.read_csv(path)

@@ -16,9 +16,12 @@ rectangle rules over the samples with that dt.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 UM_PER_M = 1e6
 

@@ -12,7 +12,9 @@ Every fmi2 call is checked; a failure raises :class:`PlantError` with the FMU's 
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import shutil
+import tempfile
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -27,7 +29,7 @@ from fmpy.fmi2 import (
 )
 from fmpy.logging import addLoggerProxy
 
-from fmu_build.build import DEFAULT_MODEL, build_fmu
+from fmu_build.build import DEFAULT_MODEL, build_fmu, cache_dir
 
 # The plant contract, the one place of its names: the co-simulation master sets the inputs and
 # reads the outputs in these orders.
@@ -44,8 +46,35 @@ def default_fmu(model: str = DEFAULT_MODEL) -> Path:
     return build_fmu(model, announce=True)
 
 
+def extracted_fmu(fmu_path: Path) -> Path:
+    """The FMU's files, extracted once into the per-user cache and shared by every plant.
+
+    One folder per FMU content, ``extracted/<name>-<sha256 prefix>`` under
+    :func:`fmu_build.build.cache_dir`, written under a temporary name and renamed into place: a
+    concurrent process never sees a partial folder, and the extraction (about 20 ms) is paid
+    once, not by every plant of every process.
+    """
+    digest = hashlib.sha256(fmu_path.read_bytes()).hexdigest()[:16]
+    folder = cache_dir() / "extracted" / f"{fmu_path.stem}-{digest}"
+    if folder.is_dir():
+        return folder
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    partial = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
+    try:
+        extract(str(fmu_path), unzipdir=partial)
+        partial.rename(folder)
+    except OSError:
+        if not folder.is_dir():  # else another process placed it first: theirs is the same
+            raise
+    except Exception as exc:  # fmpy raises bare Exceptions for a bad archive
+        raise PlantError(f"{fmu_path}: cannot extract: {exc}") from exc
+    finally:
+        shutil.rmtree(partial, ignore_errors=True)  # nothing left once renamed
+    return folder
+
+
 class Plant:
-    """One plant FMU, extracted and instantiated once, reset between runs.
+    """One plant FMU, instantiated once (from its extraction in the cache), reset between runs.
 
     Parameters
     ----------
@@ -70,7 +99,7 @@ class Plant:
             raise PlantError(f"{self.fmu_path}: the FMU does not support co-simulation")
         self.variables = {v.name: v for v in self.description.modelVariables}
         self._check_contract()
-        self._unzip_dir = extract(str(self.fmu_path))
+        self._unzip_dir = str(extracted_fmu(self.fmu_path))
         self._callbacks = self._make_callbacks()
         try:
             self.fmu = FMU2Slave(
@@ -81,7 +110,6 @@ class Plant:
             )
             self.fmu.instantiate(callbacks=self._callbacks)
         except Exception as exc:
-            shutil.rmtree(self._unzip_dir, ignore_errors=True)
             raise PlantError(
                 f"{self.fmu_path}: cannot load or instantiate: {exc}{self._log()}"
             ) from exc
@@ -190,12 +218,11 @@ class Plant:
         self.call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
 
     def close(self) -> None:
-        """Free the instance and delete the extracted files."""
+        """Free the instance (the extracted files stay in the cache for the next plant)."""
         fmu = getattr(self, "fmu", None)
         if fmu is not None:
             fmu.freeInstance()
             self.fmu = None
-        shutil.rmtree(getattr(self, "_unzip_dir", ""), ignore_errors=True)
 
     def __enter__(self) -> Plant:
         return self

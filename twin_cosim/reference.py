@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
-from scipy.interpolate import CubicSpline
+
+from twin_cosim.grid_cache import grid_key, load_grid, store_grid
 
 
 class ReferenceError(ValueError):
@@ -197,6 +197,8 @@ def read_reference_csv(path: Path, sample_period: float) -> np.ndarray:
 
     The samples must be finite and equally spaced by ``sample_period`` starting at t = 0.
     """
+    import pandas as pd  # a CSV reference only: pandas stays off the start of other runs
+
     try:
         table = pd.read_csv(path)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
@@ -268,6 +270,9 @@ def check_periods(sample_period: float, loop_period: float) -> int:
 def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -> ReferenceGrid:
     """Cubic-spline interpolation of 4-ms samples onto the position-loop grid.
 
+    A grid made before from the same inputs is read back from the per-user cache
+    (:mod:`twin_cosim.grid_cache`: the same numbers, without SciPy).
+
     Parameters
     ----------
     samples
@@ -278,6 +283,14 @@ def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -
         Position-loop period, s (250 us); must divide sample_period.
     """
     ratio = check_periods(sample_period, loop_period)
+    key = grid_key(samples, sample_period, loop_period, Path(__file__))
+    stored = load_grid(key)
+    if stored is not None:
+        return ReferenceGrid(loop_period, *stored)
+    from scipy.interpolate import CubicSpline  # heavy: only for a reference not seen before
+
     spline = CubicSpline(np.arange(len(samples)) * sample_period, samples, bc_type="clamped")
     t = np.arange((len(samples) - 1) * ratio + 1) * loop_period
-    return ReferenceGrid(loop_period, spline(t), spline(t, 1), spline(t, 2))
+    grid = ReferenceGrid(loop_period, spline(t), spline(t, 1), spline(t, 2))
+    store_grid(key, grid.position, grid.velocity, grid.acceleration)
+    return grid

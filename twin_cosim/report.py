@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pandas as pd
 
-from twin_cosim.controller import TunedParameters
-from twin_cosim.cosim import run_scenario
 from twin_cosim.metrics import compute_metrics
-from twin_cosim.plant import Plant
-from twin_cosim.scenario import Scenario
+from twin_cosim.pool_runs import run_records
+
+if TYPE_CHECKING:
+    from twin_cosim.controller import TunedParameters
+    from twin_cosim.scenario import Scenario
+    from twin_cosim.workers import ProcessPool, SerialPool
 
 METRIC_COLUMNS = {
     "E_pk_um": "E_pk [um]",
@@ -31,14 +35,20 @@ def markdown_table(frame: pd.DataFrame, float_format: str = "{:.4g}") -> str:
 
 
 def evaluate_sets(
-    plant: Plant, scenarios: Mapping[str, Scenario], sets: Mapping[str, TunedParameters]
+    pool: SerialPool | ProcessPool,
+    fmu: Path,
+    scenarios: Mapping[str, Scenario],
+    sets: Mapping[str, TunedParameters],
 ) -> tuple[pd.DataFrame, dict[tuple[str, str], pd.DataFrame]]:
-    """Run every parameter set on every scenario.
+    """Run every parameter set on every scenario, on the pool's workers.
 
     Parameters
     ----------
-    plant
-        The plant to step.
+    pool
+        The workers (:mod:`twin_cosim.workers`); a :class:`~twin_cosim.workers.SerialPool`
+        runs in this process.
+    fmu
+        The plant FMU of every run.
     scenarios
         Scenarios by label.
     sets
@@ -50,17 +60,17 @@ def evaluate_sets(
         A table with one row per (scenario label, set) and the metric columns, and the run
         records keyed by (scenario label, set name).
     """
-    rows, records = [], {}
-    for label, scenario in scenarios.items():
-        for name, tuned in sets.items():
-            record = run_scenario(plant, scenario, tuned)
-            metrics = compute_metrics(record, scenario.metrics_window)
-            records[(label, name)] = record
-            rows.append(
-                {
-                    "scenario": label,
-                    "set": name,
-                    **{label: getattr(metrics, key) for key, label in METRIC_COLUMNS.items()},
-                }
-            )
+    keys = [(label, name) for label in scenarios for name in sets]
+    tasks = [(scenarios[label], sets[name]) for label, name in keys]
+    records = dict(zip(keys, run_records(pool, fmu, tasks), strict=True))
+    rows = []
+    for label, name in keys:
+        metrics = compute_metrics(records[(label, name)], scenarios[label].metrics_window)
+        rows.append(
+            {
+                "scenario": label,
+                "set": name,
+                **{column: getattr(metrics, key) for key, column in METRIC_COLUMNS.items()},
+            }
+        )
     return pd.DataFrame(rows).set_index(["scenario", "set"]), records

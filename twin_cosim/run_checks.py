@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from twin_cosim.optimize.config import load_config
 from twin_cosim.scenario import Scenario
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 SATURATED_SHARE = 0.1  # a current at its limit longer than this share of the run is a warning
 

@@ -58,16 +58,29 @@ class Checker:
         The file the values come from (named in every error).
     error
         The exception class raised (a subclass of ValueError).
+    prefix
+        Key path put before every key named in errors (``axes.X.``: the section of one axis).
     """
 
-    def __init__(self, source: Path | str, error: type[Exception] = ScenarioError) -> None:
+    def __init__(
+        self, source: Path | str, error: type[Exception] = ScenarioError, prefix: str = ""
+    ) -> None:
         self.source = source
         self.error = error
+        self.prefix = prefix
+
+    def within(self, key: str) -> Checker:
+        """A checker of the same file for the values under ``key`` (their keys named in full)."""
+        return Checker(self.source, self.error, f"{self.prefix}{key}.")
+
+    def where(self, key: str) -> str:
+        """The file and full key path of ``key``, as errors name them."""
+        return f"{self.source}: {self.prefix}{key}"
 
     def fail(self, key: str, expected: str, got: Any = None) -> Exception:
         """The error for ``key``: what was expected and, when given, what was found."""
         suffix = "" if got is None else f", got {got!r}"
-        return self.error(f"{self.source}: {key}: expected {expected}{suffix}")
+        return self.error(f"{self.where(key)}: expected {expected}{suffix}")
 
     def mapping(self, value: Any, key: str, allowed: set[str] | None = None) -> dict[str, Any]:
         """A mapping (None reads as empty) whose keys are among ``allowed`` when given."""
@@ -79,7 +92,7 @@ class Checker:
             unknown = sorted(set(value) - allowed)
             if unknown:
                 raise self.error(
-                    f"{self.source}: {key}: unknown key(s) {unknown}; allowed: {sorted(allowed)}"
+                    f"{self.where(key)}: unknown key(s) {unknown}; allowed: {sorted(allowed)}"
                 )
         return value
 

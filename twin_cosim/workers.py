@@ -6,15 +6,24 @@ method. In a process pool every process calls ``build()`` once (spawned processe
 instantiated in a parent that then forks); tasks then run on that worker and results stream back
 as they complete.
 
+A pool starts its processes at once, before it has work: each runs ``prepare`` (e.g. imports the
+co-simulation and readies the compiled loop) while the parent prepares its tasks. One pool serves
+several factories in turn (``imap(tasks, factory)``; :class:`BoundPool` is a pool seen as the
+evaluator of one factory): a process builds the new worker at its first task of that factory and
+closes the one before, so a command starts its processes once (``twin compare``: every method's
+campaign, the reference runs and the runs of the tables and figures on one pool).
+
 Nothing outlives a pool. Every pool has a private temp folder (``twin-pool-<parent pid>-*``) that
-its workers extract FMUs into and that ``close()`` removes. A worker ignores Ctrl-C from the
-moment it starts (it is spawned with SIGINT ignored, so a Ctrl-C while it still imports prints
-no traceback; its parent handles Ctrl-C and shuts the pool down), frees its plant when it
-exits, and dies with its parent: a watchdog thread polls the parent's pid, so after ``kill -9``
-of the parent every worker removes the pool's folder and exits (the multiprocessing resource
-tracker then ends too). A command of the ``twin`` CLI keeps all its temporary files in one such
-folder (:func:`command_temp_folder`); one left by a process that could not clean up (``kill -9``
-of a serial run) is removed by the next pool or command.
+holds its workers' temporary files and its stored factories, and that ``close()`` removes (FMUs
+are extracted into the per-user cache, :func:`twin_cosim.plant.extracted_fmu`). A pool closed
+before it was given a task terminates its processes instead of awaiting their preparation. A
+worker ignores Ctrl-C from the moment it starts (it is spawned with SIGINT ignored, so a Ctrl-C
+while it still imports prints no traceback; its parent handles Ctrl-C and shuts the pool down),
+frees its plant when it exits, and dies with its parent: a watchdog thread polls the parent's
+pid, so after ``kill -9`` of the parent every worker removes the pool's folder and exits (the
+multiprocessing resource tracker then ends too). A command of the ``twin`` CLI keeps all its
+temporary files in one such folder (:func:`command_temp_folder`); one left by a process that
+could not clean up (``kill -9`` of a serial run) is removed by the next pool or command.
 :func:`terminate_as_interrupt` makes SIGTERM end a process the way Ctrl-C does.
 """
 
@@ -23,13 +32,15 @@ from __future__ import annotations
 import multiprocessing
 import multiprocessing.util
 import os
+import pickle
 import re
 import shutil
 import signal
+import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from pathlib import Path
@@ -118,38 +129,81 @@ def command_temp_folder() -> Iterator[str]:
 
 
 class SerialPool:
-    """Runs the tasks one after the other in this process, on one worker."""
+    """Runs the tasks one after the other in this process, on one worker at a time.
 
-    def __init__(self, factory: WorkerFactory) -> None:
+    Parameters
+    ----------
+    factory
+        The recipe of the first worker (built now); None: the first ``imap`` gives it.
+    """
+
+    def __init__(self, factory: WorkerFactory | None = None) -> None:
         self.folder = new_pool_folder()
-        try:
-            with _temp_root(self.folder):
-                self.worker = factory.build()
-        except BaseException:
-            shutil.rmtree(self.folder, ignore_errors=True)
-            raise
         self.workers = 1
+        self._factory: WorkerFactory | None = None
+        self._worker: Worker | None = None
+        if factory is not None:
+            try:
+                self._use(factory)
+            except BaseException:
+                shutil.rmtree(self.folder, ignore_errors=True)
+                raise
 
-    def imap(self, tasks: Sequence[Any]) -> Iterator[tuple[int, Any]]:
-        """Yield (task index, result) for each task, in order."""
+    def _use(self, factory: WorkerFactory) -> None:
+        """Close the worker of another factory, build this one's."""
+        if factory is self._factory:
+            return
+        previous, self._worker, self._factory = self._worker, None, None
+        if previous is not None:
+            previous.close()
+        with _temp_root(self.folder):
+            self._worker = factory.build()
+        self._factory = factory
+
+    def imap(
+        self, tasks: Sequence[Any], factory: WorkerFactory | None = None
+    ) -> Iterator[tuple[int, Any]]:
+        """Yield (task index, result) for each task, in order, on ``factory``'s worker (None:
+        the last factory's)."""
+        if factory is not None:
+            self._use(factory)
+        if self._worker is None:
+            raise RuntimeError("the pool has no worker yet: give imap a factory")
         for index, task in enumerate(tasks):
-            yield index, self.worker(task)
+            yield index, self._worker(task)
 
     def close(self) -> None:
         """Free the worker's resources and remove its temp folder."""
         try:
-            self.worker.close()
+            if self._worker is not None:
+                self._worker.close()
         finally:
             shutil.rmtree(self.folder, ignore_errors=True)
 
+    def __enter__(self) -> SerialPool:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
 
 _PROCESS_WORKER: Worker | None = None
+# The file of the factory _PROCESS_WORKER was built from; None: the pool's own factory.
+_PROCESS_FACTORY: str | None = None
 
 
 def _close_process_worker(folder: str) -> None:
-    if _PROCESS_WORKER is not None:
-        _PROCESS_WORKER.close()
-    shutil.rmtree(folder, ignore_errors=True)
+    """The worker process's normal end (the pool shuts down): free the worker, remove its
+    folder, and end at once, without tearing the interpreter down (a third of a second once
+    numba is loaded; the pool's close waits for it)."""
+    try:
+        if _PROCESS_WORKER is not None:
+            _PROCESS_WORKER.close()
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
 
 
 def _watch_parent(parent_pid: int, pool_folder: str) -> None:
@@ -175,7 +229,12 @@ def _exit_on_sigterm(folder: str) -> None:
     signal.signal(signal.SIGTERM, handler)
 
 
-def _build_in_process(factory: WorkerFactory, pool_folder: str, parent_pid: int) -> None:
+def _build_in_process(
+    factory: WorkerFactory | None,
+    pool_folder: str,
+    parent_pid: int,
+    prepare: Callable[[], None] | None,
+) -> None:
     global _PROCESS_WORKER
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
     folder = tempfile.mkdtemp(dir=pool_folder)
@@ -183,7 +242,14 @@ def _build_in_process(factory: WorkerFactory, pool_folder: str, parent_pid: int)
     _exit_on_sigterm(folder)
     threading.Thread(target=_watch_parent, args=(parent_pid, pool_folder), daemon=True).start()
     multiprocessing.util.Finalize(None, _close_process_worker, args=(folder,), exitpriority=10)
-    _PROCESS_WORKER = factory.build()
+    if prepare is not None:
+        prepare()
+    if factory is not None:
+        _PROCESS_WORKER = factory.build()
+
+
+def _started() -> None:
+    """The first task of each process: it starts the process (its preparation runs at once)."""
 
 
 @contextmanager
@@ -208,7 +274,17 @@ def _children_ignore_interrupts() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
-def _run_in_process(task: Any) -> Any:
+def _run_in_process(task: Any, factory_file: str | None) -> Any:
+    """Run ``task`` on the worker of the factory stored in ``factory_file`` (None: the pool's
+    own), building it first when this process holds another factory's."""
+    global _PROCESS_WORKER, _PROCESS_FACTORY
+    if factory_file != _PROCESS_FACTORY:
+        previous, _PROCESS_WORKER = _PROCESS_WORKER, None
+        if previous is not None:
+            previous.close()
+        factory = pickle.loads(Path(factory_file).read_bytes())
+        _PROCESS_WORKER = factory.build()
+        _PROCESS_FACTORY = factory_file
     if _PROCESS_WORKER is None:
         raise RuntimeError("worker process was not initialised")
     return _PROCESS_WORKER(task)
@@ -217,40 +293,105 @@ def _run_in_process(task: Any) -> Any:
 class ProcessPool:
     """A local pool of spawned processes, one worker (one plant instance) each.
 
+    The processes start at once; each runs ``prepare`` and builds ``factory``'s worker before
+    its first task.
+
     Parameters
     ----------
     factory
-        The recipe every process builds its worker from.
+        The recipe every process builds its worker from; None: the first ``imap`` gives it.
     workers
         Number of processes (>= 1); all cores when None.
+    prepare
+        A picklable function each process calls as it starts (e.g. imports its tasks need).
     """
 
-    def __init__(self, factory: WorkerFactory, workers: int | None = None) -> None:
+    def __init__(
+        self,
+        factory: WorkerFactory | None = None,
+        workers: int | None = None,
+        prepare: Callable[[], None] | None = None,
+    ) -> None:
         check_workers(workers)
         self.workers = workers or os.cpu_count() or 1
         self.folder = new_pool_folder()
+        self._factory = factory
+        self._factory_file: str | None = None
+        self._factories = 0  # factories stored so far
+        self._used = False  # a task was given
         self.executor = ProcessPoolExecutor(
             max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_build_in_process,
-            initargs=(factory, self.folder, os.getpid()),
+            initargs=(factory, self.folder, os.getpid(), prepare),
         )
+        with _children_ignore_interrupts():  # each submit starts one process
+            for _ in range(self.workers):
+                self.executor.submit(_started)
 
-    def imap(self, tasks: Sequence[Any]) -> Iterator[tuple[int, Any]]:
-        """Yield (task index, result) in order of completion."""
-        with _children_ignore_interrupts():  # a submit may spawn the pool's processes
+    def _use(self, factory: WorkerFactory) -> None:
+        """Tasks from now on run on ``factory``'s workers (stored for the processes to read)."""
+        if factory is self._factory:
+            return
+        self._factories += 1
+        path = Path(self.folder) / f"factory-{self._factories}.pickle"
+        path.write_bytes(pickle.dumps(factory))
+        self._factory, self._factory_file = factory, str(path)
+
+    def imap(
+        self, tasks: Sequence[Any], factory: WorkerFactory | None = None
+    ) -> Iterator[tuple[int, Any]]:
+        """Yield (task index, result) in order of completion, on ``factory``'s workers (None:
+        the last factory's)."""
+        if factory is not None:
+            self._use(factory)
+        self._used = True
+        with _children_ignore_interrupts():  # a submit may start a process anew
             futures = {
-                self.executor.submit(_run_in_process, task): i for i, task in enumerate(tasks)
+                self.executor.submit(_run_in_process, task, self._factory_file): i
+                for i, task in enumerate(tasks)
             }
         for future in as_completed(futures):
             yield futures[future], future.result()
 
     def close(self) -> None:
-        """Shut the pool down (workers free their plants) and remove its temp folder."""
+        """Shut the pool down (workers free their plants) and remove its temp folder.
+
+        Processes that were given no task yet (an error or Ctrl-C while the parent prepared)
+        are terminated rather than awaited: their preparation would delay the end for nothing.
+        """
         try:
+            if not self._used:  # the executor offers no public way to its processes (3.11)
+                for process in list(self.executor._processes.values()):
+                    process.terminate()  # SIGTERM: the worker removes its folder and exits
             self.executor.shutdown(cancel_futures=True)
         finally:
             shutil.rmtree(self.folder, ignore_errors=True)
+
+    def __enter__(self) -> ProcessPool:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+
+class BoundPool:
+    """A pool seen as the evaluator of one factory: its tasks run on that factory's workers.
+
+    Closing it leaves the pool running: the pool's owner closes the pool.
+    """
+
+    def __init__(self, pool: SerialPool | ProcessPool, factory: WorkerFactory) -> None:
+        self.pool = pool
+        self.factory = factory
+        self.workers = pool.workers
+
+    def imap(self, tasks: Sequence[Any]) -> Iterator[tuple[int, Any]]:
+        """Yield (task index, result) as :meth:`ProcessPool.imap` does."""
+        return self.pool.imap(tasks, self.factory)
+
+    def close(self) -> None:
+        """Nothing to free: the pool belongs to its owner."""
 
 
 def check_workers(workers: int | None) -> None:
@@ -263,7 +404,12 @@ def check_workers(workers: int | None) -> None:
         )
 
 
-def make_pool(factory: WorkerFactory, workers: int | None):
-    """Serial in this process for one worker, else a process pool."""
+def make_pool(
+    factory: WorkerFactory | None,
+    workers: int | None,
+    prepare: Callable[[], None] | None = None,
+) -> SerialPool | ProcessPool:
+    """Serial in this process for one worker, else a process pool started now (whose processes
+    call ``prepare`` as they start)."""
     check_workers(workers)
-    return SerialPool(factory) if workers == 1 else ProcessPool(factory, workers)
+    return SerialPool(factory) if workers == 1 else ProcessPool(factory, workers, prepare)

@@ -35,6 +35,41 @@ def test_simulate_json_and_files(tmp_path, twin_cli):
         assert (tmp_path / name).stat().st_size > 0
 
 
+def test_simulate_without_plots_writes_the_same_record(tmp_path, twin_cli):
+    """--no-plots leaves out run.png only: the record and the metrics are the same."""
+    runs = {}
+    for name, extra in (("plots", []), ("none", ["--no-plots"])):
+        result = twin_cli("simulate", "reference1", "--out", str(tmp_path / name), "--json", *extra)
+        assert result.returncode == 0, result.stderr
+        runs[name] = json.loads(result.stdout)
+    assert runs["none"]["metrics"] == runs["plots"]["metrics"]
+    assert runs["none"]["outputs"]["plot"] is None
+    assert not (tmp_path / "none" / "run.png").exists()
+    assert (tmp_path / "plots" / "run.png").stat().st_size > 0
+    record = (tmp_path / "none" / "record.csv").read_bytes()
+    assert record == (tmp_path / "plots" / "record.csv").read_bytes()
+
+
+def test_the_record_csv_is_what_pandas_writes(tmp_path):
+    """The fast CSV writer of run records writes the bytes of ``DataFrame.to_csv``."""
+    import numpy as np
+    import pandas as pd
+
+    from twin_cosim.commands.console import write_record_csv
+
+    values = np.array(
+        [[0.0, -0.0, 1e16, 1e-5, 0.1 + 0.2, np.inf, -np.inf, 5e-324, 9999999999999998.0]] * 3
+    )
+    values[1] = np.random.default_rng(0).normal(size=values.shape[1]) * 1e-7
+    for name, frame in (
+        ("floats", pd.DataFrame(values, columns=[f"c{i}" for i in range(values.shape[1])])),
+        ("nan", pd.DataFrame({"t": [0.0, np.nan], "x": [1.0, 2.5]})),
+        ("ints", pd.DataFrame({"t": [0, 1], "x": [1.0, 2.5]})),
+    ):
+        write_record_csv(tmp_path / f"{name}.csv", frame)
+        assert (tmp_path / f"{name}.csv").read_text() == frame.to_csv(index=False), name
+
+
 def test_bad_scenario_is_a_clear_error(tmp_path, twin_cli):
     bad = tmp_path / "bad.yaml"
     bad.write_text("reference:\n  segments:\n    - dwell: -1\n")
@@ -149,3 +184,21 @@ def test_a_plant_of_another_model_is_warned_about(tmp_path, twin_cli):
     assert "made for the plant model 'drive2mass'" in result.stderr
     (warning,) = json.loads(result.stdout)["warnings"]
     assert "is model 'emps'" in warning
+
+
+def test_a_second_run_of_a_scenario_needs_no_scipy():
+    """Reference preparation is cached across runs: resolving reference 1 again (a new
+    process) reads the stored grid instead of importing SciPy's spline."""
+    code = (
+        "import sys\n"
+        "from twin_cosim.scenario import resolve_scenario\n"
+        "resolve_scenario('reference1')\n"
+        "print('scipy' in sys.modules)\n"
+    )
+    answers = [
+        subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True
+        ).stdout.strip()
+        for _ in range(2)
+    ]
+    assert answers[1] == "False"

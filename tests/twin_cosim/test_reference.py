@@ -93,3 +93,24 @@ def test_csv_reference_errors(tmp_path, text, message):
     with pytest.raises(ReferenceError, match=message) as info:
         read_reference_csv(path, 0.004)
     assert "ref.csv" in str(info.value)
+
+
+def test_an_interpolated_reference_is_read_back_from_the_cache(tmp_path, monkeypatch):
+    """The second interpolation of the same samples reads the stored grid: the same bits as
+    SciPy's spline; other samples or periods are interpolated anew."""
+    from scipy.interpolate import CubicSpline
+
+    monkeypatch.setenv("TWIN_COSIM_CACHE", str(tmp_path))
+    samples = sample_segments([Move(0.01, 0.02, 0.5), Dwell(0.1)], 0.004)
+    first = interpolate(samples, 0.004, 250e-6)
+    (stored,) = (tmp_path / "references").iterdir()
+    again = interpolate(samples, 0.004, 250e-6)
+    spline = CubicSpline(np.arange(len(samples)) * 0.004, samples, bc_type="clamped")
+    for derivative, name in enumerate(("position", "velocity", "acceleration")):
+        exact = spline(first.time, derivative)
+        assert np.array_equal(getattr(first, name), exact)
+        assert np.array_equal(getattr(again, name), exact)
+    interpolate(samples, 0.004, 500e-6)
+    interpolate(samples * 2, 0.004, 250e-6)
+    assert len(list((tmp_path / "references").iterdir())) == 3
+    assert stored.exists()

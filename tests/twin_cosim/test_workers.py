@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import signal
 import subprocess
@@ -134,6 +135,60 @@ def test_a_worker_ignores_ctrl_c_while_it_starts(tmp_path, private_tmp, capfd):
         pool.close()
     assert results == [(0, int((tmp_path / "pid").read_text()))]
     assert "KeyboardInterrupt" not in capfd.readouterr().err
+
+
+class Tagged:
+    """A worker factory whose workers answer (tag, task, process id)."""
+
+    def __init__(self, tag: str) -> None:
+        self.tag = tag
+
+    def build(self) -> TaggedWorker:
+        return TaggedWorker(self.tag)
+
+
+class TaggedWorker:
+    def __init__(self, tag: str) -> None:
+        self.tag = tag
+
+    def __call__(self, task: int) -> tuple[str, int, int]:
+        return self.tag, task, os.getpid()
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_one_pool_serves_several_factories_in_turn(private_tmp, workers):
+    """Each imap runs on the workers of its factory; without one, on the last factory's; the
+    same processes serve them all."""
+    with make_pool(None, workers) as pool:
+        first = sorted(result for _, result in pool.imap([1, 2, 3, 4], Tagged("a")))
+        second = sorted(result for _, result in pool.imap([5, 6], Tagged("b")))
+        again = sorted(result for _, result in pool.imap([7]))
+    assert [(tag, task) for tag, task, _ in first] == [("a", 1), ("a", 2), ("a", 3), ("a", 4)]
+    assert [(tag, task) for tag, task, _ in second + again] == [("b", 5), ("b", 6), ("b", 7)]
+    assert {pid for *_, pid in second + again} <= {pid for *_, pid in first}
+    assert list(private_tmp.iterdir()) == []
+
+
+def wait_for_ever() -> None:
+    """A preparation that never ends."""
+    while True:
+        time.sleep(1.0)
+
+
+def test_closing_a_pool_given_no_task_does_not_wait_for_its_preparation(private_tmp):
+    """An error or Ctrl-C while the parent prepares ends the pool at once: its processes, still
+    preparing, are terminated (nothing left behind)."""
+    pool = ProcessPool(None, 2, prepare=wait_for_ever)
+    started = set(multiprocessing.active_children())
+    closing = threading.Thread(target=pool.close)
+    closing.start()
+    closing.join(60.0)  # a guard against a hang, not a timing
+    assert not closing.is_alive()
+    assert not started & set(multiprocessing.active_children())
+    assert list(private_tmp.iterdir()) == []
 
 
 def test_stale_pool_folder_of_a_dead_process_is_removed(short_scenario, private_tmp):

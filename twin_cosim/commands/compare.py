@@ -9,6 +9,7 @@ from pathlib import Path
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
+    no_plots_option,
     out_folder,
     plant_parameters_option,
     whole_number,
@@ -34,26 +35,39 @@ def add_arguments(subparsers) -> None:
     parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<campaign name>)")
     plant_parameters_option(parser)
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    no_plots_option(parser)
     data_option(parser)
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run (or reuse) each method's campaign and write the tables and figures."""
-    from twin_cosim.optimize.comparison import load_comparison, run_comparison
+    """Run (or reuse) each method's campaign and write the tables, then the figures.
 
-    comparison = load_comparison(Path(args.campaign))
-    if args.plant_parameters:
-        comparison = dataclasses.replace(comparison, plant_parameters=Path(args.plant_parameters))
-    out = out_folder(args.out, Path("out") / comparison.name)
-    text = run_comparison(
-        comparison,
-        out,
-        methods=args.methods.split(",") if args.methods else None,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        progress=not args.quiet,
-    )
+    One pool serves every method; its processes start first, so that they load the
+    co-simulation while this process reads the campaign file.
+    """
+    from twin_cosim.pool_runs import prepare_campaign_worker
+    from twin_cosim.workers import make_pool
+
+    with make_pool(None, 1 if args.scheduler else args.workers, prepare_campaign_worker) as pool:
+        from twin_cosim.optimize.comparison import load_comparison, run_comparison
+
+        comparison = load_comparison(Path(args.campaign))
+        if args.plant_parameters:
+            comparison = dataclasses.replace(
+                comparison, plant_parameters=Path(args.plant_parameters)
+            )
+        out = out_folder(args.out, Path("out") / comparison.name)
+        text = run_comparison(
+            comparison,
+            out,
+            methods=args.methods.split(",") if args.methods else None,
+            scheduler=args.scheduler,
+            progress=not args.quiet,
+            plots=not args.no_plots,
+            pool=pool,
+        )
     print(text)
-    print(f"wrote {out}/tables.md, tables.json, convergence.png and error plots")
+    figures = "" if args.no_plots else ", convergence.png and error plots"
+    print(f"wrote {out}/tables.md, tables.json{figures}")
     return 0

@@ -8,18 +8,22 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from twin_cosim.commands.console import warn_plant_mismatch
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
     fraction,
+    no_plots_option,
     out_folder,
     plant_option,
     plant_path,
     whole_number,
 )
+
+if TYPE_CHECKING:
+    from twin_cosim.workers import ProcessPool, SerialPool
 
 
 def add_arguments(subparsers) -> None:
@@ -59,12 +63,27 @@ def add_arguments(subparsers) -> None:
         action="store_true",
         help="no progress bar (there is none either with --json when stdout is not a terminal)",
     )
+    no_plots_option(parser)
     data_option(parser)
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Diagnose, write the report, plant.yaml and calibrated.yaml; print the verdict."""
+    """Diagnose, write the report, plant.yaml and calibrated.yaml, print the verdict, then draw
+    the report's figures.
+
+    The replay pool's processes start first, so that they load the co-simulation while this
+    process reads the runs and replays the nominal twin.
+    """
+    from twin_cosim.pool_runs import prepare_replay_worker
+    from twin_cosim.workers import make_pool
+
+    with make_pool(None, args.workers, prepare_replay_worker) as pool:
+        return _run_on(args, pool)
+
+
+def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
+    """The diagnosis, its files and its figures, with ``pool`` running the replays."""
     from twin_cosim.gap.calibrated_plant import write_calibration
     from twin_cosim.gap.diagnosis import diagnose
     from twin_cosim.gap.report import write_report
@@ -82,20 +101,30 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     progress = _progress_bar(args)
     result = diagnose(
-        scenario, measured, holdout, args.plant, settings, workers=args.workers, progress=progress
+        scenario, measured, holdout, args.plant, settings, progress=progress, pool=pool
     )
     extra = {
         "wall_s": time.perf_counter() - start,
         "versions": versions(),
         "warnings": mismatch + result.summary()["warnings"],
     }
-    files = write_report(result, out, extra)
+    files = write_report(result, out, extra, figures=not args.no_plots)
     summary = {**result.summary(), **extra}
     files |= write_calibration(scenario, summary, out, _command(args), args.plant)
     if args.json:
         print(json.dumps(summary))
     else:
-        _print_text(summary, files)
+        _print_text(summary)
+    if not args.no_plots:
+        from twin_cosim.gap.figures import write_figures
+
+        write_figures(result, out)
+    if not args.json:
+        print(
+            f"wrote {files['markdown']}, {files['html']}, {files['json']}, {files['plant']}, "
+            f"{files['calibrated']}{'' if args.no_plots else ' and figures'} "
+            f"({summary['wall_s']:.1f} s)"
+        )
     return 0
 
 
@@ -126,8 +155,8 @@ def _progress_bar(args: argparse.Namespace) -> Callable[[int, str], Callable[[in
     return make
 
 
-def _print_text(summary: dict[str, Any], files: dict[str, str]) -> None:
-    """The verdict, each accepted effect's held-out gaps, and the files written."""
+def _print_text(summary: dict[str, Any]) -> None:
+    """The verdict and each accepted effect's held-out gaps."""
     print(summary["gap"]["verdict"])
     for step in summary["steps"]:
         print(
@@ -136,7 +165,3 @@ def _print_text(summary: dict[str, Any], files: dict[str, str]) -> None:
             f"{step['holdout_current_before_A']:.4f} -> "
             f"{step['holdout_current_after_A']:.4f} A; fitted {step['params']}"
         )
-    print(
-        f"wrote {files['markdown']}, {files['html']}, {files['json']}, {files['plant']}, "
-        f"{files['calibrated']} ({summary['wall_s']:.1f} s)"
-    )

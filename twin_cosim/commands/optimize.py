@@ -12,6 +12,7 @@ from twin_cosim.commands.console import warn_plant_mismatch
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
+    no_plots_option,
     out_folder,
     plant_option,
     plant_parameters_option,
@@ -22,6 +23,7 @@ from twin_cosim.optimize.methods import METHOD_NAMES, method_list
 
 if TYPE_CHECKING:
     from twin_cosim.optimize.campaign_spec import CampaignResult, CampaignSpec
+    from twin_cosim.workers import ProcessPool, SerialPool
 
 
 def add_arguments(subparsers) -> None:
@@ -38,10 +40,35 @@ def add_arguments(subparsers) -> None:
     _campaign_options(parser)
     plant_parameters_option(parser)
     _robust_options(parser)
+    _machine_options(parser)
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    no_plots_option(parser)
     data_option(parser)
     parser.set_defaults(handler=run)
+
+
+def _machine_options(parser: argparse.ArgumentParser) -> None:
+    """For a machine scenario (axes:): a part program instead of the circles, the target."""
+    parser.add_argument(
+        "--program",
+        metavar="PART.nc",
+        help="machine scenarios: tune on this part program (target contour) instead of the "
+        "scenario's circles (default: the circles of optimize.circles)",
+    )
+    parser.add_argument(
+        "--target",
+        choices=["G", "spike", "contour"],
+        help="machine scenarios: worst case of G, the largest reversal spike or the largest "
+        "contour error (default: the scenario's optimize.target, else G)",
+    )
+    parser.add_argument(
+        "--start",
+        metavar="SET_OR_FILE",
+        help="machine scenarios: start the search from these sets (ft|ga|ce|sa, or a file: one "
+        "set or axes: {X: ..., Y: ...}, e.g. an earlier result.json); the scores stay relative "
+        "to the scenario's own sets (default: the scenario's own sets)",
+    )
 
 
 def _campaign_options(parser: argparse.ArgumentParser) -> None:
@@ -100,10 +127,30 @@ def _robust_options(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run (or resume) the campaign, write its plots, print its result."""
+    """Run (or resume) the campaign, print its result, then write its plots.
+
+    A machine scenario (axes:) runs its own campaign; otherwise the pool's processes start
+    first, so that they load the co-simulation while this process reads the campaign.
+    """
+    from twin_cosim.pool_runs import prepare_campaign_worker
+    from twin_cosim.scenario import is_machine_scenario
+    from twin_cosim.workers import make_pool
+
+    if is_machine_scenario(args.scenario[0]):
+        from twin_cosim.commands.optimize_machine import run_machine_campaign
+
+        return run_machine_campaign(args)
+    if args.program or args.target or args.start:
+        raise ValueError("--program, --target and --start: for a machine scenario (axes:)")
+    local = 1 if args.scheduler else args.workers  # with Dask: reference and plot runs here
+    with make_pool(None, local, prepare_campaign_worker) as pool:
+        return _run_on(args, pool)
+
+
+def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
+    """The campaign, its result and its plots, with ``pool`` running the plant."""
     from twin_cosim.optimize.campaign import run_campaign
     from twin_cosim.optimize.cases import campaign_scenarios
-    from twin_cosim.optimize.outputs import write_campaign_plots
 
     spec, out = _spec_and_folder(args)
     scenarios = campaign_scenarios(spec)
@@ -113,19 +160,25 @@ def run(args: argparse.Namespace) -> int:
         result = run_campaign(
             spec,
             out,
-            workers=args.workers,
             scheduler=args.scheduler,
             resume=bool(args.resume),
             progress=not args.quiet,
             scenarios=scenarios,
+            pool=pool,
         )
     except KeyboardInterrupt as exc:
         if (out / "campaign.json").exists():
             scenarios_given = " ".join(args.scenario)
             exc.hint = f"; the log is intact: twin optimize {scenarios_given} --resume {out}"
         raise
-    write_campaign_plots(out, spec, scenarios[0])
     _report(spec, result, out, args.json)
+    if not args.no_plots:
+        from twin_cosim.optimize.outputs import write_campaign_plots
+
+        write_campaign_plots(out, spec, scenarios[0], pool)
+    if not args.json:
+        plots = "" if args.no_plots else ", convergence.png, best_run.png"
+        print(f"wrote {out}/result.json, evaluations.jsonl{plots}")
     return 0
 
 
@@ -189,4 +242,3 @@ def _report(spec: CampaignSpec, result: CampaignResult, out: Path, as_json: bool
         f"evaluations in {result.wall_s:.1f} s; {result.stop_reason}"
     )
     print("best parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in result.best_params.items()))
-    print(f"wrote {out}/result.json, evaluations.jsonl, convergence.png, best_run.png")

@@ -96,3 +96,12 @@ def plant_option(parser: argparse.ArgumentParser) -> None:
         metavar="FMU",
         help="another FMU offering the plant contract (default: the scenario's plant)",
     )
+
+
+def no_plots_option(parser: argparse.ArgumentParser) -> None:
+    """``--no-plots``: write no figures (the results and data files are the same)."""
+    parser.add_argument(
+        "--no-plots",
+        action="store_true",
+        help="write no figures (PNG); every other file and the printed result are the same",
+    )

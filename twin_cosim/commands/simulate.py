@@ -9,10 +9,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from twin_cosim.commands.console import warn_plant_mismatch, write_json
+from twin_cosim.commands.console import warn_plant_mismatch, write_json, write_record_csv
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
+    no_plots_option,
     out_folder,
     plant_option,
     plant_parameters_option,
@@ -43,6 +44,12 @@ def add_arguments(subparsers) -> None:
         help="judge on a machine: a measured run (CSV/.mat) made with these gains, or a virtual "
         "machine (a scenario or plant.yaml whose plant stands for the machine) (default: none)",
     )
+    parser.add_argument(
+        "--program",
+        metavar="PART.nc",
+        help="part program (G-code subset, docs/contouring.md) for a machine scenario (axes:) "
+        "(default: the scenario's program)",
+    )
     parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<scenario name>)")
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     parser.add_argument(
@@ -50,14 +57,21 @@ def add_arguments(subparsers) -> None:
         action="store_true",
         help="step through fmpy in plain Python instead of the compiled loop",
     )
+    no_plots_option(parser)
     data_option(parser)
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Simulate, write record.csv, run.png and summary.json; 1 when the loop diverged."""
+    """Simulate, write record.csv and summary.json, print the result, then plot run.png; 1 when
+    the loop diverged. A machine scenario (axes:) or a part program runs on every axis."""
+    from twin_cosim.scenario import is_machine_scenario
+
+    if args.program or is_machine_scenario(args.scenario):
+        from twin_cosim.commands.simulate_program import run_program_command
+
+        return run_program_command(args)
     from twin_cosim.metrics import compute_metrics
-    from twin_cosim.plots import plot_run
     from twin_cosim.run_checks import loop_warnings
     from twin_cosim.scenario import load_tuned_parameters, resolve_scenario
 
@@ -70,16 +84,21 @@ def run(args: argparse.Namespace) -> int:
     metrics = compute_metrics(record, scenario.metrics_window)
     diverged, loop = loop_warnings(record, scenario)
     summary = _summary(args, scenario, tuned, record, metrics, ran, mismatch + loop, out)
-    record.to_csv(out / "record.csv", index=False)
-    title = f"{scenario.name}: {args.params or 'scenario parameters'}"
-    plot_run(record, metrics, title, out / "run.png")
+    write_record_csv(out / "record.csv", record)
     write_json(out / "summary.json", summary)
     if args.json:
         print(json.dumps(summary))
     else:
-        _print_text(scenario.name, metrics, summary, args.machine, out)
+        _print_text(scenario.name, metrics, summary, args.machine)
     for warning in summary["warnings"]:
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
+    if not args.no_plots:
+        from twin_cosim.plots import plot_run
+
+        title = f"{scenario.name}: {args.params or 'scenario parameters'}"
+        plot_run(record, metrics, title, out / "run.png")
+    if not args.json:
+        print(f"wrote {out}/record.csv, " + ("" if args.no_plots else "run.png, ") + "summary.json")
     return 1 if diverged else 0
 
 
@@ -130,7 +149,10 @@ def _summary(
         "metrics_window_s": list(scenario.metrics_window),
         "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
         "wall_s": ran["wall_s"],
-        "outputs": {"record": str(out / "record.csv"), "plot": str(out / "run.png")},
+        "outputs": {
+            "record": str(out / "record.csv"),
+            "plot": None if args.no_plots else str(out / "run.png"),
+        },
         "warnings": warnings,
         "versions": versions(),
     }
@@ -162,9 +184,7 @@ def _on_machine(
     return {"source": machine, "kind": kind, **prediction(metrics, judged)}
 
 
-def _print_text(
-    name: str, metrics: Metrics, summary: dict[str, Any], machine: str | None, out: Path
-) -> None:
+def _print_text(name: str, metrics: Metrics, summary: dict[str, Any], machine: str | None) -> None:
     """The summary for a reader: metrics, the measured-run gaps, the machine's verdict."""
     m = metrics
     print(
@@ -184,4 +204,3 @@ def _print_text(
         from twin_cosim.machine import JUDGED, describe
 
         print(describe(machine, on_machine["kind"], {k: on_machine[k] for k in JUDGED}))
-    print(f"wrote {out}/record.csv, run.png, summary.json")

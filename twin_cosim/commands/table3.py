@@ -37,9 +37,9 @@ def add_arguments(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run every set on every scenario; write table3.md, table3.csv and the error plots."""
     from twin_cosim import paper
-    from twin_cosim.plant import Plant
     from twin_cosim.report import evaluate_sets, markdown_table
     from twin_cosim.scenario import resolve_scenario
+    from twin_cosim.workers import SerialPool
 
     scenarios = {str(path): resolve_scenario(path) for path in args.scenarios}
     for scenario in scenarios.values():
@@ -48,8 +48,8 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     sets = {name.upper(): tuned for name, tuned in paper.TABLE3.items()}
     first = next(iter(scenarios.values()))
-    with Plant(first.plant_fmu(plant_path(args))) as plant:
-        table, records = evaluate_sets(plant, scenarios, sets)
+    with SerialPool() as pool:
+        table, records = evaluate_sets(pool, first.plant_fmu(plant_path(args)), scenarios, sets)
     table.to_csv(out / "table3.csv")
     flat = table.reset_index().set_index("set")
     text = "".join(

@@ -53,8 +53,9 @@ from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
+from twin_cosim.pool_runs import prepare_replay_worker
 from twin_cosim.scenario import Scenario
-from twin_cosim.workers import make_pool
+from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, make_pool
 
 ProgressFactory = Callable[[int, str], Callable[[int], None]]
 # Wording of the verdict only: a rejected hypothesis that cuts the raw held-out gap by this share
@@ -328,6 +329,7 @@ def diagnose(
     settings: DiagnosisSettings | None = None,
     workers: int | None = None,
     progress: ProgressFactory | None = None,
+    pool: SerialPool | ProcessPool | None = None,
 ) -> Diagnosis:
     """Diagnose the gap between the measured runs and the twin's replay of the scenario.
 
@@ -344,49 +346,65 @@ def diagnose(
     settings
         Thresholds and effort (the defaults when None).
     workers
-        Replay processes (1: in this process; None: all cores).
+        Replay processes (1: in this process; None: all cores); ignored with ``pool``.
     progress
         ``progress(total, label)`` returns a function called with the number of tasks done.
+    pool
+        A started pool (:mod:`twin_cosim.workers`) for the replays, shared with the caller, who
+        closes it; None: one of ``workers`` is started here at once (its processes start while
+        this one builds the context and the noise model) and closed at the end.
     """
     settings = settings or DiagnosisSettings()
-    context = build_context(scenario, measured, holdout or [], fmu, settings)
+    if pool is None:
+        with make_pool(None, workers, prepare_replay_worker) as own:
+            return _diagnose(scenario, measured, holdout or [], fmu, settings, progress, own)
+    return _diagnose(scenario, measured, holdout or [], fmu, settings, progress, pool)
+
+
+def _diagnose(
+    scenario: Scenario,
+    measured: list[MeasuredRun],
+    holdout: list[MeasuredRun],
+    fmu: str | None,
+    settings: DiagnosisSettings,
+    progress: ProgressFactory | None,
+    pool: SerialPool | ProcessPool,
+) -> Diagnosis:
+    """:func:`diagnose` with its replays on ``pool``."""
+    context = build_context(scenario, measured, holdout, fmu, settings)
     noise, nominal, start = _noise_stage(context)
     resolution = estimate_resolution(np.concatenate([r.x for r in context.train]))
     train0 = training_residuals(context, start.training)
     floors = noise_floors(train0, context.dt, resolution)
-    pool = make_pool(_replay_spec(context, nominal, floors), workers)
-    try:
-        judging = Judging(
-            context.judged,
-            context.scenario_of_run,
-            [s.reference for s in context.judging_scenarios],
-            floors,
-        )
-        hold0 = judging.residuals(start)
-        where = locate(
-            joined([train0, hold0]),
-            floors.sigma_position_m,
-            floors.sigma_current,
-            context.screw_angle,
-            context.dt,
-            settings,
-        )
-        selector = Selector(
-            pool,
-            context,
-            nominal,
-            judging,
-            settings,
-            {
-                "position_resolution": resolution,
-                "dead_time_steps": nominal.get("dead_time_steps", 0.0),
-            },
-        )
-        if progress:
-            selector.progress = progress(selector.expected_tasks(), "diagnose")
-        selection = selector.run(start)
-    finally:
-        pool.close()
+    judging = Judging(
+        context.judged,
+        context.scenario_of_run,
+        [s.reference for s in context.judging_scenarios],
+        floors,
+    )
+    hold0 = judging.residuals(start)
+    where = locate(
+        joined([train0, hold0]),
+        floors.sigma_position_m,
+        floors.sigma_current,
+        context.screw_angle,
+        context.dt,
+        settings,
+    )
+    selector = Selector(
+        BoundPool(pool, _replay_spec(context, nominal, floors)),
+        context,
+        nominal,
+        judging,
+        settings,
+        {
+            "position_resolution": resolution,
+            "dead_time_steps": nominal.get("dead_time_steps", 0.0),
+        },
+    )
+    if progress:
+        selector.progress = progress(selector.expected_tasks(), "diagnose")
+    selection = selector.run(start)
     final = selection.replays
     hold_final = judging.residuals(final)
     significant = selection.rounds[0].significant

@@ -1,179 +1,17 @@
-"""The diagnosis report: JSON summary, Markdown and HTML pages, figures."""
+"""The diagnosis report: JSON summary, Markdown and HTML pages.
+
+Its figures are drawn apart, after the pages (:mod:`twin_cosim.gap.figures`).
+"""
 
 from __future__ import annotations
 
 import html
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from twin_cosim.gap import regimes as regime_model  # noqa: E402
-from twin_cosim.gap import spectra  # noqa: E402
-from twin_cosim.gap.diagnosis import Diagnosis  # noqa: E402
-from twin_cosim.gap.residuals import joined  # noqa: E402
-from twin_cosim.metrics import UM_PER_M  # noqa: E402
-
-REGIME_COLOURS = {
-    "standstill": "#dddddd",
-    "breakaway": "#f4a582",
-    "acceleration": "#92c5de",
-    "constant_velocity": "#ffffff",
-    "reversal": "#d6604d",
-}
-
-
-def _shade_regimes(ax, t: np.ndarray, labels: np.ndarray) -> None:
-    for code, name in enumerate(regime_model.REGIMES):
-        if name == "constant_velocity":
-            continue
-        for start, stop in regime_model.segments(labels, code):
-            ax.axvspan(
-                t[start], t[min(stop, len(t) - 1)], color=REGIME_COLOURS[name], alpha=0.5, lw=0
-            )
-
-
-def plot_residuals(d: Diagnosis, path: Path) -> Path:
-    """Position and current residuals over time, regimes shaded, before and after the effects."""
-    fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
-    for res, label, style in (
-        (d.train_before, "before (training)", "-"),
-        (d.holdout_before, "before (held out)", "-"),
-        (d.holdout_after, "after the accepted effects (held out)", "-"),
-    ):
-        axes[0].plot(res.t, res.position * UM_PER_M, style, lw=0.7, label=label)
-        axes[1].plot(res.t, res.current, style, lw=0.7, label=label)
-    for ax in axes:
-        _shade_regimes(ax, d.train_before.t, d.train_before.regimes)
-        _shade_regimes(ax, d.holdout_before.t, d.holdout_before.regimes)
-        ax.axvline(d.context.train_end, color="k", ls="--", lw=1)
-        ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", fontsize=8)
-    axes[0].set_ylabel("position residual [um]")
-    axes[1].set_ylabel("current residual [A]")
-    axes[1].set_xlabel(
-        "t [s]  (shading: standstill grey, breakaway orange, acceleration blue, reversal red)"
-    )
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
-
-
-def plot_regimes(d: Diagnosis, path: Path) -> Path:
-    """Share of residual energy against share of time per regime."""
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    names = list(regime_model.REGIMES)
-    x = np.arange(len(names))
-    for ax, signal in zip(axes, ("position", "current"), strict=True):
-        shares = getattr(d.where, signal)
-        ax.bar(x - 0.2, [shares[n]["time_share"] for n in names], 0.4, label="time share")
-        ax.bar(
-            x + 0.2, [shares[n]["energy_share"] for n in names], 0.4, label="residual energy share"
-        )
-        ax.set_xticks(x, [n.replace("_", "\n") for n in names], fontsize=8)
-        ax.set_title(f"{signal} residual")
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3, axis="y")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
-
-
-def plot_spectra(d: Diagnosis, path: Path) -> Path:
-    """Residual spectra: in Hz, and in orders of the motor and screw angle (constant velocity)."""
-    res = d.train_before
-    dt = float(np.median(np.diff(res.t)))
-    stretches = regime_model.segments(res.regimes, regime_model.REGIMES.index("constant_velocity"))
-    fig, axes = plt.subplots(3, 2, figsize=(11, 9))
-    for column, (signal, values, unit) in enumerate(
-        (("position", res.position * UM_PER_M, "um"), ("current", res.current, "A"))
-    ):
-        f, a = spectra.frequency_spectrum(values, dt)
-        axes[0, column].semilogy(f[1:], a[1:] + 1e-12, lw=0.7)
-        axes[0, column].set_xlabel("frequency [Hz]")
-        for row, (angle_name, angle) in enumerate(
-            (("motor", res.motor_angle), ("screw", d.context.screw_angle(res.motor_angle))), start=1
-        ):
-            orders, amplitude = spectra.order_spectrum(values, angle, stretches)
-            if len(orders):
-                axes[row, column].semilogy(orders[1:], amplitude[1:] + 1e-12, lw=0.8)
-            axes[row, column].set_xlabel(f"order of the {angle_name} angle [cycles/rev]")
-        for row in range(3):
-            axes[row, column].set_ylabel(f"{signal} residual [{unit}]")
-            axes[row, column].grid(alpha=0.3, which="both")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
-
-
-def plot_ranking(d: Diagnosis, path: Path) -> Path:
-    """Evidence of each hypothesis (first round) beyond the noise, with the acceptance line."""
-    rows = d.rounds[0].candidates
-    fig, ax = plt.subplots(figsize=(9, 4))
-    if rows:
-        ax.barh([c.name for c in rows], [max(c.evidence_z, 0.0) for c in rows])
-        ax.axvline(rows[0].critical_z, color="r", ls="--", label="acceptance")
-        ax.set_xscale("symlog", linthresh=1.0)
-        ax.invert_yaxis()
-        ax.legend()
-    ax.set_xlabel(
-        "held-out evidence z beyond calibration and noise (listed by training BIC, best first)"
-    )
-    ax.grid(alpha=0.3, axis="x")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
-
-
-def plot_along_axis(d: Diagnosis, path: Path) -> Path:
-    """Normalised residual energy over the carriage position, per direction, before and after
-    the accepted effects, with the spans where it is concentrated."""
-    fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
-    sigma_x, sigma_i = d.floors.sigma_position_m, d.floors.sigma_current
-    for ax, (res, label, spans) in zip(
-        axes,
-        (
-            (joined([d.train_before, d.holdout_before]), "before", d.where.along_axis),
-            (
-                d.holdout_after,
-                "after the accepted effects (held out)",
-                d.remaining_where.along_axis,
-            ),
-        ),
-        strict=True,
-    ):
-        energy = res.normalised_energy(sigma_x, sigma_i)
-        for sign, colour in ((1, "tab:blue"), (-1, "tab:orange")):
-            inside = res.direction == sign
-            ax.plot(
-                res.x[inside] * 1e3,
-                energy[inside],
-                ".",
-                ms=1.5,
-                color=colour,
-                label=f"moving {'+' if sign > 0 else '-'}",
-            )
-        for span in spans:
-            ax.axvspan(span.from_mm, span.to_mm, color="red", alpha=0.2)
-        if np.any(energy > 0):
-            ax.set_yscale("log")
-        ax.set_ylabel(f"normalised energy ({label})")
-        ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", fontsize=8)
-    axes[1].set_xlabel("carriage position [mm]  (red: spans where the residual is concentrated)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+if TYPE_CHECKING:
+    from twin_cosim.gap.diagnosis import Diagnosis
 
 
 def _table(rows: list[dict[str, Any]], columns: list[tuple[str, str]]) -> list[list[str]]:
@@ -329,17 +167,17 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
 FIGURES = ("residuals.png", "regimes.png", "along_axis.png", "spectra.png", "ranking.png")
 
 
-def write_report(d: Diagnosis, out: Path, extra: dict[str, Any] | None = None) -> dict[str, str]:
-    """Write diagnosis.json (the summary and ``extra``), report.md, report.html and the figures
-    into ``out``."""
+def write_report(
+    d: Diagnosis, out: Path, extra: dict[str, Any] | None = None, figures: bool = True
+) -> dict[str, str]:
+    """Write diagnosis.json (the summary and ``extra``), report.md and report.html into ``out``.
+
+    The pages show :data:`FIGURES` when ``figures`` (written apart, after the pages:
+    :func:`twin_cosim.gap.figures.write_figures`).
+    """
     out.mkdir(parents=True, exist_ok=True)
     summary = {**d.summary(), **(extra or {})}
     (out / "diagnosis.json").write_text(json.dumps(summary, indent=2) + "\n")
-    plot_residuals(d, out / "residuals.png")
-    plot_regimes(d, out / "regimes.png")
-    plot_along_axis(d, out / "along_axis.png")
-    plot_spectra(d, out / "spectra.png")
-    plot_ranking(d, out / "ranking.png")
     parts = sections(d)
     markdown = ["# Sim-to-real gap diagnosis", ""]
     page = [
@@ -364,8 +202,10 @@ def write_report(d: Diagnosis, out: Path, extra: dict[str, Any] | None = None) -
                 )
                 + "</table>"
             )
-    markdown += ["## Figures", ""] + [f"![{name}]({name})" for name in FIGURES] + [""]
-    page += ["<h2>Figures</h2>"] + [f"<p><img src='{name}' alt='{name}'></p>" for name in FIGURES]
+    if figures:
+        markdown += ["## Figures", ""] + [f"![{name}]({name})" for name in FIGURES] + [""]
+        page += ["<h2>Figures</h2>"]
+        page += [f"<p><img src='{name}' alt='{name}'></p>" for name in FIGURES]
     page.append("</body></html>")
     (out / "report.md").write_text("\n".join(markdown))
     (out / "report.html").write_text("\n".join(page) + "\n")

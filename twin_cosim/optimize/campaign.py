@@ -5,7 +5,9 @@ the resolved scenarios on plant samples (:mod:`~twin_cosim.optimize.cases`), the
 checks of a resume (:mod:`~twin_cosim.optimize.campaign_folder`) and the ask/tell loop
 (:mod:`~twin_cosim.optimize.campaign_loop`). Every argument is checked before anything is
 written, so a mistake never blocks the folder; while a campaign runs, ``campaign.lock`` keeps a
-second writer out of the folder.
+second writer out of the folder. The pool's processes start before the campaign is prepared and
+run every run of it (the reference runs and the evaluations): with a process pool, this process
+never loads the plant.
 """
 
 from __future__ import annotations
@@ -41,9 +43,10 @@ from twin_cosim.optimize.evaluation_log import EvaluationLog
 from twin_cosim.optimize.evaluator_protocol import Evaluator
 from twin_cosim.optimize.evaluators import make_evaluator
 from twin_cosim.optimize.folder_lock import FolderLock, FolderLockedError
-from twin_cosim.optimize.objective import ObjectiveSpec
+from twin_cosim.optimize.worker_specs import ObjectiveSpec
+from twin_cosim.pool_runs import prepare_campaign_worker
 from twin_cosim.scenario import Scenario
-from twin_cosim.workers import check_workers
+from twin_cosim.workers import ProcessPool, SerialPool, check_workers, make_pool
 
 
 def run_campaign(
@@ -55,6 +58,7 @@ def run_campaign(
     progress: bool = True,
     scheduler_timeout: float | None = None,
     scenarios: tuple[Scenario, ...] | None = None,
+    pool: SerialPool | ProcessPool | None = None,
 ) -> CampaignResult:
     """Run (or resume) a campaign and write its folder.
 
@@ -65,9 +69,10 @@ def run_campaign(
     out_dir
         Campaign folder.
     workers
-        Local processes (1: serial in this process; None: all cores).
+        Local processes (1: serial in this process; None: all cores); ignored with ``pool``.
     scheduler
-        Dask scheduler address; overrides ``workers``.
+        Dask scheduler address: the evaluations run there (the reference runs in ``pool``, or in
+        this process).
     resume
         Continue the campaign already in ``out_dir``.
     progress
@@ -77,6 +82,11 @@ def run_campaign(
     scenarios
         The spec's scenarios as :func:`~twin_cosim.optimize.cases.campaign_scenarios` resolves
         them, when the caller has them already; resolved here when None.
+    pool
+        A started local pool (:mod:`twin_cosim.workers`), shared with the caller, who closes it:
+        the reference runs and (without ``scheduler``) the evaluations run on its workers. None:
+        a pool of ``workers`` is started here at once (its processes start while the campaign
+        is prepared) and closed at the end.
 
     Raises
     ------
@@ -86,13 +96,34 @@ def run_campaign(
     """
     out_dir = Path(out_dir)
     stored = _check_arguments(spec, out_dir, workers, resume)
+    start_evaluator = _evaluators(scheduler, scheduler_timeout)
+    own = pool is None
+    if pool is None:
+        pool = SerialPool() if scheduler else make_pool(None, workers, prepare_campaign_worker)
+    try:
+        return _prepared(spec, out_dir, stored, scenarios, pool, start_evaluator, progress)
+    finally:
+        if own:
+            pool.close()
+
+
+def _prepared(
+    spec: CampaignSpec,
+    out_dir: Path,
+    stored: dict[str, Any] | None,
+    scenarios: tuple[Scenario, ...] | None,
+    pool: SerialPool | ProcessPool,
+    start_evaluator: Callable[[ObjectiveSpec, SerialPool | ProcessPool], Evaluator],
+    progress: bool,
+) -> CampaignResult:
+    """The campaign prepared (scenarios, optimizer, fingerprints, its locked folder), then run;
+    ``start_evaluator(objective, pool)`` starts the evaluator."""
     if scenarios is None:
         scenarios = campaign_scenarios(spec)
     config = load_config(scenarios[0])
     settings = _method_settings(spec, config)
     optimizer = _make_optimizer(spec, config, scenarios[0], settings)
     found = fingerprints(spec, scenarios[0], config, settings)
-    start_evaluator = _evaluators(workers, scheduler, scheduler_timeout)
     out_dir.mkdir(parents=True, exist_ok=True)
     lock = FolderLock(out_dir)
     try:
@@ -102,7 +133,16 @@ def run_campaign(
         raise CampaignError(str(exc)) from None
     try:
         return _run_locked(
-            spec, out_dir, stored, scenarios, config, found, optimizer, start_evaluator, progress
+            spec,
+            out_dir,
+            stored,
+            scenarios,
+            config,
+            found,
+            optimizer,
+            pool,
+            start_evaluator,
+            progress,
         )
     finally:
         lock.release()
@@ -131,16 +171,15 @@ def _check_arguments(
 
 
 def _evaluators(
-    workers: int | None, scheduler: str | None, scheduler_timeout: float | None
-) -> Callable[[ObjectiveSpec], Evaluator]:
-    """What starts the campaign's evaluator; a Dask scheduler is checked here, at once."""
+    scheduler: str | None, scheduler_timeout: float | None
+) -> Callable[[ObjectiveSpec, SerialPool | ProcessPool], Evaluator]:
+    """What starts the campaign's evaluator from the objective and the local pool; a Dask
+    scheduler is checked here, at once."""
     if scheduler:  # Dask is an optional extra: imported only when asked for
         from twin_cosim.optimize.dask_evaluator import check_scheduler
 
         check_scheduler(scheduler, scheduler_timeout)
-    return partial(
-        make_evaluator, workers=workers, scheduler=scheduler, scheduler_timeout=scheduler_timeout
-    )
+    return partial(make_evaluator, scheduler=scheduler, scheduler_timeout=scheduler_timeout)
 
 
 def _method_settings(spec: CampaignSpec, config: OptimizeConfig) -> dict[str, Any]:
@@ -172,16 +211,18 @@ def _run_locked(
     config: OptimizeConfig,
     found: dict[str, str],
     optimizer: Optimizer,
-    start_evaluator: Callable[[ObjectiveSpec], Evaluator],
+    pool: SerialPool | ProcessPool,
+    start_evaluator: Callable[[ObjectiveSpec, SerialPool | ProcessPool], Evaluator],
     progress: bool,
 ) -> CampaignResult:
-    """The campaign in its locked folder: its record, log and evaluator, the loop, the result."""
+    """The campaign in its locked folder: its record (reference runs on ``pool``), log and
+    evaluator, the loop, the result."""
     log = None
     try:
-        header = _header(spec, out_dir, stored, scenarios, config, found)
+        header = _header(spec, out_dir, stored, scenarios, config, found, pool)
         log = EvaluationLog(out_dir / "evaluations.jsonl")
         early_stop = spec.early_stop and early_stop_exact(spec.method, scenarios)
-        evaluator = start_evaluator(objective_spec(spec, scenarios, header))
+        evaluator = start_evaluator(objective_spec(spec, scenarios, header), pool)
     except BaseException:
         optimizer.close()
         if log is not None:
@@ -234,12 +275,14 @@ def _header(
     scenarios: tuple[Scenario, ...],
     config: OptimizeConfig,
     found: dict[str, str],
+    pool: SerialPool | ProcessPool,
 ) -> dict[str, Any]:
-    """The stored record checked against the inputs as they are now, or a new campaign's."""
+    """The stored record checked against the inputs as they are now, or a new campaign's (its
+    reference runs on ``pool``)."""
     robust = robust_settings(spec, scenarios)
     if stored is not None:
         check_same_inputs(out_dir, stored, spec, found, robust)
         return stored
     refuse_a_campaign_in(out_dir)
-    cases = case_references(spec, scenarios, config, robust["samples"])
+    cases = case_references(spec, scenarios, config, robust["samples"], pool)
     return write_header(out_dir, spec, config, scenarios[0].tuned, found, cases, robust)

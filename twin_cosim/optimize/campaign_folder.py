@@ -188,7 +188,7 @@ def write_progress(
         "generation": optimizer.generation,
         "evaluations": optimizer.evaluations,
         "best_fitness_um": best_fitness,
-        "best_params": TunedParameters.from_array(config.from_unit(best_unit)).as_dict(),
+        "best_params": config.named(config.from_unit(best_unit)),
         "elapsed_s": elapsed,
     }
     partial = out_dir / "progress.json.partial"

@@ -26,7 +26,7 @@ from twin_cosim.optimize.config import OptimizeConfig
 from twin_cosim.optimize.early_stop import elite_cutoff
 from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
 from twin_cosim.optimize.evaluator_protocol import Evaluator, SchedulerError
-from twin_cosim.optimize.objective import EvaluationTask
+from twin_cosim.optimize.worker_specs import EvaluationTask
 
 LOG = logging.getLogger(__name__)
 

@@ -2,14 +2,15 @@
 
 A case is a scenario on a plant sample (relative factors on the uncertain plant parameters, the
 first sample the nominal plant). The parent resolves the scenarios once
-(:func:`campaign_scenarios`), runs each case's reference (:func:`case_references`) and sends
-the resolved values to the workers (:func:`objective_spec`); nothing is loaded again there.
+(:func:`campaign_scenarios`), has its workers run each case's reference
+(:func:`case_references`) and sends them the resolved values (:func:`objective_spec`); nothing
+is loaded again there.
 """
 
 from __future__ import annotations
 
 import hashlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
 from twin_cosim.optimize.config import (
@@ -20,9 +21,12 @@ from twin_cosim.optimize.config import (
     uncertain_parameters,
 )
 from twin_cosim.optimize.early_stop import EXACT_METHODS, window_spans_run
-from twin_cosim.optimize.objective import AGGREGATES, Objective, ObjectiveSpec
+from twin_cosim.optimize.worker_specs import AGGREGATES, ObjectiveSpec, ReferenceSpec
 from twin_cosim.scenario import Scenario, resolve_scenario
 from twin_cosim.scenario.plant_file import read_plant_parameters
+
+if TYPE_CHECKING:
+    from twin_cosim.workers import ProcessPool, SerialPool
 
 
 def campaign_scenarios(spec: CampaignSpec) -> tuple[Scenario, ...]:
@@ -80,8 +84,9 @@ def case_references(
     scenarios: tuple[Scenario, ...],
     config: OptimizeConfig,
     samples: list[dict[str, float]],
+    pool: SerialPool | ProcessPool,
 ) -> list[dict[str, Any]]:
-    """Each case's reference run, IAU limit and E_pk scale.
+    """Each case's reference run (on the pool's workers), IAU limit and E_pk scale.
 
     A case is a scenario on a plant sample. Its reference is the scenario's own parameter set
     (Fine-Tune by default) run on that plant sample; its IAU limit (A.s) is the cap times the
@@ -89,11 +94,10 @@ def case_references(
     candidate; its scale is 1, or for a relative objective the first case's reference E_pk over
     its own.
     """
-    probe = Objective(ObjectiveSpec(scenarios, spec.fmu, None, samples=tuple(samples)))
-    try:
-        references = probe.reference_metrics()
-    finally:
-        probe.close()
+    probe = ReferenceSpec(ObjectiveSpec(scenarios, spec.fmu, None, samples=tuple(samples)))
+    count = len(scenarios) * (len(samples) or 1)  # the objective's cases
+    found = dict(pool.imap(range(count), probe))
+    references = [found[i] for i in range(count)]
     first = references[0]["E_pk_um"]
     cases = []
     for reference in references:

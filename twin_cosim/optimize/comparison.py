@@ -37,17 +37,16 @@ import pandas as pd
 from twin_cosim.controller import TUNED_NAMES, TunedParameters
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.motion_envelope import MARGIN, envelope_of, outside
-from twin_cosim.optimize.algorithms import ALGORITHMS
 from twin_cosim.optimize.campaign import run_campaign
 from twin_cosim.optimize.campaign_spec import CampaignSpec
 from twin_cosim.optimize.config import check_uncertainty
-from twin_cosim.optimize.objective import AGGREGATES
-from twin_cosim.optimize.outputs import plot_convergence
-from twin_cosim.plant import Plant
-from twin_cosim.plots import plot_error_comparison
+from twin_cosim.optimize.methods import METHOD_NAMES
+from twin_cosim.optimize.worker_specs import AGGREGATES
+from twin_cosim.pool_runs import prepare_campaign_worker
 from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table
-from twin_cosim.scenario import ScenarioError, resolve_scenario
+from twin_cosim.scenario import Scenario, ScenarioError, resolve_scenario
 from twin_cosim.schema import load_yaml
+from twin_cosim.workers import ProcessPool, SerialPool, make_pool
 
 KEYS = {
     "name",
@@ -88,14 +87,14 @@ def load_comparison(path: Path) -> Comparison:
         raise ScenarioError(f"{path}: unknown key(s) {unknown}; allowed: {sorted(KEYS)}")
     if "scenario" not in data:
         raise ScenarioError(f"{path}: scenario: expected the scenario file to optimize on")
-    methods = data.get("methods", list(ALGORITHMS))
-    if not isinstance(methods, list) or not methods or any(m not in ALGORITHMS for m in methods):
+    methods = data.get("methods", list(METHOD_NAMES))
+    if not isinstance(methods, list) or not methods or any(m not in METHOD_NAMES for m in methods):
         raise ScenarioError(
-            f"{path}: methods: expected a list from {list(ALGORITHMS)}, got {methods!r}"
+            f"{path}: methods: expected a list from {list(METHOD_NAMES)}, got {methods!r}"
         )
     budgets = data.get("budgets") or {}
     if not isinstance(budgets, dict) or any(
-        m not in ALGORITHMS or not isinstance(b, int) or b < 1 for m, b in budgets.items()
+        m not in METHOD_NAMES or not isinstance(b, int) or b < 1 for m, b in budgets.items()
     ):
         raise ScenarioError(
             f"{path}: budgets: expected method -> positive integer, got {budgets!r}"
@@ -156,30 +155,37 @@ def run_comparison(
     workers: int | None = None,
     scheduler: str | None = None,
     progress: bool = True,
+    plots: bool = True,
+    pool: SerialPool | ProcessPool | None = None,
 ) -> str:
-    """Run (or resume) the campaigns and write the tables and figures; returns the Markdown."""
+    """Run (or resume) the campaigns and write the tables, then the figures; returns the Markdown.
+
+    Every campaign, its reference runs and the runs of the tables and figures use one pool:
+    ``pool`` (the caller closes it), else one of ``workers`` started here. With ``scheduler``
+    the evaluations run on Dask, the other runs in this process.
+    """
     methods = methods or comparison.methods
-    unknown = [m for m in methods if m not in ALGORITHMS]
+    unknown = [m for m in methods if m not in METHOD_NAMES]
     if unknown:
-        raise ValueError(f"unknown methods {unknown}; expected some of {list(ALGORITHMS)}")
+        raise ValueError(f"unknown methods {unknown}; expected some of {list(METHOD_NAMES)}")
+    if pool is None:
+        with make_pool(None, 1 if scheduler else workers, prepare_campaign_worker) as own:
+            return _compare(comparison, out, methods, scheduler, progress, plots, own)
+    return _compare(comparison, out, methods, scheduler, progress, plots, pool)
+
+
+def _compare(
+    comparison: Comparison,
+    out: Path,
+    methods: list[str],
+    scheduler: str | None,
+    progress: bool,
+    plots: bool,
+    pool: SerialPool | ProcessPool,
+) -> str:
+    """:func:`run_comparison` on ``pool``."""
     out.mkdir(parents=True, exist_ok=True)
-    results = {}
-    for method in methods:
-        folder = out / method
-        result_path = folder / "result.json"
-        if result_path.exists():
-            results[method] = json.loads(result_path.read_text())
-            continue
-        spec = CampaignSpec(
-            str(comparison.scenario),
-            method,
-            comparison.seed,
-            comparison.budgets.get(method),
-            plant_parameters=_text(comparison.plant_parameters),
-            **comparison.robust,
-        )
-        resume = (folder / "campaign.json").exists()
-        results[method] = run_campaign(spec, folder, workers, scheduler, resume, progress).as_dict()
+    results = _campaigns(comparison, out, methods, scheduler, progress, pool)
     calibrated = _text(comparison.plant_parameters)
     scenario = resolve_scenario(comparison.scenario, calibrated)
     sets = {"FT": scenario.tuned} | {
@@ -191,8 +197,7 @@ def run_comparison(
     for path in comparison.holdout:
         held = resolve_scenario(path, calibrated)
         scenarios[f"holdout {held.name}"] = held
-    with Plant(scenario.plant_fmu()) as plant:
-        table, records = evaluate_sets(plant, scenarios, sets)
+    table, records = evaluate_sets(pool, scenario.plant_fmu(), scenarios, sets)
     params = pd.DataFrame({name: tuned.as_dict() for name, tuned in sets.items()}).T[
         list(TUNED_NAMES)
     ]
@@ -244,6 +249,53 @@ def run_comparison(
         )
         + "\n"
     )
+    if plots:
+        _plot(out, methods, scenarios, sets, records)
+    return text
+
+
+def _campaigns(
+    comparison: Comparison,
+    out: Path,
+    methods: list[str],
+    scheduler: str | None,
+    progress: bool,
+    pool: SerialPool | ProcessPool,
+) -> dict[str, dict[str, Any]]:
+    """Each method's campaign result: run, resumed, or read from its folder."""
+    results = {}
+    for method in methods:
+        folder = out / method
+        result_path = folder / "result.json"
+        if result_path.exists():
+            results[method] = json.loads(result_path.read_text())
+            continue
+        spec = CampaignSpec(
+            str(comparison.scenario),
+            method,
+            comparison.seed,
+            comparison.budgets.get(method),
+            plant_parameters=_text(comparison.plant_parameters),
+            **comparison.robust,
+        )
+        resume = (folder / "campaign.json").exists()
+        results[method] = run_campaign(
+            spec, folder, None, scheduler, resume, progress, pool=pool
+        ).as_dict()
+    return results
+
+
+def _plot(
+    out: Path,
+    methods: list[str],
+    scenarios: dict[str, Scenario],
+    sets: dict[str, TunedParameters],
+    records: dict[tuple[str, str], pd.DataFrame],
+) -> None:
+    """``convergence.png`` and the error plots of every scenario (``errors_<label>.png``)."""
+    from twin_cosim.optimize.outputs import plot_convergence
+    from twin_cosim.plots import plot_error_comparison
+
     plot_convergence({m: out / m for m in methods}, out / "convergence.png")
     for label, s in scenarios.items():
         runs = {name: records[(label, name)] for name in sets}
@@ -254,7 +306,6 @@ def run_comparison(
             f"{s.name}: position error per method",
             out / f"errors_{label.replace(' ', '_')}.png",
         )
-    return text
 
 
 def _text(path: Path | None) -> str | None:

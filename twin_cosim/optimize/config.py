@@ -61,6 +61,9 @@ class OptimizeConfig:
         Penalty (um) of a constraint violation; a failure scores twice this.
     methods : dict
         Per-method setting overrides.
+    names : tuple of str
+        Name of each parameter, in the order of the bounds (the six tuned parameters; a
+        machine's campaign names them per axis, ``X.Kp_pos``).
     """
 
     lower: np.ndarray
@@ -70,6 +73,7 @@ class OptimizeConfig:
     abort_error_um: float = 1000.0
     penalty_um: float = 1.0e6
     methods: dict[str, dict[str, Any]] = field(default_factory=dict)
+    names: tuple[str, ...] = TUNED_NAMES
 
     def to_unit(self, x: np.ndarray) -> np.ndarray:
         """Physical parameters -> normalised [0, 1] box."""
@@ -81,12 +85,16 @@ class OptimizeConfig:
             self.upper - self.lower
         )
 
+    def named(self, x: np.ndarray) -> dict[str, float]:
+        """Physical parameters by name."""
+        return {n: float(v) for n, v in zip(self.names, x, strict=True)}
+
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready form (for the campaign's record)."""
         return {
             "bounds": {
                 n: [float(lo), float(hi)]
-                for n, lo, hi in zip(TUNED_NAMES, self.lower, self.upper, strict=True)
+                for n, lo, hi in zip(self.names, self.lower, self.upper, strict=True)
             },
             "window": list(self.window),
             "iau_cap": self.iau_cap,

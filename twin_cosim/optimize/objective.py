@@ -36,56 +36,9 @@ from twin_cosim.cosim import RunAborted, run_scenario
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.config import OptimizeConfig, load_config
 from twin_cosim.optimize.early_stop import lower_bound_above, window_spans_run
+from twin_cosim.optimize.worker_specs import EvaluationTask, ObjectiveSpec
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.scenario import Scenario
-
-AGGREGATES = ("worst", "mean")
-
-
-@dataclass(frozen=True)
-class EvaluationTask:
-    """A candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] and the cutoff (um) of its fitness."""
-
-    x: np.ndarray
-    cutoff_um: float = math.inf
-
-
-@dataclass(frozen=True)
-class ObjectiveSpec:
-    """Everything a worker needs to build the objective (picklable: resolved values only).
-
-    Attributes
-    ----------
-    scenarios : tuple of Scenario
-        The objective's scenarios, resolved once by the parent (any plant parameter file
-        applied); the first one's ``optimize`` section configures the objective, the others
-        make it robust.
-    fmu : str or None
-        Plant FMU; the first scenario's (or the project's drive2mass) when None.
-    iau_limit : float or None
-        Largest allowed IAU, A.s, of every case when ``iau_limits`` is empty; None: no cap.
-    iau_limits : tuple
-        IAU limit of each case, A.s (None: no cap), in case order: scenario by scenario,
-        plant sample by sample within each.
-    samples : tuple of dict
-        Plant samples: relative factors by FMU parameter name; none: the nominal plant only.
-    aggregate : str
-        ``worst`` or ``mean`` over the runs.
-    scales : tuple of float
-        Factor on each case's E_pk (case order); empty: 1 for every case.
-    """
-
-    scenarios: tuple[Scenario, ...]
-    fmu: str | None
-    iau_limit: float | None
-    iau_limits: tuple[float | None, ...] = ()
-    samples: tuple[dict[str, float], ...] = ()
-    aggregate: str = "worst"
-    scales: tuple[float, ...] = ()
-
-    def build(self) -> Objective:
-        """The objective (a worker of :mod:`twin_cosim.workers`)."""
-        return Objective(self)
 
 
 @dataclass(frozen=True)
@@ -144,15 +97,23 @@ class Objective:
         Returns
         -------
         list of dict
-            Per case (case order): ``case`` label and the metrics of
+            Per case (case order): :meth:`reference_of` the case.
+        """
+        return [self.reference_of(i) for i in range(len(self.cases))]
+
+    def reference_of(self, index: int) -> dict[str, Any]:
+        """Metrics of case ``index`` run with its scenario's own parameters.
+
+        Returns
+        -------
+        dict
+            The case's ``case`` label and the metrics of
             :func:`twin_cosim.metrics.compute_metrics` over the case's objective window
             (``E_pk_um`` um, ``ITAE`` um.s^2, ``IAU`` A.s, ...).
         """
-        found = []
-        for case in self.cases:
-            record = run_scenario(self.plant, case.scenario, plant_overrides=case.overrides)
-            found.append({"case": case.label, **compute_metrics(record, case.window).as_dict()})
-        return found
+        case = self.cases[index]
+        record = run_scenario(self.plant, case.scenario, plant_overrides=case.overrides)
+        return {"case": case.label, **compute_metrics(record, case.window).as_dict()}
 
     def __call__(self, task: np.ndarray | EvaluationTask) -> dict[str, Any]:
         """Evaluate one candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] (physical units).
@@ -269,3 +230,21 @@ def _result(
         "metrics": metrics,
         "steps": steps,
     }
+
+
+class ReferenceRuns:
+    """A worker answering the reference metrics of a case (its index) of an objective.
+
+    Built in a worker process from :class:`~twin_cosim.optimize.worker_specs.ReferenceSpec`.
+    """
+
+    def __init__(self, spec: ObjectiveSpec) -> None:
+        self.objective = Objective(spec)
+
+    def __call__(self, case: int) -> dict[str, Any]:
+        """The metrics of case ``case``: :meth:`Objective.reference_of`."""
+        return self.objective.reference_of(case)
+
+    def close(self) -> None:
+        """Free the plant."""
+        self.objective.close()

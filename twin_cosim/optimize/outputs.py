@@ -12,13 +12,13 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from twin_cosim.controller import TunedParameters  # noqa: E402
-from twin_cosim.cosim import run_scenario  # noqa: E402
 from twin_cosim.metrics import compute_metrics  # noqa: E402
 from twin_cosim.optimize.campaign_folder import convergence  # noqa: E402
 from twin_cosim.optimize.campaign_spec import CampaignSpec  # noqa: E402
-from twin_cosim.plant import Plant  # noqa: E402
 from twin_cosim.plots import plot_error_comparison  # noqa: E402
+from twin_cosim.pool_runs import run_records  # noqa: E402
 from twin_cosim.scenario import Scenario  # noqa: E402
+from twin_cosim.workers import ProcessPool, SerialPool  # noqa: E402
 
 
 def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
@@ -39,7 +39,9 @@ def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
     return path
 
 
-def write_campaign_plots(out_dir: Path, spec: CampaignSpec, scenario: Scenario) -> None:
+def write_campaign_plots(
+    out_dir: Path, spec: CampaignSpec, scenario: Scenario, pool: SerialPool | ProcessPool
+) -> None:
     """``convergence.png`` and ``best_run.png`` (best set against the scenario's own set).
 
     Parameters
@@ -50,17 +52,15 @@ def write_campaign_plots(out_dir: Path, spec: CampaignSpec, scenario: Scenario) 
         The campaign's spec (method, seed, plant FMU).
     scenario
         The campaign's first scenario, resolved (:func:`campaign_scenarios`).
+    pool
+        Runs the two sets (:mod:`twin_cosim.workers`).
     """
     out_dir = Path(out_dir)
     result = json.loads((out_dir / "result.json").read_text())
+    best = TunedParameters(**result["best_params"])
+    records = run_records(pool, scenario.plant_fmu(spec.fmu), [(scenario, None), (scenario, best)])
     plot_convergence({spec.method: out_dir}, out_dir / "convergence.png")
-    with Plant(scenario.plant_fmu(spec.fmu)) as plant:
-        runs = {
-            "scenario set": run_scenario(plant, scenario),
-            f"best {spec.method}": run_scenario(
-                plant, scenario, TunedParameters(**result["best_params"])
-            ),
-        }
+    runs = {"scenario set": records[0], f"best {spec.method}": records[1]}
     peak = compute_metrics(runs["scenario set"], scenario.metrics_window).t_E_pk
     plot_error_comparison(
         runs,

@@ -9,23 +9,35 @@ diagnose sections), loaded and checked once into a typed :class:`Scenario`.
 - :mod:`~twin_cosim.scenario.reference_section`: segments, CSV and measured references;
 - :mod:`~twin_cosim.scenario.tuned_section`: the six tuned parameters and ``--params``;
 - :mod:`~twin_cosim.scenario.resolved`: the :class:`Scenario` value, :func:`for_measured_run`;
-- :mod:`~twin_cosim.scenario.shipped`: shipped scenarios by name.
+- :mod:`~twin_cosim.scenario.shipped`: shipped scenarios by name;
+- :mod:`~twin_cosim.scenario.controller_section`: the ``controller`` section (also per axis);
+- :mod:`~twin_cosim.scenario.machine`, :mod:`~twin_cosim.scenario.axes_section`,
+  :mod:`~twin_cosim.scenario.machine_loader`: a machine of several axes (``axes:``),
+  :func:`load_machine`.
 
 The YAML loader and checker shared with every other input file are :mod:`twin_cosim.schema`.
 """
 
 from twin_cosim.scenario.loader import load_scenario, resolve_scenario
+from twin_cosim.scenario.machine import AxisLimits, AxisSetup, MachineScenario
+from twin_cosim.scenario.machine_loader import is_machine_scenario, load_machine
 from twin_cosim.scenario.plant_section import plant_mismatch, with_plant_parameters
 from twin_cosim.scenario.resolved import Scenario, for_measured_run
 from twin_cosim.scenario.shipped import find_scenario
-from twin_cosim.scenario.tuned_section import load_tuned_parameters
+from twin_cosim.scenario.tuned_section import load_axes_parameters, load_tuned_parameters
 from twin_cosim.schema import ScenarioError
 
 __all__ = [
+    "AxisLimits",
+    "AxisSetup",
+    "MachineScenario",
     "Scenario",
     "ScenarioError",
     "find_scenario",
     "for_measured_run",
+    "is_machine_scenario",
+    "load_axes_parameters",
+    "load_machine",
     "load_scenario",
     "load_tuned_parameters",
     "plant_mismatch",

@@ -24,23 +24,15 @@ code that runs in this process: use scenario files from trusted sources only.
 from __future__ import annotations
 
 import re
-from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-from twin_cosim.controller import ControllerSettings
-from twin_cosim.plant_model import DRIVE_FACTS
-from twin_cosim.scenario.plant_section import (
-    PlantSection,
-    drive_facts,
-    plant_section,
-    with_plant_parameters,
-)
+from twin_cosim.scenario.controller_section import controller_section
+from twin_cosim.scenario.plant_section import plant_section, with_plant_parameters
 from twin_cosim.scenario.reference_section import reference_section
 from twin_cosim.scenario.resolved import Scenario
 from twin_cosim.scenario.shipped import find_scenario
-from twin_cosim.scenario.tuned_section import tuned_section
-from twin_cosim.schema import Checker, ScenarioError, load_yaml
+from twin_cosim.schema import Checker, load_yaml
 
 TOP_KEYS = {
     "name",
@@ -78,9 +70,7 @@ def load_scenario(path: Path | str) -> Scenario:
             name,
         )
     plant = plant_section(check, data.get("plant"))
-    control = check.mapping(data.get("controller"), "controller", {"parameters", "settings"})
-    tuned = tuned_section(control.get("parameters", "ft"), f"{source}: controller.parameters")
-    settings = _settings(check, plant, control.get("settings"))
+    tuned, settings = controller_section(check, plant, data.get("controller"))
     run = check.mapping(data.get("run"), "run", {"metrics_window", "max_samples"})
     max_samples = check.number(run.get("max_samples", MAX_SAMPLES), "run.max_samples", minimum=2)
     chosen = reference_section(check, data["reference"], settings.position_period, int(max_samples))
@@ -108,19 +98,6 @@ def load_scenario(path: Path | str) -> Scenario:
         model=plant.model,
         plant_parameters_file=plant.parameters_file,
     )
-
-
-def _settings(check: Checker, plant: PlantSection, raw: Any) -> ControllerSettings:
-    """Controller settings: the plant's drive facts, then ``controller.settings`` on top."""
-    given = check.mapping(raw, "controller.settings", {f.name for f in fields(ControllerSettings)})
-    facts = drive_facts(check, plant)
-    try:
-        return ControllerSettings(
-            **{name: facts[name] for name in DRIVE_FACTS if name in facts}
-            | {k: check.number(v, f"controller.settings.{k}") for k, v in given.items()}
-        )
-    except ValueError as exc:
-        raise ScenarioError(f"{check.source}: controller.settings: {exc}") from exc
 
 
 def _metrics_window(

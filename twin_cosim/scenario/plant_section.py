@@ -89,7 +89,7 @@ def _with_parameters_file(
     try:
         calibrated = read_plant_parameters(path, model or model_of(fmu)).parameters
     except (PlantParametersError, ValueError) as exc:
-        raise ScenarioError(f"{check.source}: plant.parameters_file: {exc}") from exc
+        raise ScenarioError(f"{check.where('plant.parameters_file')}: {exc}") from exc
     twice = sorted(set(parameters) & set(calibrated))
     if twice:
         raise check.fail(
@@ -112,7 +112,7 @@ def drive_facts(check: Checker, section: PlantSection) -> dict[str, float]:
     try:
         identifier, _, starts = fmu_identity(section.fmu)
     except Exception as exc:  # noqa: BLE001 - a broken FMU is reported when it is loaded to run
-        raise ScenarioError(f"{check.source}: plant: cannot read its parameters: {exc}") from exc
+        raise ScenarioError(f"{check.where('plant')}: cannot read its parameters: {exc}") from exc
     if identifier not in model_names():
         return {}
     return plant_model(identifier).drive_facts({**starts, **section.parameters})

@@ -67,3 +67,29 @@ def load_tuned_parameters(spec: str) -> TunedParameters:
     if isinstance(data, dict) and "best_params" in data:
         return tuned_from_mapping(data["best_params"], f"{path}: best_params")
     return tuned_from_mapping(data, str(path))
+
+
+def load_axes_parameters(spec: str, axes: tuple[str, ...]) -> dict[str, TunedParameters]:
+    """Parameters of each axis of a machine for ``--params``.
+
+    A Table 3 set name, or a file of one set, gives every axis that set; a file with ``axes:``
+    (``{X: {Kp_pos: ...}, Y: {...}}``, at the top level or under ``best_params``: what a contour
+    campaign writes) gives each axis its own, the axes it does not name keep theirs.
+    """
+    if spec.lower() in paper.TABLE3:
+        return dict.fromkeys(axes, paper.TABLE3[spec.lower()])
+    path = Path(spec)
+    if not path.is_file():
+        raise ScenarioError(
+            f"--params {spec}: neither a set of Table 3 {sorted(paper.TABLE3)} nor a file"
+        )
+    data = load_yaml(path)
+    where = str(path)
+    if isinstance(data, dict) and "best_params" in data:
+        data, where = data["best_params"], f"{path}: best_params"
+    if not (isinstance(data, dict) and "axes" in data):
+        return dict.fromkeys(axes, tuned_from_mapping(data, where))
+    given = data["axes"]
+    if not isinstance(given, dict) or not set(given) <= set(axes):
+        raise ScenarioError(f"{where}: axes: expected a mapping of the machine's axes {list(axes)}")
+    return {name: tuned_from_mapping(given[name], f"{where}: axes.{name}") for name in given}

@@ -46,6 +46,24 @@ def test_serial_and_pool_give_the_same_campaign(short_scenario, tmp_path):
     assert (tmp_path / "pool" / "progress.json").exists()
 
 
+def test_a_pool_campaign_leaves_the_plant_to_its_workers(short_scenario, tmp_path):
+    """With a process pool the reference runs and the evaluations run in the workers: the
+    parent loads neither numba nor fmpy (it prepares while they start)."""
+    code = (
+        "import sys\n"
+        "from twin_cosim.optimize.campaign import run_campaign\n"
+        "from twin_cosim.optimize.campaign_spec import CampaignSpec\n"
+        f"spec = CampaignSpec({short_scenario!r}, 'ce', seed=3, budget=8)\n"
+        f"run_campaign(spec, {str(tmp_path / 'c')!r}, workers=2, progress=False)\n"
+        "print(sorted({'numba', 'fmpy', 'matplotlib'} & set(sys.modules)))\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=False
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "[]"
+
+
 def test_failing_candidates_do_not_stop_the_campaign(short_scenario, tmp_path):
     result = campaign(short_scenario, tmp_path, "ga", workers=1, method="ga", budget=100)
     entries = [

@@ -1,0 +1,65 @@
+"""Wall time of a two-axis lockstep run against a one-axis run of the same length (fast path).
+
+The X-Y table of ``scenarios/xy_table.yaml`` runs a circle (radius 10 mm, 1000 mm/min, CCW;
+its feed-in, 360 degrees and feed-out): once with both axes in lockstep
+(:func:`twin_cosim.contour.lockstep.run_axes_fast`), once with the X axis alone on the
+single-axis fast path (:func:`twin_cosim.cosim.run_fast_path`) with the same reference. Each
+figure is the best of several repeats measured in this one run, alternating the two (the
+machine is shared and noisy); the ratio is the figure to compare (goal: at most 2.2).
+
+    python benchmarks/contour_speed.py [--repeats N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from twin_cosim.contour.circle_test import MM_PER_MIN, CircleSpec, circle_motion
+from twin_cosim.contour.lockstep import AxisRun, run_axes_fast
+from twin_cosim.contour.machine_run import MachinePlants, axis_grids
+from twin_cosim.cosim import run_fast_path
+from twin_cosim.plant import Plant
+from twin_cosim.scenario import load_machine
+
+
+def timed(function) -> float:
+    start = time.perf_counter()
+    function()
+    return time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=7)
+    args = parser.parse_args()
+    machine = load_machine("xy_table")
+    motion, _ = circle_motion(machine, CircleSpec(0.01, 1000 * MM_PER_MIN, "ccw"))
+    grids = axis_grids(machine, motion)
+    x, y = machine.axes
+    with MachinePlants(machine) as plants, Plant(x.plant_fmu(), instance_name="alone") as alone:
+        axes = [
+            AxisRun(a.name, plants.plants[a.name], grids[a.name], a.tuned, a.settings)
+            for a in machine.axes
+        ]
+
+        def two() -> None:
+            run_axes_fast(axes)
+
+        def one() -> None:
+            run_fast_path(alone, grids["X"], x.tuned, x.settings)
+
+        two(), one()  # compile or load the compiled loops
+        best_two, best_one = float("inf"), float("inf")
+        for _ in range(args.repeats):
+            best_two = min(best_two, timed(two))
+            best_one = min(best_one, timed(one))
+    steps = len(grids["X"].position) * x.settings.speed_steps_per_position_step
+    print(f"{steps} speed-loop steps per axis ({grids['X'].duration:.2f} s of motion)")
+    print(f"one axis:  {best_one * 1e3:8.1f} ms  {best_one / steps * 1e6:.3f} us per step")
+    print(f"two axes:  {best_two * 1e3:8.1f} ms  {best_two / steps * 1e6:.3f} us per step")
+    print(f"ratio two / one: {best_two / best_one:.2f} (goal: at most 2.2)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,99 @@
+"""Tuning for contours: the objective scores every axis' parameters; the campaign checkpoints,
+resumes to the same result and refuses a different one."""
+
+from __future__ import annotations
+
+import json
+import textwrap
+
+import numpy as np
+import pytest
+
+from twin_cosim.contour.tuning import (
+    ContourObjectiveSpec,
+    cases_of,
+    contour_settings,
+    machine_vector,
+)
+from twin_cosim.contour.tuning_campaign import ContourCampaignSpec, run_contour_campaign
+from twin_cosim.optimize.campaign_spec import CampaignError
+from twin_cosim.optimize.objective import EvaluationTask
+from twin_cosim.scenario import ScenarioError, load_machine
+
+MACHINE = """
+axes: {X: {}, Y: {}}
+optimize:
+  target: G
+  circles: {radii_mm: [5], feeds_mm_min: [2000, 1000], directions: [ccw]}
+"""
+
+
+@pytest.fixture()
+def machine_file(tmp_path):
+    path = tmp_path / "xy.yaml"
+    path.write_text(textwrap.dedent(MACHINE))
+    return path
+
+
+def test_settings_name_every_axis_parameter_and_refuse_bad_keys(machine_file, tmp_path):
+    machine = load_machine(machine_file)
+    settings = contour_settings(machine)
+    assert settings.config.names[:2] == ("X.Kp_pos", "X.Kp_vel")
+    assert len(settings.config.names) == 12 and len(settings.circles) == 2
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("axes: {X: {}, Y: {}}\noptimize: {target: E_pk}\n")
+    with pytest.raises(ScenarioError, match="bad.yaml: optimize.target"):
+        contour_settings(load_machine(bad))
+
+
+def test_the_objective_scores_the_reference_at_its_own_value_and_caps_iau(machine_file):
+    machine = load_machine(machine_file)
+    settings = contour_settings(machine)
+    probe = ContourObjectiveSpec(machine, settings, cases_of(settings, None)).build()
+    references = tuple(probe.reference_values())
+    probe.close()
+    objective = ContourObjectiveSpec(machine, settings, probe.spec.cases, references).build()
+    try:
+        own = objective(machine_vector(machine))
+        assert own["status"] == "ok"
+        assert own["fitness"] == pytest.approx(references[0]["G"])  # relative: case 0's units
+        hungry = machine_vector(machine).copy()
+        hungry[1] = hungry[7] = 1.4  # Kp_vel of both axes: more current
+        scored = objective(EvaluationTask(hungry))
+        assert scored["status"] in ("violation", "ok")
+        stopped = objective(EvaluationTask(machine_vector(machine), cutoff_um=1e-3))
+        assert stopped["status"] == "stopped" and stopped["fitness"] > 1e-3
+        refused = objective(np.zeros(12))
+        assert refused["status"] == "failed"
+    finally:
+        objective.close()
+
+
+def test_a_campaign_resumes_to_the_same_result_and_refuses_another(machine_file, tmp_path):
+    spec = ContourCampaignSpec(str(machine_file), "ce", seed=1, budget=8)
+    first = run_contour_campaign(spec, tmp_path / "a", workers=1, progress=False)
+    assert set(first["best_params"]["axes"]) == {"X", "Y"}
+    assert first["evaluations"] == 8 and first["reference_fitness"] > 0
+    log = (tmp_path / "a" / "evaluations.jsonl").read_text().splitlines()
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / "campaign.json").write_text((tmp_path / "a" / "campaign.json").read_text())
+    (tmp_path / "b" / "evaluations.jsonl").write_text("\n".join(log[:3]) + "\n")
+    again = run_contour_campaign(spec, tmp_path / "b", workers=1, resume=True, progress=False)
+    assert again["best_params"] == first["best_params"]
+    assert again["evaluations_reused"] == 3
+    other = ContourCampaignSpec(str(machine_file), "ce", seed=2, budget=8)
+    with pytest.raises(CampaignError, match="different campaign"):
+        run_contour_campaign(other, tmp_path / "b", workers=1, resume=True, progress=False)
+    result = json.loads((tmp_path / "a" / "result.json").read_text())
+    assert result["best_params"] == first["best_params"]
+
+
+def test_a_campaign_may_start_from_other_sets_and_a_resume_keeps_them(machine_file, tmp_path):
+    spec = ContourCampaignSpec(str(machine_file), "ce", seed=0, budget=2, start="ga")
+    run_contour_campaign(spec, tmp_path / "c", workers=1, progress=False)
+    header = json.loads((tmp_path / "c" / "campaign.json").read_text())
+    assert header["spec"]["start"] == "ga"
+    assert header["reference_params"]["X"]["Kp_pos"] == pytest.approx(66.6667)  # still Fine-Tune
+    other = ContourCampaignSpec(str(machine_file), "ce", seed=0, budget=2, start="sa")
+    with pytest.raises(CampaignError, match="different campaign"):
+        run_contour_campaign(other, tmp_path / "c", workers=1, resume=True, progress=False)

@@ -1,0 +1,126 @@
+"""``twin circle``: the circular test (ISO 230-4) on a machine scenario."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+from pathlib import Path
+
+from twin_cosim.commands.console import write_json
+from twin_cosim.commands.options import command_parser, out_folder
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return value
+
+
+def add_arguments(subparsers) -> None:
+    """The ``circle`` command and its options."""
+    parser = command_parser(
+        subparsers, "circle", "circular test (ISO 230-4: G, H, F, reversal spikes) on a machine"
+    )
+    parser.add_argument("scenario", help="machine scenario (axes: X, Y), file or shipped name")
+    parser.add_argument(
+        "--radius", type=_positive, metavar="MM", help="radius, mm (required unless --measured)"
+    )
+    parser.add_argument(
+        "--feed",
+        type=_positive,
+        metavar="MM_PER_MIN",
+        help="feed, mm/min (required unless --measured)",
+    )
+    parser.add_argument(
+        "--measured",
+        metavar="RUN.csv",
+        help="a measured circular test (t, x_ref, y_ref, x, y [, current_x, current_y]): "
+        "replay it on the twin and diagnose the gap per axis (default: none, run the twin)",
+    )
+    parser.add_argument(
+        "--direction", choices=["cw", "ccw", "both"], default="both", help="direction(s)"
+    )
+    parser.add_argument(
+        "--params",
+        help="ft|ga|ce|sa for every axis, or a YAML/JSON file (one set, or axes: {X: ..., Y: "
+        "...}) (default: the scenario's)",
+    )
+    parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<name>-circle)")
+    parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    parser.add_argument(
+        "--reference-path",
+        action="store_true",
+        help="step through fmpy in plain Python instead of the compiled loop",
+    )
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the circle(s), write circle.json, circle.png and the records; print the result."""
+    from twin_cosim.contour.circle_report import circular_test
+
+    command = "twin circle " + " ".join(shlex.quote(a) for a in sys.argv[2:])
+    default = Path("out") / f"{Path(args.scenario).stem}-circle"
+    out = out_folder(args.out, default)
+    if args.measured:
+        return _measured(args, out, command)
+    if args.radius is None or args.feed is None:
+        raise ValueError("--radius MM and --feed MM_PER_MIN are required (unless --measured)")
+    summary = circular_test(
+        args.scenario,
+        args.radius,
+        args.feed,
+        args.direction,
+        args.params,
+        out,
+        command,
+        fast=not args.reference_path,
+    )
+    write_json(out / "circle.json", summary)
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    print(
+        f"circle R {args.radius:g} mm at {args.feed:g} mm/min: G {summary['G_um']:.2f} um, "
+        f"F {summary['F_um']:.2f} um"
+        + (f", H {summary['H_um']:.2f} um" if "H_um" in summary else "")
+    )
+    for spike in summary["spikes"]:
+        print(
+            f"  {spike['direction']:>3} {spike['angle_deg']:5.0f} deg ({spike['axis']} reverses): "
+            f"spike {spike['height_um']:+.2f} um, {spike['width_ms']:.1f} ms"
+        )
+    print(f"wrote {out}/circle.json, circle.png, contour_<direction>.csv")
+    return 0
+
+
+def _measured(args: argparse.Namespace, out: Path, command: str) -> int:
+    """Replay and diagnose a measured test; write circle.json and circle.png; print the verdict."""
+    from twin_cosim.contour.circle_report import measured_circular_test
+
+    found = measured_circular_test(
+        args.scenario, args.measured, out, command, fast=not args.reference_path
+    )
+    write_json(out / "circle.json", found)
+    if args.json:
+        print(json.dumps(found))
+        return 0
+    machine, twin = found["machine"], found["twin"]
+    print(
+        f"{args.measured}: G {machine['G_um']:.2f} um on the machine, {twin['G_um']:.2f} um on "
+        "the twin"
+    )
+    for gap in found["transitions"]:
+        print(
+            f"  {gap['angle_deg']:5.0f} deg ({gap['axis']} reverses): spike machine "
+            f"{gap['machine_height_um']:+.2f} um, twin {gap['twin_height_um']:+.2f} um"
+        )
+    print(found["verdict"]["text"])
+    print(f"wrote {out}/circle.json, circle.png")
+    return 0

@@ -1,0 +1,366 @@
+"""Part programs: a G-code subset (RS274/NGC semantics, as LinuxCNC) read into path blocks.
+
+The subset:
+
+=========  ==================================================================================
+G17        XY plane for arcs (the only plane)
+G00        rapid traverse: a straight line at the axes' velocity limits
+G01        straight line at the programmed feed
+G02, G03   arc clockwise / counter-clockwise seen from +Z, in the XY plane at constant Z;
+           centre by I, J (offsets from the arc's start, always incremental) or radius R
+           (R > 0: at most 180 degrees, R < 0: more); a full circle by I, J with the end at
+           the start
+F          feed, units per minute (G94)
+G90, G91   absolute / incremental coordinates of X, Y, Z
+G20, G21   inch / millimetre
+G04 P      dwell, P in seconds (LinuxCNC; Fanuc reads P in ms: give seconds)
+N          sequence number (ignored)
+M02, M30   end of program (nothing after it may move)
+=========  ==================================================================================
+
+Comments in parentheses or after ``;`` are ignored. Every motion block ends in an exact stop
+(the path speed reaches zero at each block end; no blending). Anything else (another word,
+another G or M code, a word twice, two codes of one modal group, an arc's Z change, an axis the
+machine lacks, a number in another format) is refused before anything runs, naming the line and
+the word (:class:`ProgramError`).
+
+Why not a parser from the package index: the ones that exist (``gcodeparser``, ``pygcode``)
+drop what they do not understand without a word, lose modal motion lines and bare ``F`` words,
+or are unmaintained; a strict subset needs every word accounted for, and its word grammar is a
+regular expression.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from twin_cosim.contour.path import Arc, Element, Line
+
+MM = 1e-3  # m per mm
+INCH = 25.4e-3  # m per inch
+_WORD = re.compile(r"([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
+_COMMENT = re.compile(r"\([^)]*\)")
+_MODAL_GROUPS = {
+    0: "motion",
+    1: "motion",
+    2: "motion",
+    3: "motion",
+    17: "plane",
+    20: "units",
+    21: "units",
+    90: "distance",
+    91: "distance",
+    4: "dwell",
+}
+_ENDS = (2, 30)
+_ALLOWED = set("GXYZIJRFPNM")
+ARC_TOLERANCE = 5e-6  # m: largest difference of an arc's start and end radius (LinuxCNC's)
+ARC_RELATIVE_TOLERANCE = 1e-3
+
+
+class ProgramError(ValueError):
+    """A part program is outside the subset or inconsistent; names the line and the word."""
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One motion block: a path element traversed from rest to rest.
+
+    Attributes
+    ----------
+    element : Line or Arc
+        The programmed geometry, m.
+    feed : float or None
+        Programmed path speed, m/s; None for a rapid traverse (G00).
+    line : int
+        Line number in the program (1-based).
+    """
+
+    element: Element
+    feed: float | None
+    line: int
+
+
+@dataclass(frozen=True)
+class Pause:
+    """A dwell (G04) of ``duration`` s, from line ``line``."""
+
+    duration: float
+    line: int
+
+
+Block = Motion | Pause
+
+
+@dataclass(frozen=True)
+class Program:
+    """A part program read into blocks.
+
+    Attributes
+    ----------
+    blocks : tuple
+        Motions and pauses in program order.
+    start : tuple
+        Position (X, Y, Z) in m where the program starts (the machine's position).
+    source : str
+        The file (or a label) named in errors.
+    """
+
+    blocks: tuple[Block, ...]
+    start: tuple[float, float, float]
+    source: str
+
+    @property
+    def elements(self) -> tuple[Element, ...]:
+        """The path's elements (motions only), in order."""
+        return tuple(b.element for b in self.blocks if isinstance(b, Motion))
+
+
+def read_program(
+    path: Path | str, axes: tuple[str, ...] = ("X", "Y"), start=(0.0, 0.0, 0.0)
+) -> Program:
+    """Read a part program file; see :func:`parse_program`."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except UnicodeDecodeError as exc:
+        raise ProgramError(f"{path}: not a text (G-code) file: {exc}") from exc
+    except OSError as exc:
+        raise ProgramError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    return parse_program(text, str(path), axes, start)
+
+
+@dataclass
+class _State:
+    """The interpreter's modal state, in m and m/s."""
+
+    position: list[float]
+    motion: int | None = None
+    absolute: bool = True
+    unit: float = MM
+    feed: float | None = None
+    ended: bool = False
+
+
+def parse_program(
+    text: str,
+    source: str = "<program>",
+    axes: tuple[str, ...] = ("X", "Y"),
+    start: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> Program:
+    """Read a program's text into blocks.
+
+    Parameters
+    ----------
+    text
+        The program.
+    source
+        Named in errors.
+    axes
+        The machine's axes; a word for another axis is refused.
+    start
+        Position (X, Y, Z) in m where the program starts.
+
+    Raises
+    ------
+    ProgramError
+        ``SOURCE: line N: WORD: what is wrong`` for the first line outside the subset.
+    """
+    state = _State(position=[float(v) for v in start])
+    blocks: list[Block] = []
+    for number, raw in enumerate(text.splitlines(), start=1):
+        words = _words(raw, source, number)
+        if not words:
+            continue
+        if state.ended:
+            raise ProgramError(
+                f"{source}: line {number}: {_text(*words[0])}: after the end of program (M02/M30)"
+            )
+        blocks.extend(_block(words, state, source, number, axes))
+    return Program(tuple(blocks), tuple(float(v) for v in start), source)
+
+
+def _words(raw: str, source: str, number: int) -> list[tuple[str, float, str]]:
+    """The (letter, value, as written) words of one line, comments removed; the rest refused."""
+    line = _COMMENT.sub(" ", raw.split(";", 1)[0]).strip()
+    if line in ("", "%"):
+        return []
+    if "(" in line or ")" in line:
+        raise ProgramError(f"{source}: line {number}: {line!r}: unbalanced parenthesis")
+    words, at = [], 0
+    for match in _WORD.finditer(line):
+        gap = line[at : match.start()].strip()
+        if gap:
+            raise ProgramError(f"{source}: line {number}: {gap.split()[0]}: not a G-code word")
+        letter, value = match.group(1).upper(), match.group(2)
+        if letter not in _ALLOWED:
+            raise ProgramError(
+                f"{source}: line {number}: {match.group(0)}: word outside the subset "
+                f"(G17, G00-G03, G04 P, G20, G21, G90, G91, F, X, Y, Z, I, J, R, N, M02, M30)"
+            )
+        words.append((letter, float(value), match.group(0)))
+        at = match.end()
+    rest = line[at:].strip()
+    if rest:
+        raise ProgramError(f"{source}: line {number}: {rest.split()[0]}: not a G-code word")
+    return words
+
+
+def _text(letter: str, value: float, written: str) -> str:
+    return written.replace(" ", "")
+
+
+def _block(
+    words: list[tuple[str, float, str]],
+    state: _State,
+    source: str,
+    number: int,
+    axes: tuple[str, ...],
+) -> list[Block]:
+    """The blocks of one line, the modal state updated."""
+
+    def fail(word: tuple[str, float, str], what: str) -> ProgramError:
+        return ProgramError(f"{source}: line {number}: {_text(*word)}: {what}")
+
+    groups: dict[str, tuple[str, float, str]] = {}
+    values: dict[str, tuple[str, float, str]] = {}
+    for word in words:
+        letter, value, _ = word
+        if letter == "N":
+            continue
+        if letter == "G":
+            code = int(value)
+            if value != code or code not in _MODAL_GROUPS:
+                raise fail(word, "G code outside the subset (G17, G00-G04, G20, G21, G90, G91)")
+            group = _MODAL_GROUPS[code]
+            if group in groups:
+                raise fail(word, f"a second {group} code in one line")
+            groups[group] = word
+        elif letter == "M":
+            if value not in _ENDS:
+                raise fail(word, "M code outside the subset (M02, M30: end of program)")
+            groups["end"] = word
+        else:
+            if letter in values:
+                raise fail(word, f"{letter} given twice in one line")
+            values[letter] = word
+    for letter in ("X", "Y", "Z"):
+        if letter in values and letter not in axes:
+            raise fail(values[letter], f"the machine has no {letter} axis (axes: {list(axes)})")
+    if "units" in groups:
+        state.unit = INCH if groups["units"][1] == 20 else MM
+    if "distance" in groups:
+        state.absolute = groups["distance"][1] == 90
+    if "F" in values:
+        if not values["F"][1] > 0:
+            raise fail(values["F"], "expected a feed > 0 (units per minute)")
+        state.feed = values["F"][1] * state.unit / 60.0
+    blocks: list[Block] = []
+    if "dwell" in groups:
+        blocks.append(_dwell(groups, values, fail, number))
+    elif "P" in values:
+        raise fail(values["P"], "P belongs to a dwell (G04 P seconds)")
+    if "motion" in groups:
+        state.motion = int(groups["motion"][1])
+    moves = any(k in values for k in ("X", "Y", "Z", "I", "J", "R"))
+    if moves:
+        if "dwell" in groups:
+            raise fail(groups["dwell"], "a dwell and a motion in one line")
+        blocks.append(_motion(values, state, fail, number))
+    if "end" in groups:
+        state.ended = True
+    return blocks
+
+
+def _dwell(groups, values, fail, number: int) -> Pause:
+    if "P" not in values:
+        raise fail(groups["dwell"], "a dwell needs P (seconds)")
+    if values["P"][1] < 0:
+        raise fail(values["P"], "expected a dwell time >= 0 s")
+    return Pause(values["P"][1], number)
+
+
+def _motion(values, state: _State, fail, number: int) -> Motion:
+    """The motion block of a line with axis or arc words."""
+    if state.motion is None:
+        first = next(values[k] for k in ("X", "Y", "Z", "I", "J", "R") if k in values)
+        raise fail(first, "no motion mode active (G00, G01, G02 or G03 first)")
+    start = list(state.position)
+    end = list(start)
+    for i, letter in enumerate(("X", "Y", "Z")):
+        if letter in values:
+            value = values[letter][1] * state.unit
+            end[i] = value if state.absolute else start[i] + value
+    if state.motion in (0, 1):
+        for letter in ("I", "J", "R"):
+            if letter in values:
+                raise fail(values[letter], f"{letter} belongs to an arc (G02, G03)")
+        element = Line(tuple(start), tuple(end))
+    else:
+        element = _arc(values, state, start, end, fail)
+    feed = None
+    if state.motion != 0:
+        if state.feed is None:
+            word = next(values[k] for k in ("X", "Y", "Z", "I", "J", "R") if k in values)
+            raise fail(word, "no feed F given before this move")
+        feed = state.feed
+    state.position = end
+    return Motion(element, feed, number)
+
+
+def _arc(values, state: _State, start: list[float], end: list[float], fail) -> Arc:
+    """The arc of a G02/G03 line from ``start`` to ``end`` (m)."""
+    clockwise = state.motion == 2
+    if "Z" in values and end[2] != start[2]:
+        raise fail(values["Z"], "a Z change in an arc (a helix) is outside the subset")
+    has_offsets = "I" in values or "J" in values
+    if has_offsets and "R" in values:
+        raise fail(values["R"], "an arc takes either R or I/J, not both")
+    if not has_offsets and "R" not in values:
+        word = next(values[k] for k in ("X", "Y") if k in values)
+        raise fail(word, "an arc needs its centre (I, J) or radius (R)")
+    dx, dy = end[0] - start[0], end[1] - start[1]
+    if has_offsets:
+        cx = start[0] + values.get("I", ("I", 0.0, ""))[1] * state.unit
+        cy = start[1] + values.get("J", ("J", 0.0, ""))[1] * state.unit
+        radius = math.hypot(start[0] - cx, start[1] - cy)
+        end_radius = math.hypot(end[0] - cx, end[1] - cy)
+        word = values["I"] if "I" in values else values["J"]
+        if radius == 0.0:
+            raise fail(word, "the arc's centre is its start point (radius 0)")
+        if abs(end_radius - radius) > max(ARC_TOLERANCE, ARC_RELATIVE_TOLERANCE * radius):
+            raise fail(
+                word,
+                f"the end point is {end_radius / MM:.6g} mm from the centre, the start "
+                f"{radius / MM:.6g} mm: not on one circle",
+            )
+    else:
+        radius_word = values["R"]
+        signed = radius_word[1] * state.unit
+        chord = math.hypot(dx, dy)
+        if chord == 0.0:
+            raise fail(radius_word, "a full circle needs I, J (R gives no centre)")
+        if abs(signed) < chord / 2 - ARC_TOLERANCE:
+            raise fail(
+                radius_word,
+                f"radius {abs(signed) / MM:.6g} mm is below half the chord {chord / 2 / MM:.6g} mm",
+            )
+        radius = abs(signed)
+        height = math.sqrt(max(radius**2 - (chord / 2) ** 2, 0.0))
+        # centre left of the chord for (G03, R > 0) and (G02, R < 0): the short arc or the long
+        left = (not clockwise) == (signed > 0)
+        sign = 1.0 if left else -1.0
+        cx = start[0] + dx / 2 - sign * height * dy / chord
+        cy = start[1] + dy / 2 + sign * height * dx / chord
+    a0 = math.atan2(start[1] - cy, start[0] - cx)
+    a1 = math.atan2(end[1] - cy, end[0] - cx)
+    if clockwise:
+        sweep = -((a0 - a1) % (2 * math.pi))
+    else:
+        sweep = (a1 - a0) % (2 * math.pi)
+    if abs(sweep) < 1e-12:  # end at the start: a full circle
+        sweep = -2 * math.pi if clockwise else 2 * math.pi
+    return Arc((cx, cy), radius, a0, sweep, start[2])

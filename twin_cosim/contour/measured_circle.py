@@ -1,0 +1,262 @@
+"""Measured circular tests: read, replay on the twin, and diagnose the gap axis by axis.
+
+A measured circular test is a CSV of ``t`` [s], ``x_ref``, ``y_ref`` [m] (the CNC's
+references), ``x``, ``y`` [m] (the measured positions: scales or a grid encoder), and optionally
+``current_x``, ``current_y`` [A] (the drives' current commands). Coordinates may have any
+origin: the test's nominal centre and radius are those of the least-squares circle of the
+references.
+
+The twin replays the references on every axis in lockstep; the test is evaluated (ISO 230-4) on
+the measured and on the twin's path; the gap at each quadrant transition is the difference of
+the two reversal spikes. Each axis is then diagnosed with :func:`twin_cosim.gap.diagnosis.diagnose`
+as a single-axis run (its reference, its measured position and current): the axis whose
+diagnosis accepts an effect, with the largest held-out reduction, is where the gap lies.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from twin_cosim.contour.interpolation import PlannedMotion
+from twin_cosim.contour.iso230 import (
+    HYSTERESIS_STEP_DEG,
+    SPIKE_LEAD_DEG,
+    SPIKE_WINDOW_DEG,
+    CircleResult,
+    evaluate_circle,
+    least_squares_circle,
+    on_grid,
+)
+from twin_cosim.contour.machine_run import MachinePlants, MachineRecord, axis_grids, run_machine
+from twin_cosim.contour.path import Arc
+from twin_cosim.measured import MeasuredDataError, MeasuredRun, check_time
+from twin_cosim.scenario.machine import MachineScenario
+
+COLUMNS = {"X": ("x_ref", "x", "current_x"), "Y": ("y_ref", "y", "current_y")}
+CONSTANT_FEED = 0.99  # share of the top path speed above which the feed counts as constant
+
+
+@dataclass(frozen=True)
+class MeasuredCircle:
+    """A measured circular test, centred on its references' least-squares circle.
+
+    Attributes
+    ----------
+    source : str
+        The file.
+    t : numpy.ndarray
+        Sample times, s (regular).
+    reference, actual : dict
+        Axis name -> reference and measured position, m, about the nominal centre.
+    current : dict
+        Axis name -> current command, A (empty without currents).
+    centre : tuple
+        The nominal centre in the file's coordinates, m.
+    radius : float
+        Nominal radius, m.
+    direction : str
+        ``cw`` or ``ccw``.
+    """
+
+    source: str
+    t: np.ndarray
+    reference: dict[str, np.ndarray]
+    actual: dict[str, np.ndarray]
+    current: dict[str, np.ndarray]
+    centre: tuple[float, float]
+    radius: float
+    direction: str
+
+    @property
+    def period(self) -> float:
+        """Sample period, s."""
+        return float((self.t[-1] - self.t[0]) / (len(self.t) - 1))
+
+    def axis_run(self, name: str) -> MeasuredRun:
+        """One axis as a measured single-axis run (file coordinates), for the diagnosis."""
+        if name not in self.current:
+            raise MeasuredDataError(
+                f"{self.source}: the diagnosis of axis {name} needs its current column "
+                f"{COLUMNS[name][2]!r}"
+            )
+        offset = self.centre[0 if name == "X" else 1]
+        return MeasuredRun(
+            f"{self.source} (axis {name})",
+            self.t,
+            self.reference[name] + offset,
+            self.actual[name] + offset,
+            self.current[name],
+        )
+
+
+def read_measured_circle(path: Path | str) -> MeasuredCircle:
+    """Read and check a measured circular test (see the module docstring).
+
+    Raises
+    ------
+    MeasuredDataError
+        Naming the file and the column on a missing column, a non-numeric or non-finite value,
+        irregular time or references that do not go round a circle.
+    """
+    path = Path(path)
+    try:
+        table = pd.read_csv(path)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise MeasuredDataError(f"{path}: cannot read as CSV: {exc}") from exc
+    required = ("t", "x_ref", "y_ref", "x", "y")
+    missing = [c for c in required if c not in table.columns]
+    if missing:
+        raise MeasuredDataError(
+            f"{path}: missing column(s) {missing}; expected t [s], x_ref, y_ref, x, y [m] "
+            f"(optional current_x, current_y [A]), found {list(table.columns)}"
+        )
+    names = required + tuple(c for c in ("current_x", "current_y") if c in table.columns)
+    values = {}
+    for name in names:
+        column = pd.to_numeric(table[name], errors="coerce").to_numpy(dtype=np.float64)
+        bad = np.flatnonzero(~np.isfinite(column))
+        if len(bad):
+            raise MeasuredDataError(
+                f"{path}: column {name!r}: missing, non-numeric or non-finite value at file line "
+                f"{bad[0] + 2}"
+            )
+        values[name] = column
+    t = values["t"]
+    check_time(MeasuredRun(str(path), t, values["x_ref"], values["x"], values["x"]))
+    cx, cy, radius = least_squares_circle(values["x_ref"], values["y_ref"])
+    turn = np.unwrap(np.arctan2(values["y_ref"] - cy, values["x_ref"] - cx))
+    if not radius > 0 or abs(turn[-1] - turn[0]) < 2 * math.pi * 0.99:
+        raise MeasuredDataError(
+            f"{path}: columns 'x_ref', 'y_ref' do not go once round a circle (a circular test "
+            "needs 360 degrees of reference)"
+        )
+    return MeasuredCircle(
+        source=str(path),
+        t=t,
+        reference={"X": values["x_ref"] - cx, "Y": values["y_ref"] - cy},
+        actual={"X": values["x"] - cx, "Y": values["y"] - cy},
+        current={
+            axis: values[column] for axis, (_, _, column) in COLUMNS.items() if column in values
+        },
+        centre=(cx, cy),
+        radius=radius,
+        direction="ccw" if turn[-1] > turn[0] else "cw",
+    )
+
+
+def data_rows(measured: MeasuredCircle) -> np.ndarray:
+    """The samples of the data circle: 360 degrees from the first at constant feed."""
+    x, y = measured.reference["X"], measured.reference["Y"]
+    speed = np.hypot(np.gradient(x, measured.t), np.gradient(y, measured.t))
+    steady = np.flatnonzero(speed >= CONSTANT_FEED * speed.max())
+    angle = np.unwrap(np.arctan2(y, x))
+    travelled = np.abs(angle - angle[steady[0]])
+    rows = np.zeros(len(x), dtype=bool)
+    rows[steady[0] :] = travelled[steady[0] :] < 2 * math.pi
+    return rows & (speed >= CONSTANT_FEED * speed.max())
+
+
+def _motion(machine: MachineScenario, measured: MeasuredCircle) -> PlannedMotion:
+    """The measured references as the machine's motion (a Z axis stands at 0)."""
+    samples = np.column_stack(
+        [measured.reference.get(name, np.zeros(len(measured.t))) for name in machine.axis_names]
+    )
+    circle = Arc((0.0, 0.0), measured.radius, 0.0, 2 * math.pi)
+    return PlannedMotion(
+        machine.axis_names, measured.period, samples, (circle,), float(measured.t[-1]), ()
+    )
+
+
+def _on_data(frame: pd.DataFrame, rows: np.ndarray, t: np.ndarray) -> pd.DataFrame:
+    """The contour record's samples at the measured data circle's times."""
+    times = t[rows]
+    return pd.DataFrame(
+        {
+            "t": times,
+            "x": np.interp(times, frame["t"], frame["x"]),
+            "y": np.interp(times, frame["t"], frame["y"]),
+        }
+    )
+
+
+@dataclass(frozen=True)
+class CircleReplay:
+    """The twin's replay of a measured circular test and the comparison of the two.
+
+    Attributes
+    ----------
+    measured : MeasuredCircle
+        The test.
+    record : MachineRecord
+        The twin's run on the measured references.
+    on_machine, on_twin : CircleResult
+        ISO 230-4 evaluation of the measured path and of the twin's.
+    """
+
+    measured: MeasuredCircle
+    record: MachineRecord
+    on_machine: CircleResult
+    on_twin: CircleResult
+
+    def transition_gaps(self) -> list[dict[str, Any]]:
+        """Per quadrant transition: its axis, the measured and the twin's spike (um, ms) and
+        ``gap_um``, the largest radial difference of the two paths (um) in the transition's
+        window (where its spike is looked for)."""
+        sign = 1.0 if self.measured.direction == "ccw" else -1.0
+        grid = np.arange(0.0, 360.0, HYSTERESIS_STEP_DEG)
+        difference = on_grid(self.on_machine, grid) - on_grid(self.on_twin, grid)
+        gaps = []
+        for m, s in zip(self.on_machine.spikes, self.on_twin.spikes, strict=True):
+            travelled = (sign * (grid - m.angle_deg) + 180.0) % 360.0 - 180.0
+            window = (travelled >= -SPIKE_LEAD_DEG) & (travelled <= SPIKE_WINDOW_DEG)
+            gaps.append(
+                {
+                    "angle_deg": m.angle_deg,
+                    "axis": m.axis,
+                    "machine_height_um": m.height_um,
+                    "twin_height_um": s.height_um,
+                    "machine_width_ms": m.width_ms,
+                    "twin_width_ms": s.width_ms,
+                    "gap_um": float(np.max(np.abs(difference[window]))),
+                }
+            )
+        return gaps
+
+    def axis_gaps(self) -> dict[str, float]:
+        """RMS of measured minus twin position per axis, um."""
+        gaps = {}
+        for name, frame in self.record.axes.items():
+            twin = np.interp(self.measured.t, frame["t"], frame["x"])
+            gaps[name] = float(np.sqrt(np.mean((self.measured.actual[name] - twin) ** 2)) * 1e6)
+        return gaps
+
+
+def replay_circle(
+    machine: MachineScenario, measured: MeasuredCircle, plants: MachinePlants, fast: bool = True
+) -> CircleReplay:
+    """Replay a measured test on the twin and evaluate both paths."""
+    motion = _motion(machine, measured)
+    axis_grids(machine, motion)  # the size check, before the run
+    record = run_machine(machine, motion, plants, fast)
+    rows = data_rows(measured)
+    speed = float(
+        np.median(
+            np.hypot(
+                np.gradient(measured.reference["X"], measured.t),
+                np.gradient(measured.reference["Y"], measured.t),
+            )[rows]
+        )
+    )
+    machine_data = pd.DataFrame(
+        {"t": measured.t[rows], "x": measured.actual["X"][rows], "y": measured.actual["Y"][rows]}
+    )
+    on_machine = evaluate_circle(machine_data, measured.radius, measured.direction, speed)
+    twin_data = _on_data(record.contour, rows, measured.t)
+    on_twin = evaluate_circle(twin_data, measured.radius, measured.direction, speed)
+    return CircleReplay(measured, record, on_machine, on_twin)
