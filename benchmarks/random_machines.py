@@ -27,6 +27,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -42,6 +44,8 @@ SHIPPED = {
     "diagnosis": ROOT / "scenarios" / "diagnosis.yaml",
     "sweep": ROOT / "scenarios" / "sweep.yaml",
 }
+# Excitation of a machine and its probability: the shipped ones last 11-12 s, a random one 4-7 s.
+EXCITATIONS = {"diagnosis": 0.15, "sweep": 0.1, "random": 0.75}
 PERTURB = 0.02  # calibration error, relative
 EFFECT_COUNTS = (0, 1, 2, 3)
 COUNT_WEIGHTS = (0.15, 0.3, 0.3, 0.25)
@@ -104,15 +108,16 @@ def random_excitation(seed: int, path: Path) -> Path:
     """A seeded random excitation inside the shipped motion envelope, written as a scenario.
 
     The same pattern twice (the time split trains and judges on alike data): a dwell, two
-    constant speeds (10-45 mm/s) in both directions reached at 0.1-0.5 m/s^2, a reversal while
-    moving at 0.05-0.2 m/s^2, a stop, a dwell and a move back to the start (a reversal after a
-    dwell).
+    constant speeds (10-45 mm/s) in both directions reached at 0.2-0.5 m/s^2, a reversal while
+    moving at 0.05-0.2 m/s^2, a stop, a dwell and a move back to the start at the faster speed
+    (a reversal after a dwell). A pattern lasts 2.5-4 s (the shipped excitations 6 s): a
+    benchmark of many machines replays it some thousands of times per machine.
     """
     rng = np.random.default_rng(seed)
     slow, fast = (float(v) for v in sorted(rng.uniform(0.01, 0.045, size=2)))
-    accel = float(rng.uniform(0.1, 0.5))
+    accel = float(rng.uniform(0.2, 0.5))
     reverse = float(rng.uniform(0.05, 0.2))
-    dwell = round(float(rng.uniform(0.2, 0.4)), 3)
+    dwell = round(float(rng.uniform(0.15, 0.3)), 3)
     first, second = (1.0, -1.0) if rng.uniform() < 0.5 else (-1.0, 1.0)
 
     def ramp(speed: float, acceleration: float, hold: float, previous: float) -> dict:
@@ -127,13 +132,13 @@ def random_excitation(seed: int, path: Path) -> Path:
 
     pattern = [
         {"dwell": dwell},
-        ramp(first * slow, accel, 0.6, 0.0),
-        ramp(first * fast, accel, 0.5, first * slow),
-        ramp(second * slow, reverse, 0.4, first * fast),
-        ramp(second * fast, accel, 0.5, second * slow),
+        ramp(first * slow, accel, 0.3, 0.0),
+        ramp(first * fast, accel, 0.25, first * slow),
+        ramp(second * slow, reverse, 0.25, first * fast),
+        ramp(second * fast, accel, 0.25, second * slow),
         ramp(0.0, accel, 0.05, second * fast),
         {"dwell": dwell},
-        {"move": {"to": 0.0, "velocity": round(slow, 4), "acceleration": round(reverse, 3)}},
+        {"move": {"to": 0.0, "velocity": round(fast, 4), "acceleration": round(accel, 3)}},
     ]
     scenario = {
         "name": path.stem,
@@ -149,8 +154,14 @@ def random_excitation(seed: int, path: Path) -> Path:
 def machine_of(seed: int) -> dict:
     """The machine of a seed: effects, excitation and synth seed."""
     rng = np.random.default_rng([7919, seed])
-    excitation = str(rng.choice(["diagnosis", "sweep", "random", "random"]))
+    excitation = str(rng.choice(list(EXCITATIONS), p=list(EXCITATIONS.values())))
     return {"seed": seed, "effects": draw_effects(rng), "excitation": excitation}
+
+
+def _children_cpu_s() -> float:
+    """CPU seconds (user + system) of the finished child processes and theirs."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def twin(*args: str) -> subprocess.CompletedProcess:
@@ -181,6 +192,7 @@ def run_machine(case: dict, folder: Path, workers: int) -> dict:
     if made.returncode != 0:
         raise RuntimeError(f"synth {case}: {made.stderr}")
     start = time.perf_counter()
+    cpu_start = _children_cpu_s()
     diagnosed = twin(
         "diagnose",
         str(scenario),
@@ -194,8 +206,9 @@ def run_machine(case: dict, folder: Path, workers: int) -> dict:
         "--quiet",
     )
     wall = time.perf_counter() - start
+    cpu = _children_cpu_s() - cpu_start
     if diagnosed.returncode != 0:
-        return {**case, "crashed": diagnosed.stderr[-2000:], "wall_s": wall}
+        return {**case, "crashed": diagnosed.stderr[-2000:], "wall_s": wall, "cpu_s": cpu}
     summary = json.loads(diagnosed.stdout)
     rounds = summary["rounds"]
     before = rounds[0]["holdout_normalised_rms"]
@@ -208,7 +221,10 @@ def run_machine(case: dict, folder: Path, workers: int) -> dict:
         "significant": summary["gap"]["significant"],
         "reduction": 1.0 - after / before if before else 0.0,
         "wall_s": wall,
+        "cpu_s": cpu,
+        "load": os.getloadavg()[0],
         "diagnosis_wall_s": summary.get("wall_s"),
+        "time": summary.get("time", {}),
         "rounds": [
             {
                 "significant": r["significant"],
@@ -257,7 +273,38 @@ def score(results: list[dict]) -> dict:
         "median_reduction": statistics.median(r["reduction"] for r in ok) if ok else float("nan"),
         "median_wall_s": statistics.median(walls) if walls else float("nan"),
         "max_wall_s": max(walls) if walls else float("nan"),
+        "by_effect_count": {
+            n: {
+                "machines": len(group),
+                "median_wall_s": statistics.median(r["wall_s"] for r in group),
+                "median_cpu_s": statistics.median(r.get("cpu_s", math.nan) for r in group),
+                "median_load": statistics.median(r.get("load", math.nan) for r in group),
+            }
+            for n in EFFECT_COUNTS
+            if (group := [r for r in ok if len(r["truth"]) == n])
+        },
     }
+
+
+def where_time_goes(results: list[dict]) -> str:
+    """Per phase of the selection: wall time, tasks and replays summed over the machines."""
+    totals: dict[str, Counter] = defaultdict(Counter)
+    diagnosis_wall = 0.0
+    for r in results:
+        diagnosis_wall += r.get("diagnosis_wall_s") or 0.0
+        for phase, figures in r.get("time", {}).items():
+            totals[phase].update(figures)
+    selection = totals.pop("total", Counter())
+    lines = ["| phase | wall [s] | share of the diagnoses' wall | tasks | replays |"]
+    lines.append("|---|---|---|---|---|")
+    rows = [*totals.items(), ("selection (all phases)", selection)]
+    rows.append(("outside the selection", Counter(wall_s=diagnosis_wall - selection["wall_s"])))
+    for phase, f in rows:
+        share = f["wall_s"] / diagnosis_wall if diagnosis_wall else math.nan
+        lines.append(
+            f"| {phase} | {f['wall_s']:.0f} | {100 * share:.0f} % | {f['tasks']} | {f['replays']} |"
+        )
+    return "\n".join(lines)
 
 
 def confusion(results: list[dict]) -> str:
@@ -281,7 +328,9 @@ def confusion(results: list[dict]) -> str:
 
 
 def seeds(text: str) -> list[int]:
-    """``A-B`` (inclusive) or a comma list."""
+    """``A-B`` (inclusive), a comma list, or ``none``."""
+    if text == "none":
+        return []
     if "-" in text:
         low, high = (int(x) for x in text.split("-"))
         return list(range(low, high + 1))
@@ -294,6 +343,9 @@ def main() -> None:
     parser.add_argument("--report", type=seeds, default=seeds("100-159"), help="seeds to report")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", default="out/random-machines")
+    parser.add_argument(
+        "--score", action="store_true", help="only score the machines already done (no runs)"
+    )
     args = parser.parse_args()
     if set(args.tune) & set(args.report):
         parser.error("--tune and --report seeds must be disjoint")
@@ -306,7 +358,7 @@ def main() -> None:
             entry = json.loads(line)
             done[entry["seed"]] = entry
     for seed in args.tune + args.report:
-        if seed in done:
+        if seed in done or args.score:
             continue
         result = run_machine(machine_of(seed), out / f"machine{seed}", args.workers)
         done[seed] = result
@@ -315,9 +367,13 @@ def main() -> None:
         mark = "CRASH" if "crashed" in result else f"accepted {result['accepted'] or 'nothing'}"
         print(f"seed {seed}: truth {result.get('truth', [])}; {mark} ({result['wall_s']:.0f} s)")
     for label, chosen in (("tune", args.tune), ("report", args.report)):
-        figures = score([done[s] for s in chosen])
-        print(f"\n{label} seeds {chosen[0]}-{chosen[-1]}: " + json.dumps(figures, indent=1))
-    print("\nReport seeds, per true effect:\n" + confusion([done[s] for s in args.report]))
+        results = [done[s] for s in chosen if s in done]
+        if results:
+            figures = score(results)
+            print(f"\n{label} seeds ({len(results)} of {len(chosen)} done): " + json.dumps(figures))
+    report = [done[s] for s in args.report if s in done]
+    print("\nReport seeds, per true effect:\n" + confusion(report))
+    print("\nReport seeds, where the time goes:\n" + where_time_goes(report))
 
 
 if __name__ == "__main__":

@@ -121,6 +121,7 @@ class Diagnosis:
     accepted_groups: list[list[str]] = field(default_factory=list)
     marginal: list[Marginal] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)
+    times: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def summary(self) -> dict[str, Any]:
         """The diagnosis as JSON-ready data (the one place it is serialised)."""
@@ -178,6 +179,7 @@ class Diagnosis:
                 "thresholds": asdict(self.settings),
                 "warnings": context.warnings + self.noise.dropped,
                 "final_plant_parameters": self.plant_parameters,
+                "time": self.times,
             }
         )
 
@@ -435,6 +437,7 @@ def _diagnose(
         selection.accepted,
         selection.marginal,
         selection.dropped,
+        selection.times,
     )
 
 

@@ -39,9 +39,13 @@ from twin_cosim.reference import ReferenceGrid
 from twin_cosim.scenario import Scenario
 
 FIT_EVALUATIONS = 10  # residual evaluations per least_squares polish (plus its Jacobians)
+JOINT_EVALUATIONS = 5  # residual evaluations of a joint refit (each with its Jacobian)
 FIT_STEP = 0.02  # finite-difference step, as a fraction of each parameter's range
-GLOBAL_EVALUATIONS = 50  # replays of the global search per fitted parameter (one or two)
 GLOBAL_POPULATION_PER_PARAMETER = 8
+# Generations of the global search after its first population: from the start values (round 1)
+# and from the previous round's fit (later rounds: the start is already near a valley).
+GLOBAL_GENERATIONS = 3
+WARM_GENERATIONS = 1
 FAILURE_FACTOR = 10.0  # a failed replay's residual, relative to the fit's starting residual
 FAILURE_FLOOR = 1e3  # least normalised residual per sample of a failed replay
 
@@ -159,6 +163,7 @@ class FitTask:
     hypothesis: str
     base: dict[str, float]
     context: dict[str, float]
+    start: tuple[float, ...] | None = None  # the previous round's fit (physical units)
 
 
 @dataclass(frozen=True)
@@ -330,7 +335,7 @@ class Replayer:
                 u0,
                 bounds=(lower, upper),
                 diff_step=FIT_STEP,
-                max_nfev=FIT_EVALUATIONS,
+                max_nfev=JOINT_EVALUATIONS,
                 x_scale=1.0,
             )
             found = float(np.sum(solution.fun**2)) / samples
@@ -391,7 +396,7 @@ class Replayer:
         def residual_of_unit(u: np.ndarray) -> np.ndarray:
             return self.training_residual(overrides_of(hypothesis.from_unit(u)))
 
-        u0, grid_replays = self._coarse_start(hypothesis, residual_of_unit)
+        u0, grid_replays = self._coarse_start(hypothesis, residual_of_unit, task.start)
         solution = least_squares(
             residual_of_unit,
             u0,
@@ -413,16 +418,29 @@ class Replayer:
         )
 
     @staticmethod
-    def _coarse_start(hypothesis, residual_of_unit) -> tuple[np.ndarray, int]:
+    def _coarse_start(
+        hypothesis: Hypothesis, residual_of_unit, previous: tuple[float, ...] | None
+    ) -> tuple[np.ndarray, int]:
         """Start of the local fit: a small global search for one or two parameters.
 
         Stick-slip and backlash make the training cost rough, with narrow valleys (a Stribeck
         level 2 % off can cost ten times the optimum), so a local fit from one start stalls. For
-        one or two parameters scipy's differential evolution (seeded, no polish, about
-        GLOBAL_EVALUATIONS replays per parameter) picks the start of least_squares; three-parameter
-        hypotheses (the nearly linear lead error) start from their start values.
+        one or two parameters scipy's differential evolution (seeded, no polish; a population of
+        GLOBAL_POPULATION_PER_PARAMETER per parameter, holding the start values, and
+        GLOBAL_GENERATIONS generations) picks the start of least_squares. With the previous
+        round's fit (``previous``, physical units) the population holds it instead and evolves
+        WARM_GENERATIONS generations: the accepted effects moved the valley, they seldom remove
+        it. Three-parameter hypotheses (the nearly linear lead error) start from the previous
+        fit or their start values.
         """
-        start = np.clip(hypothesis.initial_unit(), 0.0, 1.0)
+        if previous is not None and len(previous) == len(hypothesis.parameters):
+            start = np.array(
+                [p.to_unit(v) for p, v in zip(hypothesis.parameters, previous, strict=True)]
+            )
+            generations = WARM_GENERATIONS
+        else:
+            start, generations = hypothesis.initial_unit(), GLOBAL_GENERATIONS
+        start = np.clip(start, 0.0, 1.0)
         if len(start) > 2:
             return start, 0
         count = 0
@@ -440,7 +458,7 @@ class Replayer:
             x0=start,
             polish=False,
             seed=0,
-            maxiter=max(1, GLOBAL_EVALUATIONS // popsize - 1),
+            maxiter=generations,
             tol=1e-3,
         )
         return np.clip(search.x, 0.0, 1.0), count

@@ -69,6 +69,7 @@ from twin_cosim.gap.location import dominant_order
 from twin_cosim.gap.replay import FitResult, FitTask, JointFitTask, Replays, SimulateTask
 from twin_cosim.gap.residuals import Residuals, residuals_of, rms
 from twin_cosim.gap.settings import DiagnosisSettings
+from twin_cosim.gap.timing import PhaseTimes
 from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant_model import plant_model
@@ -235,7 +236,8 @@ class Marginal:
 class Selection:
     """The rounds, the accepted effects (after the backward pass) and their FMU parameters, the
     replays with them, the calibration floor of what they leave with its calibrated replays,
-    each kept effect's marginal contribution and the effects the backward pass dropped."""
+    each kept effect's marginal contribution, the effects the backward pass dropped and where
+    the time went (wall s, pool tasks and replays per phase)."""
 
     rounds: list[Round]
     accepted: list[list[str]]
@@ -245,6 +247,7 @@ class Selection:
     calibrated: Replays
     marginal: list[Marginal] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)
+    times: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
 @dataclass
@@ -271,14 +274,9 @@ def _correlation(a: np.ndarray, b: np.ndarray) -> float:
     return float(abs(np.corrcoef(a, b)[0, 1]))
 
 
-def _imap(pool, tasks: list, progress: Progress | None) -> list:
-    """Results of tasks on the pool, in task order, reporting each completion."""
-    results: list = [None] * len(tasks)
-    for i, result in pool.imap(tasks):
-        results[i] = result
-        if progress:
-            progress(1)
-    return results
+def _replays_of(result: FitResult | Replays) -> int:
+    """Replays a task ran: a fit's count, or one per judging scenario."""
+    return result.replays if isinstance(result, FitResult) else len(result.judging)
 
 
 class Selector:
@@ -322,7 +320,20 @@ class Selector:
         self.settings = settings
         self.base_context = hypothesis_context
         self.progress = progress
+        self.times = PhaseTimes()
         self._bases: dict[tuple, CalibrationBasis] = {}
+
+    def _tasks(self, phase: str, tasks: list) -> list:
+        """Results of tasks on the pool, in task order, reporting each completion; the time
+        they took and the replays they ran go to ``phase``."""
+        results: list = [None] * len(tasks)
+        with self.times.timed(phase, len(tasks)) as totals:
+            for i, result in self.pool.imap(tasks):
+                results[i] = result
+                totals.replays += _replays_of(result)
+                if self.progress:
+                    self.progress(1)
+        return results
 
     def expected_tasks(self) -> int:
         """Pool tasks of a selection that accepts the most effects (for progress bars)."""
@@ -349,7 +360,7 @@ class Selector:
             for name in self.calibrated
             for sign in (1.0, -1.0)
         ]
-        replays = _imap(self.pool, [SimulateTask(m) for m in moves], self.progress)
+        replays = self._tasks("calibration_directions", [SimulateTask(m) for m in moves])
         columns = []
         for i in range(0, len(moves), 2):
             up = self.judging.vector(self.judging.residuals(replays[i]))
@@ -378,7 +389,7 @@ class Selector:
             **base,
             **{n: current[n] * (1.0 + a * tolerance) for n, a in floor.coefficients.items()},
         }
-        return _imap(self.pool, [SimulateTask(corrected)], self.progress)[0]
+        return self._tasks("calibrated_replays", [SimulateTask(corrected)])[0]
 
     def run(self, start: Replays) -> Selection:
         """Forward selection with joint refits from the replays of the nominal twin, then the
@@ -389,6 +400,7 @@ class Selector:
         replays = start
         remaining = list(settings.hypotheses or self.library)
         rounds: list[Round] = []
+        starts: dict[str, tuple[float, ...]] = {}
         while remaining and len(accepted) < settings.max_effects:
             held = self.judging.residuals(replays)
             vector = self.judging.vector(held)
@@ -410,7 +422,10 @@ class Selector:
             rounds.append(current)
             if not current.significant:
                 break
-            current.candidates = self._fit_and_judge(remaining, base, context, held, vector, basis)
+            current.candidates = self._fit_and_judge(
+                remaining, base, context, held, vector, basis, starts
+            )
+            starts = {c.name: tuple(c.fit.values.values()) for c in current.candidates}
             passing = [c for c in current.candidates if c.passes]
             if not passing:
                 break
@@ -429,7 +444,7 @@ class Selector:
             )
             base, replays = self._joint(accepted, dict(best.fit.overrides))
             remaining = self._next_candidates(current, best.name, remaining)
-        accepted, base, replays, marginal, dropped = self._backward(accepted, base, replays)
+        accepted, base, replays, marginal, dropped = self._backward(accepted, base, replays, start)
         vector = self.judging.vector(self.judging.residuals(replays))
         floor = floor_of(self.basis(base), vector)
         return Selection(
@@ -441,43 +456,66 @@ class Selector:
             self.calibrated_replay(base, floor),
             marginal,
             dropped,
+            self.times.as_dict(),
         )
-
-    def _replay(self, overrides: dict[str, float]) -> Replays:
-        return _imap(self.pool, [SimulateTask(overrides, with_training=True)], self.progress)[0]
 
     def _left(self, overrides: dict[str, float], replays: Replays) -> np.ndarray:
         """The normalised held-out residual the best calibration correction leaves."""
         vector = self.judging.vector(self.judging.residuals(replays))
         return self.basis(overrides).correction(vector)[1]
 
-    def _refit(self, accepted: list[_Accepted]) -> dict[str, float]:
-        """The FMU parameters of effects refitted together on the training data, with the
-        calibrated parameters under their prior."""
-        task = JointFitTask(
+    def _refit_task(self, accepted: list[_Accepted]) -> JointFitTask:
+        """The refit of effects together on the training data, with the calibrated parameters
+        under their prior."""
+        return JointFitTask(
             tuple(a.name for a in accepted),
             tuple(a.values for a in accepted),
             tuple(a.context for a in accepted),
             tuple(self.calibrated),
             self.settings.calibration_tolerance,
         )
-        return _imap(self.pool, [task], self.progress)[0].overrides
 
     def _joint(
         self, accepted: list[_Accepted], sequential: dict[str, float]
     ) -> tuple[dict[str, float], Replays]:
         """The accepted effects' parameters: refitted together when that judges better on the
-        held-out data than the sequential fit, and their replays."""
-        replays = self._replay(sequential)
-        joint = self._refit(accepted)
-        joint_replays = self._replay(joint)
+        held-out data than the sequential fit, and their replays (the sequential replay runs
+        beside the refit)."""
+        replays, refit = self._tasks(
+            "joint_refits",
+            [SimulateTask(sequential, with_training=True), self._refit_task(accepted)],
+        )
+        joint = refit.overrides
+        joint_replays = self._tasks("joint_refits", [SimulateTask(joint, with_training=True)])[0]
         left_joint = np.linalg.norm(self._left(joint, joint_replays))
         if left_joint < np.linalg.norm(self._left(sequential, replays)):
             return joint, joint_replays
         return sequential, replays
 
+    def _without_each(
+        self, accepted: list[_Accepted], start: Replays
+    ) -> list[tuple[dict[str, float], Replays]]:
+        """Per accepted effect, the model refitted without it (FMU parameters, replays); the
+        refits run at once. Without a single effect it is the nominal twin (``start``): the
+        best calibration correction of its held-out residual gives calibration error every
+        benefit of the doubt already."""
+        if len(accepted) == 1:
+            return [({}, start)]
+        refits = self._tasks(
+            "backward_pass",
+            [self._refit_task(accepted[:j] + accepted[j + 1 :]) for j in range(len(accepted))],
+        )
+        withouts = self._tasks(
+            "backward_pass", [SimulateTask(r.overrides, with_training=True) for r in refits]
+        )
+        return [(r.overrides, w) for r, w in zip(refits, withouts, strict=True)]
+
     def _backward(
-        self, accepted: list[_Accepted], base: dict[str, float], replays: Replays
+        self,
+        accepted: list[_Accepted],
+        base: dict[str, float],
+        replays: Replays,
+        start: Replays,
     ) -> tuple[list[_Accepted], dict[str, float], Replays, list[Marginal], list[str]]:
         """Drop, weakest first, accepted effects whose removal does not hurt the held-out fit
         beyond the noise; the kept effects' marginal contributions. A single effect is kept: it
@@ -487,31 +525,21 @@ class Selector:
         while accepted:
             with_all = self._left(base, replays)
             trials = []
-            for j in range(len(accepted)):
-                others = accepted[:j] + accepted[j + 1 :]
-                overrides = self._refit(others)
-                without = self._replay(overrides)
+            for j, (overrides, without) in enumerate(self._without_each(accepted, start)):
                 left = self._left(overrides, without)
                 z, share = improvement_z(left, with_all, duration), excess_share(left, with_all)
                 strength = min(
                     z / critical_z(self.settings.acceptance_level, len(accepted)),
                     share / least_share,
                 )
-                trials.append(
-                    (
-                        strength,
-                        j,
-                        overrides,
-                        without,
-                        Marginal(
-                            accepted[j].name,
-                            z,
-                            share,
-                            float(np.linalg.norm(left)),
-                            float(np.linalg.norm(with_all)),
-                        ),
-                    )
+                marginal = Marginal(
+                    accepted[j].name,
+                    z,
+                    share,
+                    float(np.linalg.norm(left)),
+                    float(np.linalg.norm(with_all)),
                 )
+                trials.append((strength, j, overrides, without, marginal))
             weakest = min(trials, key=lambda trial: trial[0])
             if len(accepted) == 1 or weakest[0] >= 1.0:
                 return accepted, base, replays, [trial[4] for trial in trials], dropped
@@ -539,11 +567,14 @@ class Selector:
         held: Residuals,
         vector: np.ndarray,
         basis: CalibrationBasis,
+        starts: dict[str, tuple[float, ...]],
     ) -> list[Candidate]:
-        """Fit every hypothesis, replay it on the held-out runs and judge it."""
-        fits = _imap(self.pool, [FitTask(n, base, context) for n in names], self.progress)
+        """Fit every hypothesis (from its fit of the round before, in ``starts``, when there
+        is one), replay it on the held-out runs and judge it."""
+        phase = "later_round_fits" if starts else "first_round_fits"
+        fits = self._tasks(phase, [FitTask(n, base, context, starts.get(n)) for n in names])
         critical = critical_z(self.settings.acceptance_level, len(names))
-        replays = _imap(self.pool, [SimulateTask(f.overrides) for f in fits], self.progress)
+        replays = self._tasks("candidate_replays", [SimulateTask(f.overrides) for f in fits])
         candidates = []
         for fit, replay in zip(fits, replays, strict=True):
             hypothesis = self.library[fit.hypothesis]
