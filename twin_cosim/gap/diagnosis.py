@@ -20,6 +20,7 @@ Stages, each a typed result (serialised to JSON in one place, :meth:`Diagnosis.s
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -373,6 +374,7 @@ def _diagnose(
     pool: SerialPool | ProcessPool,
 ) -> Diagnosis:
     """:func:`diagnose` with its replays on ``pool``."""
+    cpu_start = time.process_time()
     context = build_context(scenario, measured, holdout, fmu, settings)
     noise, nominal, start = _noise_stage(context)
     resolution = estimate_resolution(np.concatenate([r.x for r in context.train]))
@@ -413,6 +415,14 @@ def _diagnose(
     remaining, remaining_where, verdict = _verdict_stage(
         context, settings, judging, selection, hold_final
     )
+    parent_cpu = time.process_time() - cpu_start
+    times = {
+        **selection.times,
+        "diagnosis": {
+            "parent_cpu_s": parent_cpu,
+            "idle_wall_estimate_s": parent_cpu + selection.times["total"]["idle_wall_s"],
+        },
+    }
     return Diagnosis(
         context,
         settings,
@@ -437,7 +447,7 @@ def _diagnose(
         selection.accepted,
         selection.marginal,
         selection.dropped,
-        selection.times,
+        times,
     )
 
 

@@ -6,7 +6,10 @@ A :class:`ReplaySpec` (the scenarios, numbers and the training data: it pickles)
 - :class:`SimulateTask`: replay the judging scenarios (the training scenario first when asked)
   with some FMU parameters; returns the records;
 - :class:`FitTask`: fit one hypothesis on the training data (scipy least_squares on replays, or a
-  scan of discrete values) on top of already accepted effects.
+  scan of discrete values) on top of already accepted effects;
+- :class:`JointFitTask`: refit accepted effects together with the calibrated parameters.
+
+Each result comes back with the CPU time the task took (:class:`~twin_cosim.gap.timing.Timed`).
 
 The fit minimises the normalised training residual: position residual / sigma_x and current
 residual / sigma_i (sigma: noise floors measured at standstill), over the training samples only;
@@ -22,9 +25,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -33,6 +36,7 @@ from scipy.optimize import differential_evolution, least_squares
 from twin_cosim.cosim import RunAborted, run_scenario
 from twin_cosim.gap.effects import library_for
 from twin_cosim.gap.evidence import EFFECTIVE_SAMPLE_SPACING_S
+from twin_cosim.gap.timing import Timed
 from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
@@ -270,12 +274,16 @@ class Replayer:
             return np.full(n, self.failure_residual)
         return normalised_residual(records, self.spec.training)
 
-    def __call__(self, task: SimulateTask | FitTask | JointFitTask) -> Any:
+    def __call__(self, task: SimulateTask | FitTask | JointFitTask) -> Timed:
+        """The task's result and the CPU time it took."""
+        start = time.process_time()
         if isinstance(task, SimulateTask):
-            return self.simulate(task)
-        if isinstance(task, JointFitTask):
-            return self.joint_fit(task)
-        return self.fit(task)
+            result = self.simulate(task)
+        elif isinstance(task, JointFitTask):
+            result = self.joint_fit(task)
+        else:
+            result = self.fit(task)
+        return Timed(result, time.process_time() - start)
 
     def joint_fit(self, task: JointFitTask) -> FitResult:
         """Refit several hypotheses together (values by ``hypothesis.parameter``)."""

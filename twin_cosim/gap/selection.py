@@ -69,7 +69,7 @@ from twin_cosim.gap.location import dominant_order
 from twin_cosim.gap.replay import FitResult, FitTask, JointFitTask, Replays, SimulateTask
 from twin_cosim.gap.residuals import Residuals, residuals_of, rms
 from twin_cosim.gap.settings import DiagnosisSettings
-from twin_cosim.gap.timing import PhaseTimes
+from twin_cosim.gap.timing import PhaseTimes, makespan
 from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant_model import plant_model
@@ -327,12 +327,15 @@ class Selector:
         """Results of tasks on the pool, in task order, reporting each completion; the time
         they took and the replays they ran go to ``phase``."""
         results: list = [None] * len(tasks)
+        cpu = [0.0] * len(tasks)
         with self.times.timed(phase, len(tasks)) as totals:
-            for i, result in self.pool.imap(tasks):
-                results[i] = result
-                totals.replays += _replays_of(result)
+            for i, timed in self.pool.imap(tasks):
+                results[i], cpu[i] = timed.result, timed.cpu_s
+                totals.replays += _replays_of(timed.result)
                 if self.progress:
                     self.progress(1)
+            totals.cpu_s += sum(cpu)
+            totals.idle_wall_s += makespan(cpu, self.pool.workers)
         return results
 
     def expected_tasks(self) -> int:
