@@ -29,9 +29,9 @@ excess would have no reason to fall to one hypothesis more than to the others.
 from __future__ import annotations
 
 import math
+from statistics import NormalDist
 
 import numpy as np
-from scipy.stats import norm
 
 EFFECTIVE_SAMPLE_SPACING_S = 0.01  # s: one independent residual sample per 10 ms
 FLOOR_UNCERTAINTY = 0.1  # relative uncertainty of the floors' energy (robust spread estimates)
@@ -39,7 +39,7 @@ FLOOR_UNCERTAINTY = 0.1  # relative uncertainty of the floors' energy (robust sp
 
 def critical_z(level: float, tests: int = 1) -> float:
     """One-sided normal quantile for ``level`` shared by ``tests`` tests (Bonferroni)."""
-    return float(norm.isf(level / max(tests, 1)))
+    return -NormalDist().inv_cdf(level / max(tests, 1))
 
 
 def gap_threshold(duration_s: float, level: float) -> float:
