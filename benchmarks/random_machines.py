@@ -111,7 +111,7 @@ def random_excitation(seed: int, path: Path) -> Path:
     The same pattern twice (the time split trains and judges on alike data): a dwell, two
     constant speeds (10-45 mm/s) in both directions reached at 0.2-0.5 m/s^2, a reversal while
     moving at 0.05-0.2 m/s^2, a stop, a dwell and a move back to the start at the faster speed
-    (a reversal after a dwell). A pattern lasts 2.5-4 s (the shipped excitations 6 s): a
+    (a reversal after a dwell). A pattern lasts about 2-3 s (the shipped excitations 6 s): a
     benchmark of many machines replays it some thousands of times per machine.
     """
     rng = np.random.default_rng(seed)
@@ -320,7 +320,7 @@ def confusion(results: list[dict]) -> str:
             seen[t] += 1
             found[t] += any(t in a for a in accepted)
             for a in r["accepted"]:
-                label = "|".join(sorted(a)) if isinstance(a, list) else a
+                label = "{" + ", ".join(sorted(a)) + "}" if isinstance(a, list) else a
                 beside[t][label] += 1
     lines = ["| true effect | machines | found | accepted on its machines |", "|---|---|---|---|"]
     for t in sorted(seen):
