@@ -1,7 +1,8 @@
 """Twin-to-machine transfer: do gains tuned on the calibrated twin work better on the machine?
 
-For each virtual machine (effects of the library at seeded random sizes, plus a calibration error
-of up to ``--perturb`` on the calibrated parameters), all through the command line:
+For each virtual machine (two or three effects of the library at seeded random sizes, plus a
+calibration error of up to ``--perturb`` on the calibrated parameters), all through the command
+line:
 
 1. ``twin synth scenarios/diagnosis.yaml`` with the machine's effects: the excitation run;
 2. ``twin diagnose`` on it: ``plant.yaml`` (the calibrated plant);
@@ -37,7 +38,8 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 EXCITATION = ROOT / "scenarios" / "diagnosis.yaml"
-# Effects and their size ranges (twin synth parameters); a machine draws EFFECTS_PER_MACHINE.
+# Effects and their size ranges (twin synth parameters); a machine draws EFFECTS_PER_MACHINE of
+# them.
 EFFECT_RANGES = {
     "stribeck": {"stribeck_friction": (0.1, 0.3), "stribeck_speed": (0.3, 0.7)},
     "coulomb_change": {"delta_coulomb": (0.05, 0.2)},
@@ -47,7 +49,7 @@ EFFECT_RANGES = {
     "inertia_change": {"relative_change": (0.08, 0.3)},
     "current_lag": {"current_time_constant": (1.5e-4, 5e-4)},
 }
-EFFECTS_PER_MACHINE = 2
+EFFECTS_PER_MACHINE = (2, 3)  # a machine draws two or three effects
 
 
 def twin(*args: str) -> dict:
@@ -63,7 +65,8 @@ def twin(*args: str) -> dict:
 def draw_machine(index: int, seed: int) -> dict:
     """The effects of machine ``index``: names and sizes drawn from a seeded generator."""
     rng = np.random.default_rng([seed, index])
-    names = rng.choice(sorted(EFFECT_RANGES), size=EFFECTS_PER_MACHINE, replace=False)
+    count = int(rng.choice(EFFECTS_PER_MACHINE))
+    names = rng.choice(sorted(EFFECT_RANGES), size=count, replace=False)
     effects = []
     for name in sorted(names):
         params = {p: float(rng.uniform(lo, hi)) for p, (lo, hi) in EFFECT_RANGES[name].items()}

@@ -50,9 +50,10 @@ def from_diagnosis(
     summary
         The JSON summary of ``twin diagnose``: ``steps`` (accepted effects, each with its
         cumulative FMU ``plant_parameters``, ``fitted`` hypothesis, fitted ``params`` and
-        held-out figures), ``noise.plant_parameters``, ``rounds`` (the last one's
-        ``calibration.coefficients``: the correction of each calibrated parameter in units of
-        the tolerance) and ``thresholds.calibration_tolerance``.
+        held-out figures), ``final_plant_parameters`` (the kept effects' FMU parameters after
+        joint refits and the backward pass, which win), ``noise.plant_parameters``, ``rounds``
+        (the last one's ``calibration.coefficients``: the correction of each calibrated
+        parameter in units of the tolerance) and ``thresholds.calibration_tolerance``.
     model
         The plant model the diagnosis ran on.
     created_by
@@ -90,6 +91,15 @@ def from_diagnosis(
             }
         parameters |= cumulative
         previous = cumulative
+    final = summary.get("final_plant_parameters")
+    if final is not None:  # after joint refits and the backward pass
+        for name in set(previous) - set(final):
+            parameters.pop(name, None)
+            provenance.pop(name, None)
+        for name, value in final.items():
+            if name in provenance and parameters.get(name) != float(value):
+                provenance[name]["refitted_jointly"] = True
+            parameters[name] = float(value)
     rounds = summary.get("rounds") or []
     if rounds and not rounds[-1].get("accepted"):
         tolerance = float(summary["thresholds"]["calibration_tolerance"])

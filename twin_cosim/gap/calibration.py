@@ -5,7 +5,9 @@ The nominal values of the calibrated parameters (``calibrated`` in the model's c
 +/- that tolerance and the held-out runs replayed; half the difference of the two replays is its
 *calibration direction*, the change of the twin's output per tolerance. The best calibration
 correction of a residual r is the combination sum a_j c_j with every |a_j| <= 1 (bounded linear
-least squares, ``scipy.optimize.lsq_linear``) closest to r; what it leaves is the part of the gap
+least squares, ``scipy.optimize.lsq_linear``, solved on the directions' QR factors: with C = QR,
+|r - C a|^2 = |Q^T r - R a|^2 + |r|^2 - |Q^T r|^2, a problem of one row per parameter instead of
+one per sample) closest to r; what it leaves is the part of the gap
 that calibration error cannot explain, and an effect is accepted only when it shrinks that part too.
 The correction is fitted on the held-out data themselves: calibration error gets every benefit of
 the doubt, bounded by the tolerance.
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.optimize import lsq_linear
@@ -47,11 +50,17 @@ class CalibrationBasis:
     names: list[str]
     directions: np.ndarray
 
+    @cached_property
+    def _factors(self) -> tuple[np.ndarray, np.ndarray]:
+        """Q (samples, parameters) and R (parameters, parameters) of the directions."""
+        return np.linalg.qr(self.directions, mode="reduced")
+
     def correction(self, residual: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Coefficients a (|a| <= 1, tolerances) and what the best correction leaves of r."""
         if self.directions.shape[1] == 0:
             return np.zeros(0), residual
-        fit = lsq_linear(self.directions, residual, bounds=(-1.0, 1.0))
+        q, r = self._factors
+        fit = lsq_linear(r, q.T @ residual, bounds=(-1.0, 1.0))
         return fit.x, residual - self.directions @ fit.x
 
     def left_after(self, residual: np.ndarray) -> float:

@@ -20,8 +20,9 @@ Stages, each a typed result (serialised to JSON in one place, :meth:`Diagnosis.s
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -35,7 +36,6 @@ from twin_cosim.gap.floors import (
     MetricComparison,
     NoiseModel,
     identify_noise,
-    is_significant,
     noise_floors,
 )
 from twin_cosim.gap.location import Location, locate
@@ -49,7 +49,7 @@ from twin_cosim.gap.residuals import (
     residuals_of,
     validation_figures,
 )
-from twin_cosim.gap.selection import Judging, Round, Selection, Selector
+from twin_cosim.gap.selection import Judging, Marginal, Round, Selection, Selector
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.measured import MeasuredRun
@@ -59,6 +59,9 @@ from twin_cosim.scenario import Scenario
 from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, make_pool
 
 ProgressFactory = Callable[[int, str], Callable[[int], None]]
+# Wording of the verdict only: a rejected hypothesis that cuts the raw held-out gap by this share
+# or more is named as explaining it within calibration error (acceptance is the evidence test).
+EXPLAINS_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -116,17 +119,16 @@ class Diagnosis:
     train_before: Residuals
     holdout_before: Residuals
     holdout_after: Residuals
-
-    @property
-    def accepted_groups(self) -> list[list[str]]:
-        """The accepted effects per round (a look-alike group has several names)."""
-        return [r.accepted for r in self.rounds if r.accepted]
+    accepted_groups: list[list[str]] = field(default_factory=list)
+    marginal: list[Marginal] = field(default_factory=list)
+    dropped: list[str] = field(default_factory=list)
+    times: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def summary(self) -> dict[str, Any]:
         """The diagnosis as JSON-ready data (the one place it is serialised)."""
         first = next((r for r in self.rounds if r.candidates), None)
         last = next((r for r in reversed(self.rounds) if r.candidates), None)
-        steps = [_step(r, self.settings.accept_reduction) for r in self.rounds if r.accepted]
+        steps = [_step(r, self.dropped) for r in self.rounds if r.accepted]
         held = self.held_out_runs
         gap = {
             "significant": self.significant,
@@ -150,17 +152,11 @@ class Diagnosis:
                 "holdout": context.holdout or context.split,
                 "split": context.split,
                 "accepted": [g if len(g) > 1 else g[0] for g in self.accepted_groups],
+                "marginal": [asdict(m) for m in self.marginal],
+                "dropped": self.dropped,
                 "steps": steps,
-                "effects": [
-                    _row(c, first, self.settings.accept_reduction) for c in first.candidates
-                ]
-                if first
-                else [],
-                "last_round": [
-                    _row(c, last, self.settings.accept_reduction) for c in last.candidates
-                ]
-                if last
-                else [],
+                "effects": [_row(c, first) for c in first.candidates] if first else [],
+                "last_round": [_row(c, last) for c in last.candidates] if last else [],
                 "rounds": [_round(r) for r in self.rounds],
                 "where": {
                     "position": self.where.position,
@@ -184,6 +180,7 @@ class Diagnosis:
                 "thresholds": asdict(self.settings),
                 "warnings": context.warnings + self.noise.dropped,
                 "final_plant_parameters": self.plant_parameters,
+                "time": self.times,
             }
         )
 
@@ -213,7 +210,7 @@ def _metrics(c: MetricComparison) -> dict[str, Any]:
     }
 
 
-def _row(c, round_: Round, accept_reduction: float) -> dict[str, Any]:
+def _row(c, round_: Round) -> dict[str, Any]:
     fit = c.fit
     return {
         "name": fit.hypothesis,
@@ -227,9 +224,10 @@ def _row(c, round_: Round, accept_reduction: float) -> dict[str, Any]:
         "holdout_current_after_A": c.current_rms,
         "holdout_reduction": c.reduction,
         "reduction_beyond_calibration": c.reduction_beyond_calibration,
-        "above_calibration_floor": bool(
-            c.size_above_tolerance and c.reduction_beyond_calibration >= accept_reduction
-        ),
+        "evidence_z": c.evidence_z,
+        "critical_z": c.critical_z,
+        "excess_share": c.excess_share,
+        "fair_share": c.fair_share,
         "size_above_tolerance": c.size_above_tolerance,
         "explained_normalised_rms": c.explained,
         "calibration_floor_normalised_rms": round_.calibration.explained,
@@ -238,7 +236,7 @@ def _row(c, round_: Round, accept_reduction: float) -> dict[str, Any]:
     }
 
 
-def _step(r: Round, accept_reduction: float) -> dict[str, Any]:
+def _step(r: Round, dropped: list[str]) -> dict[str, Any]:
     best = r.best
     assert best is not None
     return {
@@ -256,7 +254,11 @@ def _step(r: Round, accept_reduction: float) -> dict[str, Any]:
         "holdout_normalised_rms_after": best.holdout_rms,
         "reduction": best.reduction,
         "reduction_beyond_calibration": best.reduction_beyond_calibration,
-        "ranking": [_row(c, r, accept_reduction) for c in r.candidates],
+        "evidence_z": best.evidence_z,
+        "critical_z": best.critical_z,
+        "excess_share": best.excess_share,
+        "dropped_in_backward_pass": best.name in dropped,
+        "ranking": [_row(c, r) for c in r.candidates],
     }
 
 
@@ -372,6 +374,7 @@ def _diagnose(
     pool: SerialPool | ProcessPool,
 ) -> Diagnosis:
     """:func:`diagnose` with its replays on ``pool``."""
+    cpu_start = time.process_time()
     context = build_context(scenario, measured, holdout, fmu, settings)
     noise, nominal, start = _noise_stage(context)
     resolution = estimate_resolution(np.concatenate([r.x for r in context.train]))
@@ -412,6 +415,14 @@ def _diagnose(
     remaining, remaining_where, verdict = _verdict_stage(
         context, settings, judging, selection, hold_final
     )
+    parent_cpu = time.process_time() - cpu_start
+    times = {
+        **selection.times,
+        "diagnosis": {
+            "parent_cpu_s": parent_cpu,
+            "idle_wall_estimate_s": parent_cpu + selection.times["total"]["idle_wall_s"],
+        },
+    }
     return Diagnosis(
         context,
         settings,
@@ -433,6 +444,10 @@ def _diagnose(
         train0,
         hold0,
         hold_final,
+        selection.accepted,
+        selection.marginal,
+        selection.dropped,
+        times,
     )
 
 
@@ -470,8 +485,8 @@ def _verdict_stage(
     """Stage 5: what is left of the held-out gap, where, and the verdict in words."""
     floors = judging.floors
     first = selection.rounds[0]
-    left_significant = is_significant(
-        judging.metrics(selection.calibrated, settings), selection.floor.left, settings
+    left_significant = judging.significant(
+        selection.floor.left, judging.metrics(selection.calibrated, settings), settings
     )
     where = locate(
         hold_final,
@@ -492,9 +507,9 @@ def _verdict_stage(
     below = [
         c.name
         for c in (first.candidates if not first.accepted else [])
-        if c.reduction >= settings.accept_reduction and c.consistent and not c.passes
+        if c.reduction >= EXPLAINS_SHARE and c.consistent and not c.passes
     ]
-    groups = [r.accepted for r in selection.rounds if r.accepted]
+    groups = selection.accepted
     return remaining, where, verdict_text(first.significant, groups, below, remaining)
 
 

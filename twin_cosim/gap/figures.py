@@ -116,15 +116,18 @@ def plot_spectra(d: Diagnosis, path: Path) -> Path:
 
 
 def plot_ranking(d: Diagnosis, path: Path) -> Path:
-    """Held-out reduction of the gap per hypothesis (first round), with the acceptance line."""
+    """Evidence of each hypothesis (first round) beyond the noise, with the acceptance line."""
     rows = d.rounds[0].candidates
     fig, ax = plt.subplots(figsize=(9, 4))
     if rows:
-        ax.barh([c.name for c in rows], [100 * c.reduction for c in rows])
-        ax.axvline(100 * d.settings.accept_reduction, color="r", ls="--", label="acceptance")
+        ax.barh([c.name for c in rows], [max(c.evidence_z, 0.0) for c in rows])
+        ax.axvline(rows[0].critical_z, color="r", ls="--", label="acceptance")
+        ax.set_xscale("symlog", linthresh=1.0)
         ax.invert_yaxis()
         ax.legend()
-    ax.set_xlabel("held-out normalised RMS reduction [%] (listed by training BIC, best first)")
+    ax.set_xlabel(
+        "held-out evidence z beyond calibration and noise (listed by training BIC, best first)"
+    )
     ax.grid(alpha=0.3, axis="x")
     fig.tight_layout()
     fig.savefig(path, dpi=100)

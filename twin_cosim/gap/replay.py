@@ -6,7 +6,10 @@ A :class:`ReplaySpec` (the scenarios, numbers and the training data: it pickles)
 - :class:`SimulateTask`: replay the judging scenarios (the training scenario first when asked)
   with some FMU parameters; returns the records;
 - :class:`FitTask`: fit one hypothesis on the training data (scipy least_squares on replays, or a
-  scan of discrete values) on top of already accepted effects.
+  scan of discrete values) on top of already accepted effects;
+- :class:`JointFitTask`: refit accepted effects together with the calibrated parameters.
+
+Each result comes back with the CPU time the task took (:class:`~twin_cosim.gap.timing.Timed`).
 
 The fit minimises the normalised training residual: position residual / sigma_x and current
 residual / sigma_i (sigma: noise floors measured at standstill), over the training samples only;
@@ -21,9 +24,10 @@ valid fit.
 from __future__ import annotations
 
 import dataclasses
+import math
+import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -31,15 +35,21 @@ from scipy.optimize import differential_evolution, least_squares
 
 from twin_cosim.cosim import RunAborted, run_scenario
 from twin_cosim.gap.effects import library_for
+from twin_cosim.gap.evidence import EFFECTIVE_SAMPLE_SPACING_S
+from twin_cosim.gap.timing import Timed
 from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.scenario import Scenario
 
 FIT_EVALUATIONS = 10  # residual evaluations per least_squares polish (plus its Jacobians)
+JOINT_EVALUATIONS = 5  # residual evaluations of a joint refit (each with its Jacobian)
 FIT_STEP = 0.02  # finite-difference step, as a fraction of each parameter's range
-GLOBAL_EVALUATIONS = 50  # replays of the global search per fitted parameter (one or two)
 GLOBAL_POPULATION_PER_PARAMETER = 8
+# Generations of the global search after its first population: from the start values (round 1)
+# and from the previous round's fit (later rounds: the start is already near a valley).
+GLOBAL_GENERATIONS = 3
+WARM_GENERATIONS = 1
 FAILURE_FACTOR = 10.0  # a failed replay's residual, relative to the fit's starting residual
 FAILURE_FLOOR = 1e3  # least normalised residual per sample of a failed replay
 
@@ -157,6 +167,27 @@ class FitTask:
     hypothesis: str
     base: dict[str, float]
     context: dict[str, float]
+    start: tuple[float, ...] | None = None  # the previous round's fit (physical units)
+
+
+@dataclass(frozen=True)
+class JointFitTask:
+    """Refit accepted effects together with the calibrated parameters, each effect on top of the
+    FMU parameters of those before it.
+
+    ``start`` holds each hypothesis' fitted values (physical units) and ``contexts`` its
+    data-derived settings; scanned hypotheses keep their values, the others are refitted
+    together by least squares from ``start``. Each of ``calibrated`` moves by a factor
+    (1 + a tolerance) under a Gaussian prior of width the tolerance (calibration error is a
+    nuisance the training data may correct, at a price): the cost is the mean squared normalised
+    training residual plus |a|^2 over the training's independent samples.
+    """
+
+    hypotheses: tuple[str, ...]
+    start: tuple[tuple[float, ...], ...]
+    contexts: tuple[dict[str, float], ...]
+    calibrated: tuple[str, ...] = ()
+    tolerance: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -243,10 +274,100 @@ class Replayer:
             return np.full(n, self.failure_residual)
         return normalised_residual(records, self.spec.training)
 
-    def __call__(self, task: SimulateTask | FitTask) -> Any:
+    def __call__(self, task: SimulateTask | FitTask | JointFitTask) -> Timed:
+        """The task's result and the CPU time it took."""
+        start = time.process_time()
         if isinstance(task, SimulateTask):
-            return self.simulate(task)
-        return self.fit(task)
+            result = self.simulate(task)
+        elif isinstance(task, JointFitTask):
+            result = self.joint_fit(task)
+        else:
+            result = self.fit(task)
+        return Timed(result, time.process_time() - start)
+
+    def joint_fit(self, task: JointFitTask) -> FitResult:
+        """Refit several hypotheses together (values by ``hypothesis.parameter``)."""
+        hypotheses = [bounded(self.hypotheses[n], self.spec.ranges) for n in task.hypotheses]
+        free = [h.kind == "continuous" for h in hypotheses]
+        starts = [np.array(v, dtype=float) for v in task.start]
+
+        def values_of(u: np.ndarray) -> list[np.ndarray]:
+            values, at = [], 0
+            for h, start, fitted in zip(hypotheses, starts, free, strict=True):
+                if fitted:
+                    values.append(h.from_unit(u[at : at + len(start)]))
+                    at += len(start)
+                else:
+                    values.append(start)
+            return values
+
+        calibrated = task.calibrated
+        effect_count = sum(len(s) for s, fitted in zip(starts, free, strict=True) if fitted)
+
+        def overrides_of(values: list[np.ndarray], a: np.ndarray) -> dict[str, float]:
+            overrides = {
+                name: self.spec.nominal[name] * (1.0 + a_j * task.tolerance)
+                for name, a_j in zip(calibrated, a, strict=True)
+            }
+            for h, v, context in zip(hypotheses, values, task.contexts, strict=True):
+                overrides |= h.to_plant(v, {**self.spec.nominal, **overrides}, context)
+            return overrides
+
+        samples = sum(2 * len(t) for t in self.spec.training.t)
+        seconds = sum(float(t[-1] - t[0]) for t in self.spec.training.t)
+        prior = math.sqrt(samples / max(seconds / EFFECTIVE_SAMPLE_SPACING_S, 1.0))
+
+        def residual(u: np.ndarray) -> np.ndarray:
+            a = u[effect_count:]
+            training = self.training_residual(overrides_of(values_of(u), a))
+            return np.concatenate([training, prior * a])
+
+        u0 = np.concatenate(
+            [
+                np.clip([p.to_unit(x) for p, x in zip(h.parameters, s, strict=True)], 0.0, 1.0)
+                for h, s, fitted in zip(hypotheses, starts, free, strict=True)
+                if fitted
+            ]
+            + [np.zeros(len(calibrated))]
+        )
+        start = self.training_residual(overrides_of(starts, np.zeros(len(calibrated))))
+        self.failure_residual = max(
+            FAILURE_FLOOR, FAILURE_FACTOR * float(np.sqrt(np.mean(start**2)))
+        )
+        best, cost, replays, message = u0, float(np.mean(start**2)), 1, "nothing to refit"
+        if len(u0):
+            lower = np.r_[np.zeros(effect_count), -np.ones(len(calibrated))]
+            upper = np.ones(len(u0))
+            solution = least_squares(
+                residual,
+                u0,
+                bounds=(lower, upper),
+                diff_step=FIT_STEP,
+                max_nfev=JOINT_EVALUATIONS,
+                x_scale=1.0,
+            )
+            found = float(np.sum(solution.fun**2)) / samples
+            if found < cost:
+                best, cost = solution.x, found
+            replays += int(solution.nfev + (solution.njev or 0) * len(u0))
+            message = solution.message
+        values = values_of(best)
+        return FitResult(
+            "+".join(task.hypotheses),
+            {
+                f"{h.name}.{name}": value
+                for h, v in zip(hypotheses, values, strict=True)
+                for name, value in h.named(v).items()
+            }
+            | {
+                f"calibration.{n}": float(a)
+                for n, a in zip(calibrated, best[effect_count:], strict=True)
+            },
+            clipped(overrides_of(values, best[effect_count:]), self.spec.ranges),
+            cost,
+            replays,
+            message,
+        )
 
     def fit(self, task: FitTask) -> FitResult:
         """Fit a hypothesis by least squares on replays, or by scanning its discrete values."""
@@ -283,7 +404,7 @@ class Replayer:
         def residual_of_unit(u: np.ndarray) -> np.ndarray:
             return self.training_residual(overrides_of(hypothesis.from_unit(u)))
 
-        u0, grid_replays = self._coarse_start(hypothesis, residual_of_unit)
+        u0, grid_replays = self._coarse_start(hypothesis, residual_of_unit, task.start)
         solution = least_squares(
             residual_of_unit,
             u0,
@@ -305,16 +426,29 @@ class Replayer:
         )
 
     @staticmethod
-    def _coarse_start(hypothesis, residual_of_unit) -> tuple[np.ndarray, int]:
+    def _coarse_start(
+        hypothesis: Hypothesis, residual_of_unit, previous: tuple[float, ...] | None
+    ) -> tuple[np.ndarray, int]:
         """Start of the local fit: a small global search for one or two parameters.
 
         Stick-slip and backlash make the training cost rough, with narrow valleys (a Stribeck
         level 2 % off can cost ten times the optimum), so a local fit from one start stalls. For
-        one or two parameters scipy's differential evolution (seeded, no polish, about
-        GLOBAL_EVALUATIONS replays per parameter) picks the start of least_squares; three-parameter
-        hypotheses (the nearly linear lead error) start from their start values.
+        one or two parameters scipy's differential evolution (seeded, no polish; a population of
+        GLOBAL_POPULATION_PER_PARAMETER per parameter, holding the start values, and
+        GLOBAL_GENERATIONS generations) picks the start of least_squares. With the previous
+        round's fit (``previous``, physical units) the population holds it instead and evolves
+        WARM_GENERATIONS generations: the accepted effects moved the valley, they seldom remove
+        it. Three-parameter hypotheses (the nearly linear lead error) start from the previous
+        fit or their start values.
         """
-        start = np.clip(hypothesis.initial_unit(), 0.0, 1.0)
+        if previous is not None and len(previous) == len(hypothesis.parameters):
+            start = np.array(
+                [p.to_unit(v) for p, v in zip(hypothesis.parameters, previous, strict=True)]
+            )
+            generations = WARM_GENERATIONS
+        else:
+            start, generations = hypothesis.initial_unit(), GLOBAL_GENERATIONS
+        start = np.clip(start, 0.0, 1.0)
         if len(start) > 2:
             return start, 0
         count = 0
@@ -332,7 +466,7 @@ class Replayer:
             x0=start,
             polish=False,
             seed=0,
-            maxiter=max(1, GLOBAL_EVALUATIONS // popsize - 1),
+            maxiter=generations,
             tol=1e-3,
         )
         return np.clip(search.x, 0.0, 1.0), count

@@ -10,18 +10,18 @@ library; later rounds the periodic hypotheses (their orders may have changed) an
 
 An effect is *accepted* when, on the held-out data,
 
-1. the gap is significant (:func:`twin_cosim.gap.floors.is_significant`, judged on the replay
-   after the best calibration correction, so that calibration error alone is not a gap); after
-   an accepted effect, also when what the best calibration correction leaves is still
-   ``significance_left`` (5) times the noise floor: an effect whose signature averages out in
-   the figures of merit (a friction asymmetry in IAU) is still a gap;
+1. the gap is significant: what the best calibration correction leaves fails the test against
+   noise at the floors (:func:`twin_cosim.gap.evidence.gap_threshold`, level
+   ``significance_level``), or a figure of merit (E_pk, ITAE, IAU) is off beyond what noise
+   makes; calibration error alone is no gap;
 2. it cuts the normalised RMS (it makes the held-out gap smaller as it stands);
-3. it goes beyond the calibration floor: after the best calibration correction
-   (:mod:`twin_cosim.gap.calibration`) with the effect, the normalised RMS is at least
-   ``accept_reduction`` (25 %) below what the best correction leaves without it (what
-   calibration error can explain is not the effect's to claim, nor to be judged against); and a
-   change of a calibrated parameter itself (Coulomb level, backlash, inertia, stiffness)
-   exceeds the tolerance;
+3. it improves the fit beyond the noise, after the best calibration correction with and without
+   it (what calibration error can explain is not the effect's to claim): its evidence z
+   (:func:`twin_cosim.gap.evidence.improvement_z`) reaches the one-sided quantile of
+   ``acceptance_level`` shared by the hypotheses judged in the round (Bonferroni), and it removes
+   at least its fair share (1 / the library's size) of the energy above the noise; and a change
+   of a calibrated parameter itself (Coulomb level, backlash, inertia, stiffness) exceeds the
+   tolerance;
 4. it is consistent: it makes neither the position nor the current held-out RMS worse than
    ``worsen_limit`` (1.1) times what it was, plus the noise floor (a wrong effect can trade one
    signal for the other).
@@ -29,6 +29,15 @@ An effect is *accepted* when, on the held-out data,
 The best passing effect by BIC is accepted; passing effects whose reductions differ by less
 than ``group_reduction_margin`` and whose predicted changes correlate at ``group_correlation``
 or more form a *group* with it (look-alikes the data cannot tell apart).
+
+Effects that only pay off together: after each accepted effect, all accepted effects are refitted
+together on the training data (each on top of the FMU parameters of those before it), and the
+joint fit is kept when it judges better on the held-out data. When the forward rounds end, a
+backward pass refits the model without each accepted effect in turn; an effect whose removal
+does not hurt the held-out fit beyond the noise (its marginal evidence z below the quantile of
+``acceptance_level`` shared by the accepted effects, or its marginal share of the energy above
+the noise below the fair share) is dropped, the weakest first. Each kept
+effect's marginal contribution in the joint model is reported.
 """
 
 from __future__ import annotations
@@ -47,17 +56,24 @@ from twin_cosim.gap.calibration import (
 )
 from twin_cosim.gap.context import DiagnosisContext, training_residuals
 from twin_cosim.gap.effects import DEFAULT_CONTEXT, library_for
-from twin_cosim.gap.floors import Floors, MetricComparison, compare_metrics, is_significant
+from twin_cosim.gap.evidence import (
+    EFFECTIVE_SAMPLE_SPACING_S,
+    critical_z,
+    excess_share,
+    fair_share,
+    gap_threshold,
+    improvement_z,
+)
+from twin_cosim.gap.floors import Floors, MetricComparison, compare_metrics, metrics_off
 from twin_cosim.gap.location import dominant_order
-from twin_cosim.gap.replay import FitResult, FitTask, Replays, SimulateTask
+from twin_cosim.gap.replay import FitResult, FitTask, JointFitTask, Replays, SimulateTask
 from twin_cosim.gap.residuals import Residuals, residuals_of, rms
 from twin_cosim.gap.settings import DiagnosisSettings
+from twin_cosim.gap.timing import PhaseTimes, makespan
 from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant_model import plant_model
 from twin_cosim.reference import ReferenceGrid
-
-EFFECTIVE_SAMPLE_SPACING_S = 0.01  # residuals are correlated: one independent sample per 10 ms
 
 Progress = Callable[[int], None]
 
@@ -102,14 +118,31 @@ class Judging:
             for i, (run, k) in enumerate(zip(self.runs, self.scenario_of_run, strict=True))
         ]
 
+    @property
+    def duration_s(self) -> float:
+        """Held-out time, s (summed over the runs)."""
+        return sum(float(r.t[-1] - r.t[0]) for r in self.runs)
+
+    def significant(
+        self, left: float, metrics: list[MetricComparison], settings: DiagnosisSettings
+    ) -> bool:
+        """Whether what the best calibration correction leaves (normalised RMS ``left``) is a
+        gap: beyond noise at the floors, or a figure of merit off."""
+        threshold = gap_threshold(self.duration_s, settings.significance_level)
+        return left >= threshold or metrics_off(metrics)
+
 
 @dataclass
 class Candidate:
     """A fitted hypothesis judged on the held-out data.
 
     ``holdout_rms`` and ``explained`` are normalised RMS values (1 = noise at the floors);
-    ``reduction`` and ``reduction_beyond_calibration`` are fractions; ``position_rms_um`` is the
-    held-out position gap in um and ``current_rms`` the held-out current gap in A (V for EMPS).
+    ``reduction`` and ``reduction_beyond_calibration`` are fractions; ``evidence_z`` is the
+    evidence of the improvement beyond the noise (:func:`~twin_cosim.gap.evidence.improvement_z`)
+    and ``critical_z`` what acceptance asks of it; ``excess_share`` is the share of the energy
+    above the noise it removes and ``fair_share`` what acceptance asks of it;
+    ``position_rms_um`` is the held-out position gap in um and ``current_rms`` the held-out
+    current gap in A (V for EMPS).
     """
 
     fit: FitResult
@@ -118,6 +151,10 @@ class Candidate:
     holdout_rms: float = 0.0
     reduction: float = 0.0
     reduction_beyond_calibration: float = 0.0
+    evidence_z: float = 0.0
+    critical_z: float = math.inf
+    excess_share: float = 0.0
+    fair_share: float = 1.0
     size_above_tolerance: bool = True
     consistent: bool = True
     explained: float = 0.0
@@ -179,15 +216,51 @@ class Round:
 
 
 @dataclass(frozen=True)
+class Marginal:
+    """What one kept effect adds to the joint model on the held-out data.
+
+    ``evidence_z``: the evidence that the model with it fits better than the model refitted
+    without it; ``excess_share``: the share of the energy above the noise it removes from the
+    model without it; ``left_without`` and ``left_with``: the normalised RMS the best calibration
+    correction leaves without and with it.
+    """
+
+    effect: str
+    evidence_z: float
+    excess_share: float
+    left_without: float
+    left_with: float
+
+
+@dataclass(frozen=True)
 class Selection:
-    """The rounds, the accepted effects' FMU parameters, the replays with them, and the
-    calibration floor of what they leave with its calibrated replays."""
+    """The rounds, the accepted effects (after the backward pass) and their FMU parameters, the
+    replays with them, the calibration floor of what they leave with its calibrated replays,
+    each kept effect's marginal contribution, the effects the backward pass dropped and where
+    the time went (wall s, pool tasks and replays per phase)."""
 
     rounds: list[Round]
+    accepted: list[list[str]]
     plant_parameters: dict[str, float]
     replays: Replays
     floor: CalibrationFloor
     calibrated: Replays
+    marginal: list[Marginal] = field(default_factory=list)
+    dropped: list[str] = field(default_factory=list)
+    times: dict[str, dict[str, float]] = field(default_factory=dict)
+
+
+@dataclass
+class _Accepted:
+    """An accepted effect: its group, fitted values (physical units) and context."""
+
+    group: list[str]
+    values: tuple[float, ...]
+    context: dict[str, float]
+
+    @property
+    def name(self) -> str:
+        return self.group[0]
 
 
 def _bic(cost: float, n_parameters: int, train_seconds: float) -> float:
@@ -201,14 +274,9 @@ def _correlation(a: np.ndarray, b: np.ndarray) -> float:
     return float(abs(np.corrcoef(a, b)[0, 1]))
 
 
-def _imap(pool, tasks: list, progress: Progress | None) -> list:
-    """Results of tasks on the pool, in task order, reporting each completion."""
-    results: list = [None] * len(tasks)
-    for i, result in pool.imap(tasks):
-        results[i] = result
-        if progress:
-            progress(1)
-    return results
+def _replays_of(result: FitResult | Replays) -> int:
+    """Replays a task ran: a fit's count, or one per judging scenario."""
+    return result.replays if isinstance(result, FitResult) else len(result.judging)
 
 
 class Selector:
@@ -252,6 +320,23 @@ class Selector:
         self.settings = settings
         self.base_context = hypothesis_context
         self.progress = progress
+        self.times = PhaseTimes()
+        self._bases: dict[tuple, CalibrationBasis] = {}
+
+    def _tasks(self, phase: str, tasks: list) -> list:
+        """Results of tasks on the pool, in task order, reporting each completion; the time
+        they took and the replays they ran go to ``phase``."""
+        results: list = [None] * len(tasks)
+        cpu = [0.0] * len(tasks)
+        with self.times.timed(phase, len(tasks)) as totals:
+            for i, timed in self.pool.imap(tasks):
+                results[i], cpu[i] = timed.result, timed.cpu_s
+                totals.replays += _replays_of(timed.result)
+                if self.progress:
+                    self.progress(1)
+            totals.cpu_s += sum(cpu)
+            totals.idle_wall_s += makespan(cpu, self.pool.workers)
+        return results
 
     def expected_tasks(self) -> int:
         """Pool tasks of a selection that accepts the most effects (for progress bars)."""
@@ -263,7 +348,14 @@ class Selector:
         return per_round * (rounds + 1) + 2 * first + 2 * later * (rounds - 1)
 
     def basis(self, base: dict[str, float]) -> CalibrationBasis:
-        """Calibration directions around the parameter set ``nominal + base``."""
+        """Calibration directions around the parameter set ``nominal + base`` (each set's
+        replayed once: the joint refits and the backward pass ask for the same sets again)."""
+        key = tuple(sorted(base.items()))
+        if key not in self._bases:
+            self._bases[key] = self._new_basis(base)
+        return self._bases[key]
+
+    def _new_basis(self, base: dict[str, float]) -> CalibrationBasis:
         tolerance = self.settings.calibration_tolerance
         current = {**self.nominal, **base}
         moves = [
@@ -271,7 +363,7 @@ class Selector:
             for name in self.calibrated
             for sign in (1.0, -1.0)
         ]
-        replays = _imap(self.pool, [SimulateTask(m) for m in moves], self.progress)
+        replays = self._tasks("calibration_directions", [SimulateTask(m) for m in moves])
         columns = []
         for i in range(0, len(moves), 2):
             up = self.judging.vector(self.judging.residuals(replays[i]))
@@ -300,31 +392,30 @@ class Selector:
             **base,
             **{n: current[n] * (1.0 + a * tolerance) for n, a in floor.coefficients.items()},
         }
-        return _imap(self.pool, [SimulateTask(corrected)], self.progress)[0]
+        return self._tasks("calibrated_replays", [SimulateTask(corrected)])[0]
 
     def run(self, start: Replays) -> Selection:
-        """Greedy forward selection from the replays of the nominal twin."""
+        """Forward selection with joint refits from the replays of the nominal twin, then the
+        backward pass."""
         settings = self.settings
+        accepted: list[_Accepted] = []
         base: dict[str, float] = {}
         replays = start
         remaining = list(settings.hypotheses or self.library)
         rounds: list[Round] = []
-        while remaining and len([r for r in rounds if r.accepted]) < settings.max_effects:
+        starts: dict[str, tuple[float, ...]] = {}
+        while remaining and len(accepted) < settings.max_effects:
             held = self.judging.residuals(replays)
             vector = self.judging.vector(held)
             basis = self.basis(base)
             floor = floor_of(basis, vector)
             calibrated = self.calibrated_replay(base, floor)
-            last = (floor, calibrated)
             metrics = self.judging.metrics(calibrated, settings)
-            significant = is_significant(metrics, floor.left, settings) or (
-                bool(rounds) and floor.left >= settings.significance_left
-            )
             context = self.context(training_residuals(self.run_context, replays.training))
             current = Round(
                 len(rounds) + 1,
                 context,
-                significant,
+                self.judging.significant(floor.left, metrics, settings),
                 float(np.linalg.norm(vector)),
                 held.position_rms_um(),
                 held.current_rms(),
@@ -332,34 +423,138 @@ class Selector:
                 metrics,
             )
             rounds.append(current)
-            if not significant:
+            if not current.significant:
                 break
             current.candidates = self._fit_and_judge(
-                remaining, base, context, held, vector, basis, floor
+                remaining, base, context, held, vector, basis, starts
             )
+            starts = {c.name: tuple(c.fit.values.values()) for c in current.candidates}
             passing = [c for c in current.candidates if c.passes]
             if not passing:
                 break
             best = passing[0]
-            group = [best.name] + [
+            current.accepted = [best.name] + [
                 c.name
                 for c in passing[1:]
                 if abs(c.reduction - best.reduction) < settings.group_reduction_margin
                 and _correlation(c.change, best.change) >= settings.group_correlation
             ]
-            current.accepted = group
-            base = dict(best.fit.overrides)
-            replays = _imap(self.pool, [SimulateTask(base, with_training=True)], self.progress)[0]
-            remaining = self._next_candidates(current, group, remaining)
-        if rounds[-1].accepted:  # what the last accepted effect leaves has no floor yet
-            vector = self.judging.vector(self.judging.residuals(replays))
-            floor = floor_of(self.basis(base), vector)
-            last = (floor, self.calibrated_replay(base, floor))
-        return Selection(rounds, base, replays, *last)
+            for earlier in accepted:  # the data now tell it apart from an earlier look-alike
+                if best.name in earlier.group[1:]:
+                    earlier.group.remove(best.name)
+            accepted.append(
+                _Accepted(list(current.accepted), tuple(best.fit.values.values()), context)
+            )
+            base, replays = self._joint(accepted, dict(best.fit.overrides))
+            remaining = self._next_candidates(current, best.name, remaining)
+        accepted, base, replays, marginal, dropped = self._backward(accepted, base, replays, start)
+        vector = self.judging.vector(self.judging.residuals(replays))
+        floor = floor_of(self.basis(base), vector)
+        return Selection(
+            rounds,
+            [a.group for a in accepted],
+            base,
+            replays,
+            floor,
+            self.calibrated_replay(base, floor),
+            marginal,
+            dropped,
+            self.times.as_dict(),
+        )
 
-    def _next_candidates(self, done: Round, group: list[str], remaining: list[str]) -> list[str]:
-        """Periodic hypotheses and the best of the round by held-out reduction."""
-        left = [n for n in remaining if n not in group]
+    def _left(self, overrides: dict[str, float], replays: Replays) -> np.ndarray:
+        """The normalised held-out residual the best calibration correction leaves."""
+        vector = self.judging.vector(self.judging.residuals(replays))
+        return self.basis(overrides).correction(vector)[1]
+
+    def _refit_task(self, accepted: list[_Accepted]) -> JointFitTask:
+        """The refit of effects together on the training data, with the calibrated parameters
+        under their prior."""
+        return JointFitTask(
+            tuple(a.name for a in accepted),
+            tuple(a.values for a in accepted),
+            tuple(a.context for a in accepted),
+            tuple(self.calibrated),
+            self.settings.calibration_tolerance,
+        )
+
+    def _joint(
+        self, accepted: list[_Accepted], sequential: dict[str, float]
+    ) -> tuple[dict[str, float], Replays]:
+        """The accepted effects' parameters: refitted together when that judges better on the
+        held-out data than the sequential fit, and their replays (the sequential replay runs
+        beside the refit)."""
+        replays, refit = self._tasks(
+            "joint_refits",
+            [SimulateTask(sequential, with_training=True), self._refit_task(accepted)],
+        )
+        joint = refit.overrides
+        joint_replays = self._tasks("joint_refits", [SimulateTask(joint, with_training=True)])[0]
+        left_joint = np.linalg.norm(self._left(joint, joint_replays))
+        if left_joint < np.linalg.norm(self._left(sequential, replays)):
+            return joint, joint_replays
+        return sequential, replays
+
+    def _without_each(
+        self, accepted: list[_Accepted], start: Replays
+    ) -> list[tuple[dict[str, float], Replays]]:
+        """Per accepted effect, the model refitted without it (FMU parameters, replays); the
+        refits run at once. Without a single effect it is the nominal twin (``start``): the
+        best calibration correction of its held-out residual gives calibration error every
+        benefit of the doubt already."""
+        if len(accepted) == 1:
+            return [({}, start)]
+        refits = self._tasks(
+            "backward_pass",
+            [self._refit_task(accepted[:j] + accepted[j + 1 :]) for j in range(len(accepted))],
+        )
+        withouts = self._tasks(
+            "backward_pass", [SimulateTask(r.overrides, with_training=True) for r in refits]
+        )
+        return [(r.overrides, w) for r, w in zip(refits, withouts, strict=True)]
+
+    def _backward(
+        self,
+        accepted: list[_Accepted],
+        base: dict[str, float],
+        replays: Replays,
+        start: Replays,
+    ) -> tuple[list[_Accepted], dict[str, float], Replays, list[Marginal], list[str]]:
+        """Drop, weakest first, accepted effects whose removal does not hurt the held-out fit
+        beyond the noise; the kept effects' marginal contributions. A single effect is kept: it
+        passed the stricter test of its round."""
+        duration, dropped = self.judging.duration_s, []
+        least_share = fair_share(len(self.library))
+        while accepted:
+            with_all = self._left(base, replays)
+            trials = []
+            for j, (overrides, without) in enumerate(self._without_each(accepted, start)):
+                left = self._left(overrides, without)
+                z, share = improvement_z(left, with_all, duration), excess_share(left, with_all)
+                strength = min(
+                    z / critical_z(self.settings.acceptance_level, len(accepted)),
+                    share / least_share,
+                )
+                marginal = Marginal(
+                    accepted[j].name,
+                    z,
+                    share,
+                    float(np.linalg.norm(left)),
+                    float(np.linalg.norm(with_all)),
+                )
+                trials.append((strength, j, overrides, without, marginal))
+            weakest = min(trials, key=lambda trial: trial[0])
+            if len(accepted) == 1 or weakest[0] >= 1.0:
+                return accepted, base, replays, [trial[4] for trial in trials], dropped
+            _, j, base, replays, _ = weakest
+            dropped.append(accepted[j].name)
+            accepted = accepted[:j] + accepted[j + 1 :]
+        return accepted, base, replays, [], dropped
+
+    def _next_candidates(self, done: Round, fitted: str, remaining: list[str]) -> list[str]:
+        """Periodic hypotheses and the best of the round by held-out reduction; a look-alike of
+        the accepted effect stays a candidate (two effects at once can look alike alone)."""
+        left = [n for n in remaining if n != fitted]
         periodic = [n for n in left if self.library[n].periodic_in]
         ranked = sorted(
             (c for c in done.candidates if c.name in left and c.name not in periodic),
@@ -375,11 +570,14 @@ class Selector:
         held: Residuals,
         vector: np.ndarray,
         basis: CalibrationBasis,
-        floor: CalibrationFloor,
+        starts: dict[str, tuple[float, ...]],
     ) -> list[Candidate]:
-        """Fit every hypothesis, replay it on the held-out runs and judge it."""
-        fits = _imap(self.pool, [FitTask(n, base, context) for n in names], self.progress)
-        replays = _imap(self.pool, [SimulateTask(f.overrides) for f in fits], self.progress)
+        """Fit every hypothesis (from its fit of the round before, in ``starts``, when there
+        is one), replay it on the held-out runs and judge it."""
+        phase = "later_round_fits" if starts else "first_round_fits"
+        fits = self._tasks(phase, [FitTask(n, base, context, starts.get(n)) for n in names])
+        critical = critical_z(self.settings.acceptance_level, len(names))
+        replays = self._tasks("candidate_replays", [SimulateTask(f.overrides) for f in fits])
         candidates = []
         for fit, replay in zip(fits, replays, strict=True):
             hypothesis = self.library[fit.hypothesis]
@@ -393,7 +591,7 @@ class Selector:
                 values = np.array(list(fit.values.values()))
                 size = hypothesis.relative_size(values, {**self.nominal, **base})
                 candidate.size_above_tolerance = size >= self.settings.calibration_tolerance
-            self._judge(candidate, held, vector, basis, floor)
+            self._judge(candidate, held, vector, basis, critical)
             candidates.append(candidate)
         return sorted(candidates, key=lambda c: c.bic)
 
@@ -403,7 +601,7 @@ class Selector:
         held: Residuals,
         vector: np.ndarray,
         basis: CalibrationBasis,
-        floor: CalibrationFloor,
+        critical: float,
     ) -> None:
         """Held-out figures and the acceptance tests of a fitted candidate."""
         settings = self.settings
@@ -414,10 +612,14 @@ class Selector:
         candidate.holdout_rms = float(np.linalg.norm(after_vector))
         candidate.reduction = 1.0 - candidate.holdout_rms / before_rms if before_rms else 0.0
         candidate.explained = math.sqrt(max(before_rms**2 - candidate.holdout_rms**2, 0.0))
-        left_with = basis.left_after(after_vector)
-        candidate.reduction_beyond_calibration = (
-            1.0 - left_with / floor.left if floor.left > 0 else 0.0
-        )
+        left_without = basis.correction(vector)[1]
+        left_with = basis.correction(after_vector)[1]
+        without, with_ = float(np.linalg.norm(left_without)), float(np.linalg.norm(left_with))
+        candidate.reduction_beyond_calibration = 1.0 - with_ / without if without > 0 else 0.0
+        candidate.evidence_z = improvement_z(left_without, left_with, self.judging.duration_s)
+        candidate.critical_z = critical
+        candidate.excess_share = excess_share(left_without, left_with)
+        candidate.fair_share = fair_share(len(self.library))
         candidate.position_rms_um = after.position_rms_um()
         candidate.current_rms = after.current_rms()
         worse_x = rms(after.position) - settings.worsen_limit * rms(held.position)  # m
@@ -426,7 +628,8 @@ class Selector:
         candidate.change = vector - after_vector
         candidate.passes = (
             candidate.reduction > 0.0
-            and candidate.reduction_beyond_calibration >= settings.accept_reduction
+            and candidate.evidence_z >= critical
+            and candidate.excess_share >= candidate.fair_share
             and candidate.size_above_tolerance
             and candidate.consistent
         )

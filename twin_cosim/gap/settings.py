@@ -29,14 +29,14 @@ class DiagnosisSettings:
     significance_noise : float
         How many standard deviations of the noise-only spread of a metric are added to
         ``significance_metric``.
-    significance_rms : float or None
-        Also significant when the normalised held-out RMS reaches this (None: not used).
-    significance_left : float
-        After an accepted effect, the gap left is also significant when the normalised RMS the
-        best calibration correction leaves reaches this.
-    accept_reduction : float
-        Least held-out reduction of the normalised RMS for an effect to be accepted, after the
-        best calibration correction has been applied with and without it.
+    significance_level : float
+        Level of the test of the held-out residual the best calibration correction leaves
+        against noise at the floors (:func:`twin_cosim.gap.evidence.gap_threshold`): the gap is
+        significant when it fails that test, or when a figure of merit is off.
+    acceptance_level : float
+        Family-wise level of the test that an effect improves the held-out fit beyond the noise
+        (:func:`twin_cosim.gap.evidence.improvement_z`), shared by the hypotheses judged in a
+        round (Bonferroni); the same level keeps an effect in the backward pass.
     calibration_tolerance : float
         Relative uncertainty of the calibrated parameters (the calibration floor).
     worsen_limit : float
@@ -67,9 +67,8 @@ class DiagnosisSettings:
     split: float = 0.5
     significance_metric: float = 0.02
     significance_noise: float = 3.0
-    significance_rms: float | None = None
-    significance_left: float = 5.0
-    accept_reduction: float = 0.25
+    significance_level: float = 0.01
+    acceptance_level: float = 0.01
     calibration_tolerance: float = 0.03
     worsen_limit: float = 1.1
     group_reduction_margin: float = 0.1

@@ -8,8 +8,8 @@ What is left is measured on the held-out data after the accepted effects:
 - ``calibration_floor``: the normalised RMS the best calibration correction explains of it, and
   ``beyond_calibration``: what that correction leaves;
 - ``at_floor``: True when what is left after the best calibration correction is not significant
-  (the metrics match within what noise makes, or the normalised RMS is below
-  ``significance_rms`` when the scenario judges on it);
+  (it passes the test against noise at the floors and the metrics match within what noise
+  makes; :mod:`twin_cosim.gap.evidence`);
 - ``located_at``: the regimes and spans of the axis where it is concentrated.
 """
 

@@ -37,3 +37,21 @@ def test_an_orthogonal_effect_is_left_whole():
     effect -= b.directions @ np.linalg.lstsq(b.directions, effect, rcond=None)[0]
     floor = floor_of(b, effect)
     assert floor.left == pytest.approx(np.linalg.norm(effect), rel=1e-6)
+
+
+def test_the_reduced_problem_gives_the_full_problem_s_correction():
+    """Solved on the QR factors, the bounded fit is the one on every sample, bounds active or
+    not, a direction without effect (a zero column) included."""
+    from scipy.optimize import lsq_linear
+
+    rng = np.random.default_rng(3)
+    directions = rng.normal(0, 0.1, (2000, 4))
+    directions[:, 3] = 0.0
+    b = CalibrationBasis(["a", "b", "c", "d"], directions)
+    for true in ([0.2, -0.5, 0.1, 0.0], [2.5, -0.3, -4.0, 0.0]):
+        residual = directions @ np.array(true) + rng.normal(0, 0.05, 2000)
+        coefficients, left = b.correction(residual)
+        full = lsq_linear(directions, residual, bounds=(-1.0, 1.0))
+        assert np.all(np.abs(coefficients) <= 1.0 + 1e-12)
+        assert np.linalg.norm(left) == pytest.approx(np.linalg.norm(full.fun), rel=1e-9)
+        assert coefficients[:3] == pytest.approx(full.x[:3], abs=1e-6)

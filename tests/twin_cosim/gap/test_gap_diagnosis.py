@@ -159,6 +159,17 @@ def test_two_effects_at_once_are_both_found(tmp_path):
     remaining = summary["gap"]["remaining"]
     assert remaining["energy_share"] < 0.25
     assert "left:" in summary["gap"]["verdict"]
+    time = summary["time"]  # where the time went: every fit's replays are counted once
+    assert time["first_round_fits"]["replays"] == sum(row["replays"] for row in summary["effects"])
+    assert time["later_round_fits"]["tasks"] == sum(len(r["fitted"]) for r in summary["rounds"][1:])
+    phases = [v for k, v in time.items() if k not in ("total", "diagnosis")]
+    assert time["total"]["replays"] == sum(p["replays"] for p in phases)
+    for phase in phases:  # on idle workers a batch takes between its CPU time / 2 and all of it
+        assert phase["cpu_s"] / 2 - 1e-9 <= phase["idle_wall_s"] <= phase["cpu_s"] + 1e-9
+    estimate = time["diagnosis"]["idle_wall_estimate_s"]
+    assert estimate == pytest.approx(
+        time["diagnosis"]["parent_cpu_s"] + time["total"]["idle_wall_s"]
+    )
 
 
 @pytest.mark.slow

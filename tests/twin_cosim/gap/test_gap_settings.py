@@ -20,8 +20,8 @@ def scenario_with(diagnose: dict):
 
 
 def test_defaults_and_overrides():
-    settings = settings_from(scenario_with({"accept_reduction": 0.3}), split=0.6, max_effects=2)
-    assert (settings.accept_reduction, settings.split, settings.max_effects) == (0.3, 0.6, 2)
+    settings = settings_from(scenario_with({"acceptance_level": 0.05}), split=0.6, max_effects=2)
+    assert (settings.acceptance_level, settings.split, settings.max_effects) == (0.05, 0.6, 2)
 
 
 @pytest.mark.parametrize(
@@ -29,7 +29,7 @@ def test_defaults_and_overrides():
     [
         ({"nope": 1}, None, None, r"diagnose: unknown key\(s\) \['nope'\]"),
         ({"max_effects": 1.5}, None, None, "diagnose.max_effects: expected a whole number"),
-        ({"accept_reduction": float("nan")}, None, None, "expected a finite number"),
+        ({"acceptance_level": float("nan")}, None, None, "expected a finite number"),
         ({}, None, -1, "--max-effects: expected a whole number >= 1, got -1"),
         ({}, 0.95, None, r"split: expected a fraction in \[0.1, 0.9\]"),
     ],
