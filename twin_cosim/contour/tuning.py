@@ -50,7 +50,7 @@ from twin_cosim.cosim import RunAborted
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.config import DEFAULT_BOUNDS, OptimizeConfig
 from twin_cosim.optimize.early_stop import lower_bound_above
-from twin_cosim.optimize.objective import EvaluationTask
+from twin_cosim.optimize.objective import EvaluationTask, evaluation_result
 from twin_cosim.plant import PlantError
 from twin_cosim.scenario.machine import MachineScenario
 from twin_cosim.schema import Checker
@@ -267,7 +267,7 @@ class ContourObjective:
         try:
             machine = self.spec.machine.with_tuned(axes_tuned(self.spec.machine, np.asarray(x)))
         except ValueError as exc:
-            return _result(failure, "failed", str(exc), None, 0)
+            return evaluation_result(failure, "failed", str(exc), None, 0)
         scores: dict[int, float] = {}
         runs: dict[int, dict[str, Any]] = {}
         steps = 0
@@ -276,9 +276,9 @@ class ContourObjective:
             try:
                 values = case_values(machine, self.plants, case, config.abort_error_um * 1e-6)
             except RunAborted as exc:
-                return _result(failure, "unstable", f"{case.label}: {exc}", None, steps)
+                return evaluation_result(failure, "unstable", f"{case.label}: {exc}", None, steps)
             except PlantError as exc:
-                return _result(failure, "failed", f"{case.label}: {exc}", None, steps)
+                return evaluation_result(failure, "failed", f"{case.label}: {exc}", None, steps)
             steps += values.pop("steps")
             scores[i], status, reason = self._score(i, values)
             runs[i] = {"case": case.label, "status": status, "reason": reason, **values}
@@ -286,7 +286,7 @@ class ContourObjective:
             if worst > cutoff and len(scores) < len(self.spec.cases):
                 self._put_first(i)
                 reason = f"{case.label}: fitness at least {worst:.6g} um, above the cutoff"
-                return _result(lower_bound_above(cutoff), "stopped", reason, None, steps)
+                return evaluation_result(lower_bound_above(cutoff), "stopped", reason, None, steps)
         ordered = [runs[i] for i in range(len(runs))]
         worst_case = max(range(len(ordered)), key=lambda i: scores[i])
         self._put_first(worst_case)
@@ -297,7 +297,7 @@ class ContourObjective:
             "worst_case": ordered[worst_case]["case"],
             "runs": ordered,
         }
-        return _result(scores[worst_case], status, reason, metrics, steps)
+        return evaluation_result(scores[worst_case], status, reason, metrics, steps)
 
     def _score(self, i: int, values: dict[str, Any]) -> tuple[float, str, str]:
         """Fitness (um), status and reason of case ``i``'s values."""
@@ -325,15 +325,3 @@ class ContourObjective:
     def close(self) -> None:
         """Free the plants."""
         self.plants.close()
-
-
-def _result(
-    fitness: float, status: str, reason: str, metrics: dict[str, Any] | None, steps: int
-) -> dict[str, Any]:
-    return {
-        "fitness": float(fitness),
-        "status": status,
-        "reason": reason,
-        "metrics": metrics,
-        "steps": steps,
-    }

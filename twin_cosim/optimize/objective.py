@@ -139,7 +139,7 @@ class Objective:
         try:
             candidates = [self.config.candidate(x, case.scenario.settings) for case in self.cases]
         except ValueError as exc:
-            return _result(failure, "failed", str(exc), None, 0)
+            return evaluation_result(failure, "failed", str(exc), None, 0)
         n = len(self.cases)
         worst_case = self.spec.aggregate == "worst"
         scores: dict[int, float] = {}
@@ -163,14 +163,18 @@ class Objective:
                 if abort_um < self.config.abort_error_um:
                     self._put_first(i)
                     reason = f"{case.label}: {exc}; fitness above the cutoff {cutoff:.6g} um"
-                    return _result(lower_bound_above(cutoff), "stopped", reason, None, steps)
-                return _result(failure, "unstable", f"{case.label}: {exc}", None, steps)
+                    return evaluation_result(
+                        lower_bound_above(cutoff), "stopped", reason, None, steps
+                    )
+                return evaluation_result(failure, "unstable", f"{case.label}: {exc}", None, steps)
             except PlantError as exc:
-                return _result(failure, "failed", f"{case.label}: {exc}", None, steps)
+                return evaluation_result(failure, "failed", f"{case.label}: {exc}", None, steps)
             steps += case.steps
             oscillating = record_findings(record, case.scenario.settings.current_limit)
             if oscillating:
-                return _result(failure, "unstable", f"{case.label}: {oscillating[0]}", None, steps)
+                return evaluation_result(
+                    failure, "unstable", f"{case.label}: {oscillating[0]}", None, steps
+                )
             metrics = compute_metrics(record, case.window).as_dict()
             scores[i], status, reason = self._score(metrics, case)
             runs[i] = {"case": case.label, "status": status, "reason": reason, **metrics}
@@ -178,11 +182,11 @@ class Objective:
             if bound > cutoff and len(scores) < n:
                 self._put_first(i)
                 reason = f"{case.label}: fitness at least {bound:.6g} um, above the cutoff"
-                return _result(lower_bound_above(cutoff), "stopped", reason, None, steps)
+                return evaluation_result(lower_bound_above(cutoff), "stopped", reason, None, steps)
         if n == 1:
             run = runs[0]
             metrics = {k: v for k, v in run.items() if k not in ("case", "status", "reason")}
-            return _result(scores[0], run["status"], run["reason"], metrics, steps)
+            return evaluation_result(scores[0], run["status"], run["reason"], metrics, steps)
         ordered = [runs[i] for i in range(n)]
         values = [scores[i] for i in range(n)]
         worst = int(np.argmax(values))
@@ -194,7 +198,7 @@ class Objective:
         metrics["runs"] = ordered
         status = "ok" if all(r["status"] == "ok" for r in ordered) else "violation"
         reason = "; ".join(r["reason"] for r in ordered if r["reason"])
-        return _result(
+        return evaluation_result(
             float(combine(values)),
             status,
             reason or f"worst run: {ordered[worst]['case']}",
@@ -238,9 +242,12 @@ def _steps_until(case: _Case, time_s: float) -> int:
     return int(round(time_s / case.scenario.reference.period)) * ratio
 
 
-def _result(
+def evaluation_result(
     fitness: float, status: str, reason: str, metrics: dict[str, Any] | None, steps: int
 ) -> dict[str, Any]:
+    """What a worker answers for a candidate: its fitness (um), status (``ok``, ``violation``,
+    ``stopped``, ``unstable``, ``failed``), the reason, the metrics of its worst case and the
+    speed-loop steps simulated."""
     return {
         "fitness": float(fitness),
         "status": status,
