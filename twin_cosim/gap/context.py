@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from twin_cosim.gap.coverage import check_coverage
 from twin_cosim.gap.effects import library_for
 from twin_cosim.gap.outliers import screen_outliers
 from twin_cosim.gap.residuals import Residuals, residuals_of
@@ -159,7 +160,7 @@ def build_context(
         judging, scenario_of_run = _distinct(judging_of_holdout)
         train, judged = train_runs, held_runs
         train_end = max(float(r.t[-1]) for r in train_runs)
-        split = f"held-out runs {[r.source for r in held_runs]}"
+        split = f"held-out runs {', '.join(r.source for r in held_runs)}"
     else:
         starts = [r.t[0] + settings.split * (r.t[-1] - r.t[0]) for r in train_runs]
         train_end = float(min(starts))
@@ -167,6 +168,10 @@ def build_context(
         judged = [r.select(r.t >= train_end) for r in train_runs]
         judging, scenario_of_run = training, train_scenario_of_run
         split = f"time split at t = {train_end:.4g} s"
+    check_coverage(
+        train, [training[i].reference for i in train_scenario_of_run], "training", split
+    )
+    check_coverage(judged, [judging[i].reference for i in scenario_of_run], "held-out", split)
     return DiagnosisContext(
         scenario,
         fmu_path,

@@ -137,3 +137,18 @@ def test_sign_change_between_two_moving_samples_is_a_reversal():
     assert not np.any(labels == REGIMES.index("standstill"))
     assert segments(labels, REGIMES.index("reversal")) == [(450, 551), (950, 1051), (1450, 1551)]
     assert segments(labels, REGIMES.index("breakaway")) == []
+
+
+def test_the_grid_reference_undershooting_at_a_stop_is_no_reversal():
+    """The 4 ms reference interpolated to the loop grid swings just beyond v_still the other way
+    where a move starts or ends (0.01 um of travel): a move out, a stop, a dwell and the same
+    move again hold breakaways and no reversal."""
+    from twin_cosim.reference import interpolate
+
+    t = np.arange(0, 1.2, 0.004)  # s
+    knots = ([0.1, 0.2, 0.4, 0.5, 0.6, 0.7, 0.9, 1.0], [0, 0.005, 0.005, 0, 0, 0.005, 0.005, 0])
+    grid = interpolate(np.cumsum(np.interp(t, *knots)) * 0.004, 0.004, 250e-6)
+    assert grid.velocity.min() < -RegimeSettings().v_still  # the undershoot is there
+    labels = classify_regimes(grid.time, grid.velocity, grid.acceleration)
+    assert not np.any(labels == REGIMES.index("reversal"))
+    assert len(segments(labels, REGIMES.index("breakaway"))) == 2
