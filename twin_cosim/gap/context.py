@@ -168,9 +168,7 @@ def build_context(
         judged = [r.select(r.t >= train_end) for r in train_runs]
         judging, scenario_of_run = training, train_scenario_of_run
         split = f"time split at t = {train_end:.4g} s"
-    check_coverage(
-        train, [training[i].reference for i in train_scenario_of_run], "training", split
-    )
+    check_coverage(train, [training[i].reference for i in train_scenario_of_run], "training", split)
     check_coverage(judged, [judging[i].reference for i in scenario_of_run], "held-out", split)
     return DiagnosisContext(
         scenario,

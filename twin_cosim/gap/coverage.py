@@ -1,14 +1,15 @@
 """What motion a diagnosis needs in its training and its held-out data.
 
 The effects of the library show where the drive moves and where it turns: friction, inertia and
-stiffness effects while moving (acceleration or constant velocity), Stribeck friction, backlash
-and friction asymmetry at a reversal. Training data without them cannot fit those effects, and
-held-out data without them cannot judge them: a time split of a run cut short, or a held-out run
-that only dwells, would accept or reject effects on nothing. Each of the two data sets must hold
+stiffness effects while moving, Stribeck friction, backlash and friction asymmetry at a reversal.
+Training data without them cannot fit those effects, and held-out data without them cannot
+judge them: a time split of a run that only dwells in one half, or a held-out run that never
+turns, would accept or reject effects on nothing. Each of the two data sets must hold
 
-- motion: samples of the acceleration or constant-velocity regime, and
-- a reversal: a motion start against the previous direction of motion (the reversal regime of
-  :mod:`twin_cosim.gap.regimes`),
+- motion: a stroke of the reference (:func:`twin_cosim.gap.regimes.strokes`: one direction,
+  more than 1 um), and
+- a reversal: two strokes of one run in opposite directions, one after the other (with or
+  without a dwell between them),
 
 or the diagnosis is refused naming the files and what is missing.
 """
@@ -21,29 +22,28 @@ from twin_cosim.gap import regimes as regime_model
 from twin_cosim.measured import MeasuredDataError, MeasuredRun
 from twin_cosim.reference import ReferenceGrid
 
-NEEDED = {
-    "motion (acceleration or constant velocity)": (
-        regime_model.ACCELERATION,
-        regime_model.CONSTANT_VELOCITY,
-    ),
-    "reversal": (regime_model.REVERSAL,),
-}
+MOTION = "motion"
+REVERSAL = "reversal"
 
 
 def missing_regimes(runs: list[MeasuredRun], grids: list[ReferenceGrid]) -> list[str]:
-    """What of :data:`NEEDED` none of the runs holds (each run against its reference grid)."""
-    present: set[int] = set()
+    """What of motion and a reversal none of the runs holds (each against its reference)."""
+    moves = reverses = False
+    still = regime_model.RegimeSettings().v_still
     for run, grid in zip(runs, grids, strict=True):
         v_ref = np.interp(run.t, grid.time, grid.velocity)
-        a_ref = np.interp(run.t, grid.time, grid.acceleration)
-        present.update(np.unique(regime_model.classify_regimes(run.t, v_ref, a_ref)).tolist())
-    return [need for need, codes in NEEDED.items() if not present.intersection(codes)]
+        direction = np.where(np.abs(v_ref) > still, np.sign(v_ref), 0)
+        position = np.interp(run.t, grid.time, grid.position)
+        signs = [sign for _, _, sign in regime_model.strokes(direction, position)]
+        moves |= bool(signs)
+        reverses |= any(a != b for a, b in zip(signs[:-1], signs[1:], strict=True))
+    return [need for need, held in ((MOTION, moves), (REVERSAL, reverses)) if not held]
 
 
 def check_coverage(
     runs: list[MeasuredRun], grids: list[ReferenceGrid], role: str, how: str
 ) -> None:
-    """Refuse data that miss a regime the diagnosis needs.
+    """Refuse data that miss motion or a reversal.
 
     Parameters
     ----------

@@ -3,10 +3,7 @@
 Each sample of the reference (speed ``v_ref`` in m/s, acceleration ``a_ref`` in m/s^2, carriage
 side) gets one regime; the thresholds are the fields of :class:`RegimeSettings`.
 
-- *moving*: |v_ref| > ``v_still`` in a stretch of one direction that travels more than
-  ``min_travel``; the direction of motion is the sign of v_ref while moving. (The reference
-  interpolated to the loop grid undershoots where a move starts or ends: a few samples just
-  beyond ``v_still`` the other way, a fraction of a micrometre, are no motion and no reversal.)
+- *moving*: |v_ref| > ``v_still``; the direction of motion is the sign of v_ref while moving.
 - A *motion start* is a moving sample whose direction differs from the sample before (which is
   either at standstill or moving the other way). The previous direction of motion is the direction
   of the last moving sample before it, however long the dwell in between.
@@ -23,6 +20,11 @@ Precedence where these overlap: reversal > breakaway > standstill > acceleration
 constant_velocity. A record that starts in motion has no motion start at its first sample: the
 motion began earlier, its direction is the previous direction for the next start.
 
+A *stroke* (:func:`strokes`) is a stretch of one direction of motion that covers more than
+``MIN_TRAVEL``: the reference interpolated to the loop grid undershoots where a move starts or
+ends, a few samples just beyond ``v_still`` the other way over a fraction of a micrometre; a
+stroke leaves those out, the labels above do not.
+
 Energy shares of a residual r (m or A) per regime: ``time_share`` = fraction of the samples,
 ``energy_share`` = fraction of sum r^2, ``enrichment`` = energy_share / time_share (0 for a regime
 that does not occur).
@@ -38,6 +40,7 @@ REGIMES = ("standstill", "breakaway", "acceleration", "constant_velocity", "reve
 STANDSTILL, BREAKAWAY, ACCELERATION, CONSTANT_VELOCITY, REVERSAL = range(len(REGIMES))
 
 _TIME_TOLERANCE = 1e-9  # s, absorbs rounding of grid times at the window edges
+MIN_TRAVEL = 1e-6  # m: a stretch of one direction that covers less is no stroke
 
 
 @dataclass(frozen=True)
@@ -52,14 +55,11 @@ class RegimeSettings:
         Acceleration above which a moving sample accelerates, m/s^2.
     window : float
         Half width of a reversal window and length of a breakaway window, s.
-    min_travel : float
-        Travel below which a stretch of one direction is no motion, m (carriage).
     """
 
     v_still: float = 1e-5
     a_min: float = 1e-3
     window: float = 0.05
-    min_travel: float = 1e-6
 
 
 def _motion_starts(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -109,33 +109,16 @@ def classify_regimes(
         raise ValueError("t, v_ref and a_ref must be 1-D arrays of one length")
     if np.any(np.diff(t) <= 0.0):
         raise ValueError("t must increase strictly")
-    direction = _directions(t, v_ref, settings)
-    moving = direction != 0
+    moving = np.abs(v_ref) > settings.v_still
     labels = np.full(t.shape, CONSTANT_VELOCITY, dtype=int)
     labels[moving & (np.abs(a_ref) > settings.a_min)] = ACCELERATION
     labels[~moving] = STANDSTILL
-    starts, reversal = _motion_starts(direction)
+    starts, reversal = _motion_starts(np.where(moving, np.sign(v_ref), 0.0))
     for start in starts[~reversal]:
         labels[_window(t, t[start], t[start] + settings.window)] = BREAKAWAY
     for start in starts[reversal]:
         labels[_window(t, t[start] - settings.window, t[start] + settings.window)] = REVERSAL
     return labels
-
-
-def _directions(t: np.ndarray, v_ref: np.ndarray, settings: RegimeSettings) -> np.ndarray:
-    """-1, 0 or +1 per sample: the sign of v_ref (m/s) beyond ``v_still`` in stretches of one
-    direction that travel more than ``min_travel`` (m), else 0."""
-    direction = np.where(np.abs(v_ref) > settings.v_still, np.sign(v_ref), 0.0)
-    dt = np.diff(t, append=t[-1] + (t[-1] - t[0]) / max(len(t) - 1, 1))
-    changes = np.flatnonzero(np.diff(direction)) + 1
-    for start, stop in zip(
-        np.concatenate(([0], changes)), np.concatenate((changes, [len(t)])), strict=True
-    ):
-        if direction[start] != 0 and np.sum(np.abs(v_ref[start:stop]) * dt[start:stop]) <= (
-            settings.min_travel
-        ):
-            direction[start:stop] = 0.0
-    return direction
 
 
 def _window(t: np.ndarray, t_from: float, t_to: float) -> slice:
@@ -185,6 +168,27 @@ def energy_shares(residual: np.ndarray, labels: np.ndarray) -> dict[str, dict[st
             "enrichment": enrichment,
         }
     return shares
+
+
+def strokes(direction: np.ndarray, position: np.ndarray) -> list[tuple[int, int, int]]:
+    """Strokes: [start, stop) index ranges of one direction of motion whose position covers
+    more than :data:`MIN_TRAVEL`, with that direction.
+
+    Parameters
+    ----------
+    direction : np.ndarray
+        -1, 0 (standstill) or +1 per sample.
+    position : np.ndarray
+        Carriage position per sample, m.
+    """
+    direction = np.asarray(direction)
+    changes = np.flatnonzero(np.diff(direction)) + 1
+    firsts, stops = np.concatenate(([0], changes)), np.concatenate((changes, [len(direction)]))
+    return [
+        (int(a), int(b), int(direction[a]))
+        for a, b in zip(firsts, stops, strict=True)
+        if direction[a] != 0 and np.ptp(position[a:b]) > MIN_TRAVEL
+    ]
 
 
 def segments(labels: np.ndarray, code: int) -> list[tuple[int, int]]:
