@@ -99,10 +99,11 @@ def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     holdout = [read_measured(path) for path in args.holdout or []]
     settings = settings_from(scenario, args.split, args.max_effects)
     start = time.perf_counter()
-    progress = _progress_bar(args)
+    progress = _ProgressBars(args)
     result = diagnose(
         scenario, measured, holdout, args.plant, settings, progress=progress, pool=pool
     )
+    progress.finish()
     extra = {
         "wall_s": time.perf_counter() - start,
         "versions": versions(),
@@ -114,7 +115,7 @@ def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     if args.json:
         print(json.dumps(summary))
     else:
-        _print_text(summary)
+        _print_text(summary, result.context.model)
     if not args.no_plots:
         from twin_cosim.gap.figures import write_figures
 
@@ -135,15 +136,20 @@ def _command(args: argparse.Namespace) -> str:
     return " ".join(["twin diagnose", str(args.scenario), *runs])
 
 
-def _progress_bar(args: argparse.Namespace) -> Callable[[int, str], Callable[[int], None]]:
-    """A factory of tqdm progress bars on stderr; none with ``--quiet``, or with ``--json``
-    when stdout is not a terminal."""
-    from tqdm import tqdm
+class _ProgressBars:
+    """tqdm progress bars on stderr, one per ``make(total, label)``; none with ``--quiet``, or
+    with ``--json`` when stdout is not a terminal. A bar's total is the most tasks the work may
+    take; :meth:`finish` closes each bar at 100 % of what it did."""
 
-    enabled = not args.quiet and not (args.json and not sys.stdout.isatty())
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.enabled = not args.quiet and not (args.json and not sys.stdout.isatty())
+        self.bars: list[Any] = []
 
-    def make(total: int, label: str) -> Callable[[int], None]:
-        bar = tqdm(total=total, desc=label, unit="task", disable=not enabled, file=sys.stderr)
+    def __call__(self, total: int, label: str) -> Callable[[int], None]:
+        from tqdm import tqdm
+
+        bar = tqdm(total=total, desc=label, unit="task", disable=not self.enabled, file=sys.stderr)
+        self.bars.append(bar)
 
         def tick(done: int) -> None:
             if bar.n + done > bar.total:
@@ -152,16 +158,26 @@ def _progress_bar(args: argparse.Namespace) -> Callable[[int, str], Callable[[in
 
         return tick
 
-    return make
+    def finish(self) -> None:
+        """Close every bar, its total set to the tasks done (the work ended early)."""
+        for bar in self.bars:
+            bar.total = bar.n
+            bar.close()
+        self.bars = []
 
 
-def _print_text(summary: dict[str, Any]) -> None:
-    """The verdict and each accepted effect's held-out gaps."""
+def _print_text(summary: dict[str, Any], model: str) -> None:
+    """The verdict and each accepted effect's held-out gaps, numbers for people."""
+    from twin_cosim.gap.numbers import names, number, parameters
+    from twin_cosim.gap.report import hypothesis_units
+
+    units = hypothesis_units(model)
     print(summary["gap"]["verdict"])
     for step in summary["steps"]:
         print(
-            f"  {step['effect']}: held-out position gap {step['holdout_gap_before_um']:.3f} -> "
-            f"{step['holdout_gap_after_um']:.3f} um, current "
-            f"{step['holdout_current_before_A']:.4f} -> "
-            f"{step['holdout_current_after_A']:.4f} A; fitted {step['params']}"
+            f"  {names([step['effect']])}: held-out position gap "
+            f"{number(step['holdout_gap_before_um'])} -> {number(step['holdout_gap_after_um'])} "
+            f"um, current {number(step['holdout_current_before_A'])} -> "
+            f"{number(step['holdout_current_after_A'])} A, as fitted in its round: "
+            f"{parameters(step['params'], units.get(step['fitted'], {}))}"
         )

@@ -497,12 +497,13 @@ def _verdict_stage(
         settings,
     )
     remaining = remaining_of(
-        first.holdout_rms,
+        first.calibration,
+        first.significant,
         selection.floor,
         left_significant and first.significant,
         where,
-        hold_final.position_rms_um(),
-        hold_final.current_rms(),
+        (first.position_rms_um, first.current_rms),
+        (hold_final.position_rms_um(), hold_final.current_rms()),
     )
     below = [
         c.name

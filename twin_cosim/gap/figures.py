@@ -13,11 +13,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
 
 from twin_cosim.gap import regimes as regime_model  # noqa: E402
 from twin_cosim.gap import spectra  # noqa: E402
 from twin_cosim.gap.diagnosis import Diagnosis  # noqa: E402
 from twin_cosim.gap.residuals import joined  # noqa: E402
+from twin_cosim.gap.verdict import STROKE_END  # noqa: E402
 from twin_cosim.metrics import UM_PER_M  # noqa: E402
 
 REGIME_COLOURS = {
@@ -88,17 +90,20 @@ def plot_regimes(d: Diagnosis, path: Path) -> Path:
 
 
 def plot_spectra(d: Diagnosis, path: Path) -> Path:
-    """Residual spectra: in Hz, and in orders of the motor and screw angle (constant velocity)."""
+    """Amplitude spectra of the training residual before the accepted effects (measured minus
+    the nominal twin): in Hz over the whole training data, and in orders of the motor and the
+    screw angle over its constant-velocity stretches; position left, current right."""
     res = d.train_before
     dt = float(np.median(np.diff(res.t)))
     stretches = regime_model.segments(res.regimes, regime_model.REGIMES.index("constant_velocity"))
-    fig, axes = plt.subplots(3, 2, figsize=(11, 9))
+    fig, axes = plt.subplots(3, 2, figsize=(11, 9.5))
     for column, (signal, values, unit) in enumerate(
         (("position", res.position * UM_PER_M, "um"), ("current", res.current, "A"))
     ):
         f, a = spectra.frequency_spectrum(values, dt)
-        axes[0, column].semilogy(f[1:], a[1:] + 1e-12, lw=0.7)
+        axes[0, column].loglog(f[1:], a[1:] + 1e-12, lw=0.7)
         axes[0, column].set_xlabel("frequency [Hz]")
+        axes[0, column].set_title(f"{signal} residual, whole training data", fontsize=10)
         for row, (angle_name, angle) in enumerate(
             (("motor", res.motor_angle), ("screw", d.context.screw_angle(res.motor_angle))), start=1
         ):
@@ -106,9 +111,16 @@ def plot_spectra(d: Diagnosis, path: Path) -> Path:
             if len(orders):
                 axes[row, column].semilogy(orders[1:], amplitude[1:] + 1e-12, lw=0.8)
             axes[row, column].set_xlabel(f"order of the {angle_name} angle [cycles/rev]")
+            axes[row, column].set_title(
+                f"{signal} residual against the {angle_name} angle, constant-velocity stretches",
+                fontsize=10,
+            )
         for row in range(3):
-            axes[row, column].set_ylabel(f"{signal} residual [{unit}]")
+            axes[row, column].set_ylabel(f"amplitude [{unit}]")
             axes[row, column].grid(alpha=0.3, which="both")
+    fig.suptitle(
+        "Residual spectra: training data, before the accepted effects (measured - nominal twin)"
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -135,23 +147,29 @@ def plot_ranking(d: Diagnosis, path: Path) -> Path:
     return path
 
 
+SPAN_COLOURS = {False: "tab:red", True: "tab:purple"}  # by AxisSpan.at_stroke_end
+SPAN_LABELS = {False: "along the travel", True: STROKE_END}
+
+
 def plot_along_axis(d: Diagnosis, path: Path) -> Path:
     """Normalised residual energy over the carriage position, per direction, before and after
-    the accepted effects, with the spans where it is concentrated."""
-    fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
+    the accepted effects, with the spans where it is concentrated (red along the travel,
+    purple where the axis starts, stops or reverses)."""
+    fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
     sigma_x, sigma_i = d.floors.sigma_position_m, d.floors.sigma_current
-    for ax, (res, label, spans) in zip(
-        axes,
+    panels = (
         (
-            (joined([d.train_before, d.holdout_before]), "before", d.where.along_axis),
-            (
-                d.holdout_after,
-                "after the accepted effects (held out)",
-                d.remaining_where.along_axis,
-            ),
+            joined([d.train_before, d.holdout_before]),
+            "before the accepted effects (training and held-out data)",
+            d.where.along_axis,
         ),
-        strict=True,
-    ):
+        (
+            d.holdout_after,
+            "after the accepted effects (held-out data)",
+            d.remaining_where.along_axis,
+        ),
+    )
+    for ax, (res, title, spans) in zip(axes, panels, strict=True):
         energy = res.normalised_energy(sigma_x, sigma_i)
         for sign, colour in ((1, "tab:blue"), (-1, "tab:orange")):
             inside = res.direction == sign
@@ -164,13 +182,22 @@ def plot_along_axis(d: Diagnosis, path: Path) -> Path:
                 label=f"moving {'+' if sign > 0 else '-'}",
             )
         for span in spans:
-            ax.axvspan(span.from_mm, span.to_mm, color="red", alpha=0.2)
+            ax.axvspan(span.from_mm, span.to_mm, color=SPAN_COLOURS[span.at_stroke_end], alpha=0.2)
+        ax.axhline(1.0, color="k", lw=0.8, ls="--", label="noise at the floors")
+        handles = ax.get_legend_handles_labels()[0] + [
+            Patch(color=colour, alpha=0.2, label=f"span {SPAN_LABELS[at_end]}")
+            for at_end, colour in SPAN_COLOURS.items()
+            if any(s.at_stroke_end == at_end for s in spans)
+        ]
         if np.any(energy > 0):
             ax.set_yscale("log")
-        ax.set_ylabel(f"normalised energy ({label})")
+        ax.set_title(title, fontsize=10)
+        ax.set_ylabel("normalised energy\n(1: noise at the floors)")
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", fontsize=8)
-    axes[1].set_xlabel("carriage position [mm]  (red: spans where the residual is concentrated)")
+        ax.legend(
+            handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, markerscale=4
+        )
+    axes[1].set_xlabel("carriage position [mm]")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

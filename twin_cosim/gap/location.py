@@ -11,7 +11,10 @@
   recovers; the trimming keeps the span on the defect). Spans found in both directions that
   overlap are one span of direction 0. Each span's ``energy_share`` is its share of the binned
   energy above the median level (what is there beyond the even spread); spans below
-  ``axis_min_share`` of it are not named; largest first.
+  ``axis_min_share`` of it are not named; largest first. A span whose energy lies mostly
+  where a stroke starts or ends (the axis speeds up from a stop or a reversal, or slows into
+  one: an end of travel) is marked ``at_stroke_end``: the speed there is low, and a
+  speed-dependent effect (friction near v = 0) concentrates there as a local defect would.
 - Orders and frequencies: order spectra of the motor and screw angle and a spectrum in Hz on the
   constant-velocity stretches, with the position-periodic / temporal rule of
   :func:`twin_cosim.gap.spectra.periodicity`.
@@ -49,6 +52,8 @@ class AxisSpan:
         Share of the binned residual energy above the median level that lies in the span.
     enrichment : float
         Mean energy in the span over the median bin's.
+    at_stroke_end : bool
+        Most of its energy lies where a stroke starts or ends (:func:`stroke_ends`).
     """
 
     from_mm: float
@@ -56,6 +61,7 @@ class AxisSpan:
     direction: int
     energy_share: float
     enrichment: float
+    at_stroke_end: bool = False
 
 
 @dataclass(frozen=True)
@@ -67,22 +73,6 @@ class Location:
     along_axis: list[AxisSpan]
     periodicity: dict[str, Any]
 
-    def describe(self, most: int = 3) -> str:
-        """'reversal (4.1x, 38 % of the energy), 12.0-14.0 mm (+1, 61 %)' or ''."""
-        regimes = sorted(self.position.items(), key=lambda kv: -kv[1]["energy_share"])
-        named = [
-            f"{name.replace('_', ' ')} ({v['enrichment']:.1f}x its time share, "
-            f"{100 * v['energy_share']:.0f} % of the position residual energy)"
-            for name, v in regimes[:2]
-            if v["enrichment"] > 1.5
-        ]
-        named += [
-            f"{s.from_mm:.1f}-{s.to_mm:.1f} mm along the axis (direction {s.direction:+d}; "
-            f"{100 * s.energy_share:.0f} % of the energy above the even level)"
-            for s in self.along_axis[:most]
-        ]
-        return "; ".join(named)
-
 
 def _bin_energy(
     x: np.ndarray, energy: np.ndarray, edges: np.ndarray
@@ -92,6 +82,39 @@ def _bin_energy(
     total = np.bincount(index, weights=energy, minlength=len(edges) - 1)
     count = np.bincount(index, minlength=len(edges) - 1)
     return total, count
+
+
+@dataclass(frozen=True)
+class _Found:
+    """A span of one direction (or merged) before it is judged: ends (m), direction, energy
+    above the median level, enrichment, energy, and energy near turns (normalised units)."""
+
+    start: float
+    stop: float
+    direction: int
+    excess: float
+    enrichment: float
+    energy: float
+    at_turns: float
+
+
+def stroke_ends(res: Residuals) -> np.ndarray:
+    """True for the samples where a stroke starts or ends: the axis speeds up from a stop or a
+    reversal, or slows into one.
+
+    Of each stroke (:func:`twin_cosim.gap.regimes.strokes`), the samples before its first and
+    after its last constant-velocity sample (all of them without one), except at the ends of
+    the record when it is moving there (the motion began before or goes on after it).
+    """
+    flags = np.zeros(len(res.t), dtype=bool)
+    cruising = res.regimes == regime_model.CONSTANT_VELOCITY
+    for a, b, _ in regime_model.strokes(res.direction, res.x):
+        steady = np.flatnonzero(cruising[a:b])
+        if a > 0:
+            flags[a : a + (steady[0] if len(steady) else b - a)] = True
+        if b < len(res.t):
+            flags[a + (steady[-1] + 1 if len(steady) else 0) : b] = True
+    return flags
 
 
 def _spans_of(flagged: np.ndarray, mean: np.ndarray) -> list[tuple[int, int]]:
@@ -130,13 +153,15 @@ def along_axis(
         return []
     edges = np.arange(low, high + settings.axis_bin, settings.axis_bin)
     energy = res.normalised_energy(sigma_x, sigma_i)[moving]
+    turning = stroke_ends(res)[moving]
     direction = res.direction[moving]
-    found: list[tuple[float, float, int, float, float]] = []
+    found: list[_Found] = []
     excess_total = 0.0
     per_direction = []
     for sign in (1, -1):
         inside = direction == sign
         total, count = _bin_energy(x[inside], energy[inside], edges)
+        at_turns, _ = _bin_energy(x[inside], np.where(turning[inside], energy[inside], 0.0), edges)
         judged = count >= MIN_BIN_SAMPLES
         if judged.sum() < 3:
             continue
@@ -145,44 +170,59 @@ def along_axis(
         excess = np.where(judged, np.maximum(total - level * count, 0.0), 0.0)
         excess_total += float(excess.sum())
         flagged = judged & (mean >= settings.axis_enrichment * max(level, 1e-300))
-        per_direction.append((sign, flagged, excess, mean, level))
-    for sign, flagged, excess, mean, level in per_direction:
+        per_direction.append((sign, flagged, excess, mean, level, total, at_turns))
+    for sign, flagged, excess, mean, level, total, at_turns in per_direction:
         for a, b in _spans_of(flagged, mean):
-            share = float(excess[a : b + 1].sum())
-            enrichment = float(mean[a : b + 1].max() / max(level, 1e-300))
-            found.append((float(edges[a]), float(edges[b + 1]), sign, share, enrichment))
+            found.append(
+                _Found(
+                    float(edges[a]),
+                    float(edges[b + 1]),
+                    sign,
+                    float(excess[a : b + 1].sum()),
+                    float(mean[a : b + 1].max() / max(level, 1e-300)),
+                    float(total[a : b + 1].sum()),
+                    float(at_turns[a : b + 1].sum()),
+                )
+            )
     spans = _merge_directions(found)
     if excess_total <= 0:
         return []
     result = [
-        AxisSpan(a * MM_PER_M, b * MM_PER_M, d, share / excess_total, enrichment)
-        for a, b, d, share, enrichment in spans
-        if share >= settings.axis_min_share * excess_total
+        AxisSpan(
+            f.start * MM_PER_M,
+            f.stop * MM_PER_M,
+            f.direction,
+            f.excess / excess_total,
+            f.enrichment,
+            f.at_turns > 0.5 * f.energy,
+        )
+        for f in spans
+        if f.excess >= settings.axis_min_share * excess_total
     ]
     return sorted(result, key=lambda s: -s.energy_share)
 
 
-def _merge_directions(
-    spans: list[tuple[float, float, int, float, float]],
-) -> list[tuple[float, float, int, float, float]]:
+def _merge_directions(spans: list[_Found]) -> list[_Found]:
     """Spans of the two directions that overlap become one span of direction 0."""
-    plus = [s for s in spans if s[2] == 1]
-    minus = [s for s in spans if s[2] == -1]
+    plus = [s for s in spans if s.direction == 1]
+    minus = [s for s in spans if s.direction == -1]
     merged, used = [], set()
     for p in plus:
-        partners = [i for i, m in enumerate(minus) if m[0] < p[1] and p[0] < m[1]]
+        partners = [i for i, m in enumerate(minus) if m.start < p.stop and p.start < m.stop]
         if not partners:
             merged.append(p)
             continue
         group = [p] + [minus[i] for i in partners]
         used.update(partners)
         merged.append(
-            (
-                min(s[0] for s in group),
-                max(s[1] for s in group),
+            _Found(
+                min(s.start for s in group),
+                max(s.stop for s in group),
                 0,
-                sum(s[3] for s in group),
-                max(s[4] for s in group),
+                sum(s.excess for s in group),
+                max(s.enrichment for s in group),
+                sum(s.energy for s in group),
+                sum(s.at_turns for s in group),
             )
         )
     merged += [m for i, m in enumerate(minus) if i not in used]

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from twin_cosim.gap.location import along_axis
-from twin_cosim.gap.regimes import CONSTANT_VELOCITY, REVERSAL
+from twin_cosim.gap.location import along_axis, stroke_ends
+from twin_cosim.gap.regimes import ACCELERATION, CONSTANT_VELOCITY, REVERSAL
 from twin_cosim.gap.residuals import Residuals
 from twin_cosim.gap.settings import DiagnosisSettings
 
@@ -53,3 +55,32 @@ def test_a_defect_in_one_direction_is_named_with_it():
 
 def test_an_even_residual_names_no_span_and_reversals_are_not_places():
     assert along_axis(strokes(None), 1e-8, 1e-3, SETTINGS) == []
+
+
+def test_a_span_where_strokes_end_is_marked_so():
+    """The residual of low speed near the ends of travel (here: the last 2.5 mm of each stroke,
+    decelerating) is a span at the ends of strokes, not a tight spot; a mid-travel spot is not."""
+    res = strokes((21.0, 22.5))
+    ends = (res.x < 2.5e-3) | (res.x > 37.5e-3)
+    regimes = np.where(ends & (res.regimes != REVERSAL), ACCELERATION, res.regimes)
+    current = res.current + np.where(ends & (res.regimes != REVERSAL), 0.03, 0.0)
+    slowing = dataclasses.replace(res, current=current, regimes=regimes)
+    spans = along_axis(slowing, 1e-8, 1e-3, SETTINGS)
+    at_ends = [s for s in spans if s.to_mm <= 3.5 or s.from_mm >= 36.5]
+    assert at_ends and all(s.at_stroke_end for s in at_ends)
+    middle = [s for s in spans if 20.0 <= s.from_mm <= 23.0]
+    assert middle and not any(s.at_stroke_end for s in middle)
+
+
+def test_stroke_ends_mark_speeding_up_and_slowing_down_inside_the_record():
+    cruise, speed_change = [CONSTANT_VELOCITY], [ACCELERATION]
+    regimes = np.array(cruise * 3 + speed_change * 4 + cruise * 3 + speed_change * 2 + [0] * 2)
+    direction = np.array([1] * 5 + [-1] * 7 + [0] * 2)
+    n, zeros = len(regimes), np.zeros(len(regimes))
+    x = np.concatenate([np.linspace(0.0, 1e-3, 5), np.linspace(1e-3, 0.0, 7), [0.0, 0.0]])  # m
+    res = Residuals(np.arange(n) * 1.0, zeros, zeros, regimes, zeros, x, direction)
+    # the record starts moving: the first stroke's start is no speed-up
+    assert (
+        stroke_ends(res).tolist()
+        == [False] * 3 + [True] * 4 + [False] * 3 + [True] * 2 + [False] * 2
+    )
