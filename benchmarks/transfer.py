@@ -184,6 +184,14 @@ def run_machine(case: dict, nominal: Path, args: argparse.Namespace) -> dict:
     }
 
 
+SET_LABELS = {
+    "fine_tune": "FT (the paper's set)",
+    "nominal": "tuned on the nominal twin",
+    "calibrated": "tuned on the calibrated twin",
+    "oracle": "tuned on the machine (oracle)",
+}
+
+
 def report(results: list[dict], out: Path) -> None:
     import matplotlib
 
@@ -221,7 +229,7 @@ def report(results: list[dict], out: Path) -> None:
         f"{sum(e <= 10 for e in errors_cal)}/{len(errors_cal)} machines); nominal twin: median "
         f"{statistics.median(errors_nom):.1f} %"
     )
-    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 5))
     index = np.arange(len(results))
     labels = [f"M{r['machine']}" for r in results]
     keys = ["fine_tune", "nominal", "calibrated"] + (
@@ -230,18 +238,18 @@ def report(results: list[dict], out: Path) -> None:
     width = 0.8 / len(keys)
     for k, key in enumerate(keys):
         values = [r["judged"][key]["E_pk_um"]["machine"] for r in results]
-        left.bar(index + k * width, values, width, label=key.replace("_", "-"))
+        left.bar(index + k * width, values, width, label=SET_LABELS[key])
     left.set_xticks(index + 0.4 - width / 2, labels)
     left.set_ylabel("E_pk on the machine [um]")
     left.set_title("Gains judged on the machine")
-    left.legend()
     for key in ("nominal", "calibrated"):
         values = [r["judged"][key]["E_pk_um"]["relative_error_pct"] for r in results]
         right.plot(labels, values, "o-", label=f"{key} twin")
     right.axhspan(-10, 10, color="0.9", label="+/- 10 %")
     right.set_ylabel("twin's E_pk prediction error [%]")
     right.set_title("Prediction of the machine's E_pk (own tuned set)")
-    right.legend()
+    for ax in (left, right):  # below the axes: a legend inside covers bars or points
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2, fontsize=9)
     fig.tight_layout()
     fig.savefig(out / "transfer.png", dpi=110)
     print(f"wrote {out / 'transfer.png'}")

@@ -24,3 +24,10 @@ TABLE3: dict[str, TunedParameters] = {
     ),
 }
 FINE_TUNE = TABLE3["ft"]
+
+
+def set_name(tuned: TunedParameters) -> str:
+    """The name the tables give a scenario's own set: the paper's (FT, GA, CE, SA) or "the
+    scenario's set"."""
+    named = [name.upper() for name, values in TABLE3.items() if values == tuned]
+    return f"{named[0]} (the scenario's set)" if named else "the scenario's set"

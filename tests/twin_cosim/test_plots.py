@@ -8,14 +8,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from twin_cosim.commands.simulate import _set_name
-from twin_cosim.paper import TABLE3
+from twin_cosim.paper import TABLE3, set_name
 from twin_cosim.plots import _close_up
 
 
 def test_run_png_names_the_set_as_the_tables_do():
-    assert _set_name(TABLE3["ft"]) == "FT (the scenario's set)"
-    assert _set_name(dataclasses.replace(TABLE3["ft"], Kp_pos=70.0)) == "the scenario's set"
+    assert set_name(TABLE3["ft"]) == "FT (the scenario's set)"
+    assert set_name(dataclasses.replace(TABLE3["ft"], Kp_pos=70.0)) == "the scenario's set"
 
 
 def test_the_close_up_is_mostly_the_event_after_its_peak():

@@ -19,7 +19,7 @@ from twin_cosim.commands.options import (
     plant_path,
     whole_number,
 )
-from twin_cosim.optimize.methods import METHOD_NAMES, method_list
+from twin_cosim.optimize.methods import METHOD_NAMES, method_label, method_list
 
 if TYPE_CHECKING:
     from twin_cosim.optimize.campaign_spec import CampaignResult, CampaignSpec
@@ -240,7 +240,7 @@ def _report(spec: CampaignSpec, result: CampaignResult, out: Path, as_json: bool
         return
     m = result.metrics or {}
     print(
-        f"{spec.method}: best E_pk {m.get('E_pk_um', float('nan')):.3f} um "
+        f"{method_label(spec.method)}: best E_pk {m.get('E_pk_um', float('nan')):.3f} um "
         f"(reference {result.reference['E_pk_um']:.3f} um) after {result.evaluations} "
         f"evaluations in {result.wall_s:.1f} s; {result.stop_reason}"
     )

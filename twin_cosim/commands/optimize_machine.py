@@ -11,6 +11,7 @@ import json
 from pathlib import Path
 
 from twin_cosim.commands.options import out_folder
+from twin_cosim.optimize.methods import method_label
 
 _SINGLE_AXIS_OPTIONS = (
     "plant",
@@ -80,7 +81,7 @@ def run_machine_campaign(args: argparse.Namespace) -> int:
         return 0
     metrics = result["metrics"] or {}
     print(
-        f"{spec.method}: fitness {result['fitness']:.3f} um (reference sets: "
+        f"{method_label(spec.method)}: fitness {result['fitness']:.3f} um (reference sets: "
         f"{result['reference_fitness']:.3f} um), largest {result['target']} "
         f"{metrics.get(result['target'], float('nan')):.3f} um, after {result['evaluations']} "
         f"evaluations in {result['wall_s']:.1f} s; {result['stop_reason']}"

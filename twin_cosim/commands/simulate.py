@@ -95,22 +95,14 @@ def run(args: argparse.Namespace) -> int:
     for warning in loop:  # the plant mismatch was said as it was found
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
     if not args.no_plots:
+        from twin_cosim.paper import set_name
         from twin_cosim.plots import plot_run
 
-        title = f"{scenario.name}: {args.params or _set_name(scenario.tuned)}"
+        title = f"{scenario.name}: {args.params or set_name(scenario.tuned)}"
         plot_run(record, metrics, title, out / "run.png")
     if not args.json:
         print(f"wrote {out}/record.csv, " + ("" if args.no_plots else "run.png, ") + "summary.json")
     return 1 if unusable else 0
-
-
-def _set_name(tuned: TunedParameters) -> str:
-    """The name the tables give a scenario's own set: the paper's (FT, GA, CE, SA) or "the
-    scenario's set"."""
-    from twin_cosim.paper import TABLE3
-
-    named = [name.upper() for name, values in TABLE3.items() if values == tuned]
-    return f"{named[0]} (the scenario's set)" if named else "the scenario's set"
 
 
 def _simulate(

@@ -204,9 +204,9 @@ def write_result(out_dir: Path, result: CampaignResult) -> None:
     (out_dir / "result.json").write_text(json.dumps(result.as_dict(), indent=2) + "\n")
 
 
-def convergence(out_dir: Path) -> np.ndarray:
-    """Best fitness so far (um) after each logged evaluation, in log order."""
-    entries = EvaluationLog(Path(out_dir) / "evaluations.jsonl")
-    fitness = np.array([e["fitness"] for e in entries.entries])
-    entries.close()
-    return np.minimum.accumulate(fitness) if len(fitness) else fitness
+def logged_fitness(out_dir: Path) -> tuple[np.ndarray, list[str]]:
+    """Fitness (um) and status of each logged evaluation, in log order."""
+    log = EvaluationLog(Path(out_dir) / "evaluations.jsonl")
+    entries = log.entries
+    log.close()
+    return np.array([e["fitness"] for e in entries], dtype=float), [e["status"] for e in entries]

@@ -45,7 +45,7 @@ from twin_cosim.motion_envelope import MARGIN, envelope_of, outside
 from twin_cosim.optimize.campaign import run_campaign
 from twin_cosim.optimize.campaign_spec import CampaignSpec, controller_set_of
 from twin_cosim.optimize.config import check_uncertainty
-from twin_cosim.optimize.methods import METHOD_NAMES
+from twin_cosim.optimize.methods import METHOD_NAMES, method_label
 from twin_cosim.optimize.worker_specs import AGGREGATES
 from twin_cosim.pool_runs import autotune_summary, prepare_campaign_worker
 from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table
@@ -212,7 +212,7 @@ def _compare(
     sets = {
         "FT": ControllerSet(scenario.tuned),
         "AT": load_controller_set(str(out / "autotune.json")),
-    } | {m.upper(): controller_set_of(results[m]) for m in methods}
+    } | {method_label(m): controller_set_of(results[m]) for m in methods}
     table, records = evaluate_sets(pool, fmu, scenarios, sets)
     params = pd.DataFrame({name: s.tuned.as_dict() for name, s in sets.items()}).T[
         list(TUNED_NAMES)
@@ -316,7 +316,7 @@ def _plot(
     from twin_cosim.optimize.outputs import plot_convergence
     from twin_cosim.plots import plot_error_comparison
 
-    plot_convergence({m: out / m for m in methods}, out / "convergence.png")
+    plot_convergence({method_label(m): out / m for m in methods}, out / "convergence.png")
     for label, s in scenarios.items():
         runs = {name: records[(label, name)] for name in sets}
         peak = compute_metrics(runs["FT"], s.metrics_window).t_E_pk

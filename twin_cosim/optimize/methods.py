@@ -1,4 +1,5 @@
-"""The optimizer methods by short name: the one registry of their names.
+"""The optimizer methods by short name: the one registry of their names and of the labels
+tables, plots and messages give them (``cmaes`` on the command line, ``CMA-ES`` to read).
 
 Light to import (no numerical library), so that the command line lists the names without loading
 the algorithms; :data:`twin_cosim.optimize.algorithms.ALGORITHMS` maps the same names to the
@@ -15,6 +16,13 @@ METHODS: dict[str, str] = {
     "de": "differential evolution (scipy), baseline",
 }
 METHOD_NAMES = tuple(METHODS)
+# How tables, plots and messages name each method (the keys above stay the command line's)
+LABELS: dict[str, str] = {"ce": "CE", "ga": "GA", "sa": "SA", "cmaes": "CMA-ES", "de": "DE"}
+
+
+def method_label(method: str) -> str:
+    """The name people read for a method key: ``cmaes`` -> ``CMA-ES``."""
+    return LABELS.get(method, method)
 
 
 def method_list() -> str:

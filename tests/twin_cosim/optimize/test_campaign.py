@@ -187,7 +187,7 @@ def test_comparison_writes_tables_3_to_5(short_scenario, tmp_path):
     text = run_comparison(load_comparison(path), tmp_path / "out", workers=1, progress=False)
     for heading in ("Table 3", "Table 4", "Table 5"):
         assert heading in text
-    for row in ("| FT |", "| CE |", "| CMAES |"):
+    for row in ("| FT |", "| CE |", "| CMA-ES |"):
         assert row in text
     for name in (
         "tables.md",

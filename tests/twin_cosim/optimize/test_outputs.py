@@ -1,0 +1,51 @@
+"""Campaign figures: convergence with penalised evaluations apart; one spelling per method."""
+
+from __future__ import annotations
+
+import json
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from twin_cosim.optimize import outputs  # noqa: E402
+from twin_cosim.optimize.methods import LABELS, METHOD_NAMES, method_label  # noqa: E402
+
+
+def _campaign(folder, fitness_status):
+    folder.mkdir()
+    lines = [
+        json.dumps({"key": str(i), "x": [0.0], "generation": 0, "fitness": f, "status": s})
+        for i, (f, s) in enumerate(fitness_status)
+    ]
+    (folder / "evaluations.jsonl").write_text("\n".join(lines) + "\n")
+    return folder
+
+
+def test_penalised_evaluations_are_shown_apart(tmp_path, monkeypatch):
+    runs = [(2e6, "failed"), (40.0, "ok"), (1e6 + 30.0, "violation"), (12.0, "ok")]
+    runs += [(50.0, "stopped"), (2e6, "unstable"), (9.5, "ok")]
+    saved = {}
+    original = plt.Figure.savefig
+
+    def keep(fig, *args, **kwargs):
+        saved["fig"] = fig
+        return original(fig, *args, **kwargs)
+
+    monkeypatch.setattr(plt.Figure, "savefig", keep)
+    outputs.plot_convergence({"CMA-ES": _campaign(tmp_path / "c", runs)}, tmp_path / "c.png")
+    main, apart = saved["fig"].axes
+    low, high = main.get_ylim()
+    assert high < 1e3 and low > 1.0  # the valid E_pk, not stretched by the penalties
+    best = main.lines[0].get_ydata()
+    assert list(best) == [40.0, 12.0, 9.5]
+    marked = sorted(x for line in apart.lines for x in line.get_xdata())
+    assert marked == [1, 3, 5, 6]  # failed, violation, stopped, unstable (evaluation numbers)
+    assert [t.get_text() for t in apart.get_yticklabels()] == ["CMA-ES (4 of 7)"]
+
+
+def test_every_method_has_one_label_for_people():
+    assert set(LABELS) == set(METHOD_NAMES)
+    assert method_label("cmaes") == "CMA-ES"
+    assert [method_label(m) for m in ("ce", "ga", "sa", "de")] == ["CE", "GA", "SA", "DE"]
