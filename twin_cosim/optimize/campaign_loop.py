@@ -26,6 +26,7 @@ from twin_cosim.optimize.config import OptimizeConfig
 from twin_cosim.optimize.early_stop import elite_cutoff
 from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
 from twin_cosim.optimize.evaluator_protocol import Evaluator, SchedulerError
+from twin_cosim.optimize.methods import method_label
 from twin_cosim.optimize.worker_specs import EvaluationTask
 
 LOG = logging.getLogger(__name__)
@@ -166,7 +167,9 @@ def run_loop(
         When the Dask scheduler is lost; the message tells how to resume.
     """
     start = time.perf_counter()
-    bar = tqdm(total=optimizer.budget, unit="eval", disable=not progress, desc=optimizer.name)
+    bar = tqdm(
+        total=optimizer.budget, unit="eval", disable=not progress, desc=method_label(optimizer.name)
+    )
     loop = AskTellLoop(optimizer, config, log, evaluator, early_stop, bar)
     try:
         loop.run(out_dir, start)

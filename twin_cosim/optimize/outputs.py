@@ -11,6 +11,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.ticker import FuncFormatter  # noqa: E402
 
 from twin_cosim.metrics import compute_metrics  # noqa: E402
 from twin_cosim.optimize.campaign_folder import logged_fitness  # noqa: E402
@@ -22,6 +24,7 @@ from twin_cosim.pool_runs import run_records  # noqa: E402
 from twin_cosim.scenario import Scenario, with_controller_set  # noqa: E402
 from twin_cosim.workers import ProcessPool, SerialPool  # noqa: E402
 
+PLAIN = FuncFormatter(lambda value, _: f"{value:g}")  # 20, not 2 x 10^1
 # Statuses of the evaluations shown apart from the valid runs: (marker, what it means)
 SET_APART = {
     "violation": ("x", "IAU cap exceeded (penalty + E_pk)"),
@@ -36,7 +39,7 @@ def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
     penalised and early-stopped evaluations apart, below (their scores of 1e6 and more would
     stretch the axis of the valid ones)."""
     fig, (ax, apart) = plt.subplots(
-        2, 1, figsize=(9, 6.5), sharex=True, gridspec_kw={"height_ratios": [4, 1.3]}
+        2, 1, figsize=(9, 7), sharex=True, gridspec_kw={"height_ratios": [4, 1.3]}
     )
     labels = []
     for row, (label, folder) in enumerate(campaigns.items()):
@@ -50,7 +53,7 @@ def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
             where="post",
             label=f"{label}: best so far",
         )
-        ax.plot(evaluation[valid], fitness[valid], ".", ms=2, alpha=0.3, color=line.get_color())
+        ax.plot(evaluation[valid], fitness[valid], ".", ms=3, alpha=0.4, color=line.get_color())
         for kind, (marker, _) in SET_APART.items():
             chosen = np.array([s == kind for s in status], dtype=bool)
             apart.plot(
@@ -58,14 +61,24 @@ def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
             )
     ax.set_xscale("log")
     ax.set_yscale("log")
+    for axis in (ax.yaxis, ax.xaxis):
+        axis.set_major_formatter(PLAIN)
+    ax.yaxis.set_minor_formatter(PLAIN)
     ax.set_ylabel("E_pk of the valid runs [um]\n(dots: each run; line: best so far)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     apart.set_yticks(range(len(labels)), labels, fontsize=8)
     apart.set_ylim(-0.6, len(labels) - 0.4)
     apart.set_xlabel("evaluations")
-    apart.set_title(
-        "set apart: " + "; ".join(f"{marker} {what}" for marker, what in SET_APART.values()),
+    apart.set_title("set apart (penalised or stopped early)", fontsize=9)
+    apart.legend(
+        handles=[
+            Line2D([], [], color="0.3", marker=marker, ls="", label=what)
+            for marker, what in SET_APART.values()
+        ],
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.45),
+        ncol=2,
         fontsize=8,
     )
     apart.grid(alpha=0.3, axis="x", which="both")
