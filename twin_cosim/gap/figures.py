@@ -112,8 +112,7 @@ def plot_spectra(d: Diagnosis, path: Path) -> Path:
                 axes[row, column].semilogy(orders[1:], amplitude[1:] + 1e-12, lw=0.8)
             axes[row, column].set_xlabel(f"order of the {angle_name} angle [cycles/rev]")
             axes[row, column].set_title(
-                f"{signal} residual against the {angle_name} angle, constant-velocity stretches",
-                fontsize=10,
+                f"{signal} residual, {angle_name} angle orders (constant velocity)", fontsize=10
             )
         for row in range(3):
             axes[row, column].set_ylabel(f"amplitude [{unit}]")

@@ -93,4 +93,8 @@ def test_spectra_say_which_residual_they_show(tmp_path, monkeypatch):
     assert "training data, before the accepted effects" in fig._suptitle.get_text()
     titles = [ax.get_title() for ax in fig.axes]
     assert all(titles), titles
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    for ax in fig.axes:
+        box = ax.title.get_window_extent(renderer)
+        assert box.x0 >= 0 and box.x1 <= fig.bbox.width, ax.get_title()
     assert titles[0].startswith("position residual") and titles[1].startswith("current residual")
