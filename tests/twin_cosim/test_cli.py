@@ -16,10 +16,15 @@ from twin_cosim.optimize.algorithms import ALGORITHMS
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_build_prints_the_fmu_path(tmp_path, twin_cli):
+def test_build_prints_the_fmu_and_loops_paths(tmp_path, twin_cli):
+    """``twin build`` builds the FMU and the loops compiled ahead, and prints both paths."""
+    from twin_cosim.loops import ahead
+
     result = twin_cli("build", "--out", str(tmp_path))
     assert result.returncode == 0, result.stderr
-    assert Path(result.stdout.strip()) == tmp_path / "drive2mass.fmu"
+    fmu, library = result.stdout.strip().splitlines()
+    assert Path(fmu) == tmp_path / "drive2mass.fmu"
+    assert Path(library) == ahead.library_path() and Path(library).is_file()
 
 
 def test_simulate_json_and_files(tmp_path, twin_cli):
