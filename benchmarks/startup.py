@@ -4,12 +4,13 @@ of the same work, measured in one run.
     python benchmarks/startup.py [--repeat N] [--workers N] [--compare-budget N] [--quick]
 
 Four parts, each in fresh interpreters (``python -m twin_cosim`` as a user runs it; warm: the
-FMU built, numba's cache and the extracted FMU in place, files in the OS cache):
+FMU and the loops built (``twin build``), the extracted FMU in place, files in the OS cache):
 
 1. Import time of ``twin simulate reference1`` (``python -X importtime``), self times summed by
    top-level package.
-2. The phases of one run in a fresh process: interpreter, imports, numba cache load (compiler
-   target and cached loop), FMU extraction (into an empty cache) and instantiation, reference
+2. The phases of one run in a fresh process: interpreter, imports, the compiled loops readied
+   (the library built ahead, else numba's compiler target and cache), FMU extraction (into an
+   empty cache) and instantiation, reference
    preparation, stepping, metrics, file writing, plotting (import and drawing).
 3. A process pool of ``--workers``: its spawn and each worker's initialisation (imports and
    compiled loop), until every worker has answered a task.
@@ -18,9 +19,10 @@ FMU built, numba's cache and the extracted FMU in place, files in the OS cache):
    --seed 11``, 440 evaluations), a null ``twin diagnose`` (a run synthesized without effects)
    and ``twin compare`` over the five methods (``--compare-budget`` evaluations each), each
    beside the pure stepping time of the same work: the time inside the compiled loop
-   (``cosim._closed_loop``) for every speed-loop step the command simulates, spread evenly over
-   its workers. The ratio wall / stepping is the figure: these machines are shared and noisy,
-   so the seconds follow the load (printed, with the command line, under the tables).
+   (``closed_loop`` of :mod:`twin_cosim.loops`) for every speed-loop step the command
+   simulates, spread evenly over its workers. The ratio wall / stepping is the figure: these
+   machines are shared and noisy, so the seconds follow the load (printed, with the command
+   line, under the tables).
 """
 
 from __future__ import annotations
@@ -61,21 +63,17 @@ def phases() -> dict[str, float]:
     import numpy  # noqa: F401
 
     lap("import numpy")
-    import pandas  # noqa: F401
-
-    lap("import pandas")
     import fmpy.fmi2  # noqa: F401
 
     lap("import fmpy")
-    import numba  # noqa: F401
-
-    lap("import numba")
     import twin_cosim.cosim as cosim
     from twin_cosim.scenario import resolve_scenario
 
     lap("import twin_cosim (scenario, cosim)")
-    cosim.ready_compiled_loop()
-    lap("numba: compiler target")
+    from twin_cosim.loops import compiled_loops, ready_compiled_loops
+
+    ready_compiled_loops()
+    lap(f"compiled loops ready ({_loops_kind(compiled_loops())})")
     from twin_cosim.plant import Plant, extracted_fmu
 
     with empty_cache():
@@ -94,11 +92,11 @@ def phases() -> dict[str, float]:
     mark[0] = time.perf_counter()
     plant = Plant(fmu)
     lap("FMU instantiation (extraction cached)")
-    cosim.run_scenario(plant, scenario)
+    cosim.run_scenario_record(plant, scenario)
     first = time.perf_counter() - mark[0]
-    record = cosim.run_scenario(plant, scenario)
+    record = cosim.run_scenario_record(plant, scenario)
     second = time.perf_counter() - mark[0] - first
-    found["numba: cached loop load (first run - second)"] = first - second
+    found["first run's extra (first run - second)"] = first - second
     found["stepping (a warm run)"] = second
     mark[0] = time.perf_counter()
     from twin_cosim.metrics import compute_metrics
@@ -202,25 +200,32 @@ def diagnose_stepping(measured: str) -> float:
     return _loop_time(lambda: diagnose(scenario, [run], workers=1))
 
 
-def _loop_time(work) -> float:
-    """Seconds spent inside ``cosim._closed_loop`` while ``work()`` runs in this process."""
-    import twin_cosim.cosim as cosim
+def _loops_kind(loops: object) -> str:
+    """Which compiled loops a process runs: the library built ahead or numba's just in time."""
+    return "numba, just in time" if loops.__name__.endswith("kernels") else "library built ahead"
 
-    compiled = cosim._closed_loop
+
+def _loop_time(work) -> float:
+    """Seconds spent inside the compiled ``closed_loop`` while ``work()`` runs in this process."""
+    from types import SimpleNamespace
+
+    from twin_cosim import loops
+
+    compiled = loops.compiled_loops()
     spent = [0.0]
 
     def timed(*args):
         start = time.perf_counter()
         try:
-            return compiled(*args)
+            return compiled.closed_loop(*args)
         finally:
             spent[0] += time.perf_counter() - start
 
-    cosim._closed_loop = timed
+    loops._LOADED[:] = [SimpleNamespace(closed_loop=timed, __name__=compiled.__name__)]
     try:
         work()
     finally:
-        cosim._closed_loop = compiled
+        loops._LOADED[:] = [compiled]
     return spent[0]
 
 

@@ -4,9 +4,9 @@ Two paths give the same trajectory:
 
 - :func:`run_reference_path`: a plain Python loop through fmpy's ``FMU2Slave`` calls; the readable
   reference.
-- :func:`run_fast_path` (the default): the same controller functions compiled by numba, calling
-  fmi2SetReal / fmi2DoStep / fmi2GetReal through their C function pointers from inside the
-  compiled loop.
+- :func:`run_fast_path` (the default): the same controller functions compiled by numba (ahead
+  of time when built, see :mod:`twin_cosim.loops`), calling fmi2SetReal / fmi2DoStep /
+  fmi2GetReal through their C function pointers from inside the compiled loop.
 
 Per speed-loop sample k (t_k = k * speed_period): current from the speed loop, set the inputs,
 doStep(t_k, speed_period), read the outputs. Every ``position_period`` the position loop runs
@@ -19,18 +19,20 @@ import ctypes
 import math
 import weakref
 from collections.abc import Mapping
-from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numba
 import numpy as np
-import pandas as pd
-from numba.core.registry import cpu_target
 
 from twin_cosim import controller
 from twin_cosim.controller import ControllerSettings, TunedParameters
+from twin_cosim.loops import ABORTED, compiled_loops
 from twin_cosim.plant import CONTRACT_INPUTS, CONTRACT_OUTPUTS, Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
+from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 RECORD_COLUMNS = (
     "t",  # s, position-loop sample time
@@ -51,8 +53,6 @@ _OUT_ANGLE, _OUT_SPEED, _OUT_POSITION = (
     OUTPUT_NAMES.index(n) for n in ("motor_angle", "motor_speed", "load_position")
 )
 _T, _X_REF, _V_REF, _X, _ERROR, _ANGLE, _SPEED, _SPEED_CMD, _CURRENT = range(len(RECORD_COLUMNS))
-_FMI2_OK_OR_WARNING = 1
-_ABORTED = -2
 
 
 class RunAborted(RuntimeError):
@@ -62,14 +62,6 @@ class RunAborted(RuntimeError):
     """
 
     time_s: float = math.nan
-
-
-_SET_REAL = ctypes.CFUNCTYPE(
-    ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p
-)
-_DO_STEP = ctypes.CFUNCTYPE(
-    ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int
-)
 
 
 def _value_references(plant: Plant, names: tuple[str, ...]) -> np.ndarray:
@@ -87,14 +79,15 @@ def _check_inputs(grid: ReferenceGrid, signal: np.ndarray | None, what: str) -> 
     return signal
 
 
+def _contiguous(values: np.ndarray) -> np.ndarray:
+    """``values`` as C-contiguous float64 (the compiled loops' layout; no copy when it is)."""
+    return np.ascontiguousarray(values, dtype=np.float64)
+
+
 def _raise_aborted(abort_error: float, t: float) -> None:
     aborted = RunAborted(f"|x_ref - x| exceeded {abort_error * 1e6:g} um at t = {t:.4f} s")
     aborted.time_s = t
     raise aborted
-
-
-def _to_frame(record: np.ndarray) -> pd.DataFrame:
-    return pd.DataFrame(record, columns=list(RECORD_COLUMNS))
 
 
 def run_reference_path(
@@ -106,7 +99,7 @@ def run_reference_path(
     disturbance: np.ndarray | None = None,
     abort_error: float = math.inf,
     command_offset: np.ndarray | None = None,
-) -> pd.DataFrame:
+) -> RunRecord:
     """Closed-loop run in plain Python through fmpy (the readable reference path).
 
     Parameters
@@ -130,7 +123,7 @@ def run_reference_path(
 
     Returns
     -------
-    pandas.DataFrame
+    RunRecord
         One row per position-loop sample, columns :data:`RECORD_COLUMNS`.
     """
     disturbance = _check_inputs(grid, disturbance, "disturbance torque")
@@ -180,102 +173,12 @@ def run_reference_path(
             plant.call("fmi2DoStep", fmu.doStep, k * h, h)
             speed, position, angle = read_outputs()
         record[i, _CURRENT] = current_sum / ratio
-    return _to_frame(record)
-
-
-# The controller's functions compiled; compiled loops that call them inline them.
-compiled_position_loop = numba.njit(cache=True)(controller.position_loop)
-compiled_speed_loop = numba.njit(cache=True)(controller.speed_loop)
-
-
-@numba.njit(cache=True)
-def _closed_loop(
-    set_real,
-    do_step,
-    get_real,
-    component,
-    vr_in,
-    vr_out,
-    p,
-    s,
-    period,
-    ratio,
-    x_ref,
-    v_ref,
-    a_ref,
-    disturbance,
-    command_offset,
-    abort_error,
-    record,
-):  # pragma: no cover - compiled
-    inputs = np.zeros(vr_in.shape[0])
-    outputs = np.zeros(vr_out.shape[0])
-    h = period / ratio
-    status = get_real(component, vr_out.ctypes, vr_out.shape[0], outputs.ctypes)
-    if status > _FMI2_OK_OR_WARNING:
-        return status, -1
-    for i in range(x_ref.shape[0]):
-        t = i * period
-        compiled_position_loop(p, s, t, x_ref[i], v_ref[i], a_ref[i], outputs[_OUT_POSITION])
-        record[i, 0] = t
-        record[i, 1] = x_ref[i]
-        record[i, 2] = v_ref[i]
-        record[i, 3] = outputs[_OUT_POSITION]
-        record[i, 4] = x_ref[i] - outputs[_OUT_POSITION]
-        record[i, 5] = outputs[_OUT_ANGLE]
-        record[i, 6] = outputs[_OUT_SPEED]
-        record[i, 7] = s[0]
-        if abs(record[i, 4]) > abort_error:
-            return _ABORTED, i * ratio
-        current_sum = 0.0
-        inputs[_IN_DISTURBANCE] = disturbance[i]  # both held over the position period
-        offset = command_offset[i]
-        for j in range(ratio):
-            k = i * ratio + j
-            current = compiled_speed_loop(p, s, k * h, outputs[_OUT_SPEED])
-            inputs[_IN_CURRENT] = current + offset
-            current_sum += current
-            status = set_real(component, vr_in.ctypes, vr_in.shape[0], inputs.ctypes)
-            if status > _FMI2_OK_OR_WARNING:
-                return status, k
-            status = do_step(component, k * h, h, 1)
-            if status > _FMI2_OK_OR_WARNING:
-                return status, k
-            status = get_real(component, vr_out.ctypes, vr_out.shape[0], outputs.ctypes)
-            if status > _FMI2_OK_OR_WARNING:
-                return status, k
-        record[i, 8] = current_sum / ratio
-    return 0, -1
-
-
-def drop_stale_compiled(loop: numba.core.registry.CPUDispatcher) -> None:
-    """Delete the cached machine code of a compiled ``loop`` when controller.py is newer.
-
-    numba's cache checks only the source file of the cached function itself; a compiled loop
-    inlines the controller functions of controller.py, so an edited controller would otherwise
-    keep running its old compiled form.
-    """
-    cache_dir = Path(loop._cache._cache_path)
-    changed = Path(controller.__file__).stat().st_mtime
-    name = f"{Path(loop.py_func.__code__.co_filename).stem}.{loop.py_func.__qualname__}"
-    for path in cache_dir.glob(f"{name}-*.nb[ic]"):
-        if path.stat().st_mtime < changed:
-            path.unlink(missing_ok=True)
-
-
-drop_stale_compiled(_closed_loop)
-
-
-def ready_compiled_loop() -> None:
-    """Ready numba's compiler target now, as the first run would (most of the cost of loading
-    the cached loop, about 0.3 s): a process that is about to run (a pool's worker while its
-    parent prepares) calls this ahead, so that its first run only loads the cached machine code.
-    """
-    cpu_target.target_context.refresh()
+    return RunRecord(record, RECORD_COLUMNS)
 
 
 class FastCalls:
-    """C function pointers of one loaded plant, typed for the compiled loop."""
+    """Addresses of one loaded plant's fmi2 C functions (ints) and its value references, for
+    the compiled loops."""
 
     def __init__(self, plant: Plant) -> None:
         dll = plant.fmu.dll
@@ -283,9 +186,9 @@ class FastCalls:
             name: ctypes.cast(getattr(dll, name), ctypes.c_void_p).value
             for name in ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
         }
-        self.set_real = _SET_REAL(address["fmi2SetReal"])
-        self.do_step = _DO_STEP(address["fmi2DoStep"])
-        self.get_real = _SET_REAL(address["fmi2GetReal"])
+        self.set_real: int = address["fmi2SetReal"]
+        self.do_step: int = address["fmi2DoStep"]
+        self.get_real: int = address["fmi2GetReal"]
         self.vr_in = _value_references(plant, INPUT_NAMES)
         self.vr_out = _value_references(plant, OUTPUT_NAMES)
 
@@ -319,8 +222,9 @@ def run_fast_path(
     disturbance: np.ndarray | None = None,
     abort_error: float = math.inf,
     command_offset: np.ndarray | None = None,
-) -> pd.DataFrame:
-    """Closed-loop run compiled by numba; arguments and record as :func:`run_reference_path`."""
+) -> RunRecord:
+    """Closed-loop run in the compiled loop (:func:`twin_cosim.loops.kernels.closed_loop`);
+    arguments and record as :func:`run_reference_path`."""
     disturbance = _check_inputs(grid, disturbance, "disturbance torque")
     command_offset = _check_inputs(grid, command_offset, "command offset")
     calls = fast_calls(plant)
@@ -328,7 +232,7 @@ def run_fast_path(
     s = controller.initial_state(len(settings.filters))
     record = np.empty((len(grid.position), len(RECORD_COLUMNS)))
     plant.start_run(plant_parameters)
-    status, step = _closed_loop(
+    status, step = compiled_loops().closed_loop(
         calls.set_real,
         calls.do_step,
         calls.get_real,
@@ -339,19 +243,19 @@ def run_fast_path(
         s,
         grid.period,
         settings.speed_steps_per_position_step,
-        grid.position,
-        grid.velocity,
-        grid.acceleration,
+        _contiguous(grid.position),
+        _contiguous(grid.velocity),
+        _contiguous(grid.acceleration),
         disturbance,
         command_offset,
         abort_error,
         record,
     )
-    if status == _ABORTED:
+    if status == ABORTED:
         _raise_aborted(abort_error, step * settings.speed_period)
     if status != 0:
         raise_plant_error(plant, status, step, settings.speed_period)
-    return _to_frame(record)
+    return RunRecord(record, RECORD_COLUMNS)
 
 
 def run_scenario(
@@ -362,7 +266,20 @@ def run_scenario(
     plant_overrides: Mapping[str, float] | None = None,
     abort_error: float = math.inf,
 ) -> pd.DataFrame:
-    """Run a scenario's reference in closed loop.
+    """:func:`run_scenario_record` as a pandas DataFrame (same arguments)."""
+    return run_scenario_record(plant, scenario, tuned, fast, plant_overrides, abort_error).frame()
+
+
+def run_scenario_record(
+    plant: Plant,
+    scenario: Scenario,
+    tuned: TunedParameters | None = None,
+    fast: bool = True,
+    plant_overrides: Mapping[str, float] | None = None,
+    abort_error: float = math.inf,
+) -> RunRecord:
+    """Run a scenario's reference in closed loop; one row per position-loop sample, columns
+    :data:`RECORD_COLUMNS`.
 
     Parameters
     ----------

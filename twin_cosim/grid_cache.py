@@ -12,19 +12,20 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
-from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
 
 from fmu_build.build import cache_dir
+from twin_cosim.versions import installed_version
 
 
 def grid_key(samples: np.ndarray, sample_period: float, loop_period: float, code: Path) -> str:
     """The digest of a grid's inputs: samples (m), periods (s), the source file ``code`` of the
     interpolation and the versions of SciPy and numpy."""
     digest = hashlib.sha256(np.ascontiguousarray(samples, dtype=np.float64).tobytes())
-    for part in (repr(sample_period), repr(loop_period), version("scipy"), version("numpy")):
+    versions = (installed_version("scipy") or "", installed_version("numpy") or "")
+    for part in (repr(sample_period), repr(loop_period), *versions):
         digest.update(part.encode())
     digest.update(code.read_bytes())
     return digest.hexdigest()[:32]

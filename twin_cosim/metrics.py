@@ -23,6 +23,8 @@ import numpy as np
 if TYPE_CHECKING:
     import pandas as pd
 
+    from twin_cosim.run_record import RunRecord
+
 UM_PER_M = 1e6
 
 
@@ -81,7 +83,7 @@ def indices(t: np.ndarray, error: np.ndarray, current: np.ndarray) -> Metrics:
 
 
 def compute_metrics(
-    record: pd.DataFrame, window: tuple[float, float | None] = (0.0, None)
+    record: pd.DataFrame | RunRecord, window: tuple[float, float | None] = (0.0, None)
 ) -> Metrics:
     """Compute the indices of a record over ``window`` = (t0, tF) in s (tF None: to the end).
 
@@ -90,19 +92,19 @@ def compute_metrics(
     ValueError
         When the window holds fewer than two samples or the record has non-finite values.
     """
-    t = record["t"].to_numpy()
+    t = np.asarray(record["t"])
     t0, t_end = window
     t_end = t[-1] if t_end is None else t_end
     inside = (t >= t0 - 1e-12) & (t <= t_end + 1e-12)
     if inside.sum() < 2:
         raise ValueError(f"metrics window [{t0}, {t_end}] s holds fewer than two samples")
     return indices(
-        t[inside], record["error"].to_numpy()[inside], record["current"].to_numpy()[inside]
+        t[inside], np.asarray(record["error"])[inside], np.asarray(record["current"])[inside]
     )
 
 
 def compare_with_measured(
-    record: pd.DataFrame, t: np.ndarray, x: np.ndarray, current: np.ndarray
+    record: pd.DataFrame | RunRecord, t: np.ndarray, x: np.ndarray, current: np.ndarray
 ) -> dict[str, float]:
     """Replay against a measured run sampled at ``t`` (s): position x (m), current or command.
 
@@ -110,8 +112,8 @@ def compare_with_measured(
     ||x_sim - x|| / ||x|| (%) and the relative error of the current or drive command (%), the
     benchmark's figures of merit (eq. (11) of the EMPS description).
     """
-    x_sim = np.interp(t, record["t"].to_numpy(), record["x"].to_numpy())
-    i_sim = np.interp(t, record["t"].to_numpy(), record["current"].to_numpy())
+    x_sim = np.interp(t, np.asarray(record["t"]), np.asarray(record["x"]))
+    i_sim = np.interp(t, np.asarray(record["t"]), np.asarray(record["current"]))
     gap = x_sim - x
     return {
         "position_rms_gap_um": float(np.sqrt(np.mean(gap**2)) * UM_PER_M),

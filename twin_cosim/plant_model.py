@@ -157,7 +157,6 @@ def model_names() -> list[str]:
     return available_models()
 
 
-@functools.cache
 def plant_model(name: str = DEFAULT_MODEL) -> PlantModel:
     """The plant model ``models/<name>``, read and checked once per process.
 
@@ -166,6 +165,12 @@ def plant_model(name: str = DEFAULT_MODEL) -> PlantModel:
     PlantModelError
         For a model that is not one of ``models/``, or an invalid card.
     """
+    return _read_plant_model(name)
+
+
+@functools.cache
+def _read_plant_model(name: str) -> PlantModel:
+    """:func:`plant_model`, once per name (a call without the default name is the same key)."""
     if name not in available_models():
         raise PlantModelError(f"unknown plant model {name!r}: expected one of {available_models()}")
     table = load_variable_table(MODELS_DIR / name / "variables.yaml", COMMON_DIR / "units.yaml")

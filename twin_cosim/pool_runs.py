@@ -25,16 +25,16 @@ RunTask = tuple["Scenario", "TunedParameters | None"]  # a scenario and a set (N
 
 def prepare_worker(modules: tuple[str, ...] = ()) -> None:
     """What a pool's process does as it starts, before its first task: import the co-simulation
-    (numpy, pandas, fmpy, numba), ready the compiled loop and import ``modules`` (those of its
+    (numpy, pandas, fmpy), load the compiled loops and import ``modules`` (those of its
     workers), while the parent prepares.
 
     A pool of campaign or diagnosis workers takes :func:`prepare_campaign_worker` or
     :func:`prepare_replay_worker`.
     """
-    from twin_cosim.cosim import ready_compiled_loop  # what this process is for
+    from twin_cosim.loops import ready_compiled_loops  # what this process is for
 
-    ready_compiled_loop()
-    for module in modules:
+    ready_compiled_loops()
+    for module in ("twin_cosim.cosim", *modules):
         importlib.import_module(module)
 
 

@@ -20,8 +20,9 @@ class ScenarioError(ValueError):
     """An input file is invalid; the message names the file, the key and what was expected."""
 
 
-class _Loader(yaml.SafeLoader):
-    """YAML loader that also reads 1e6 and 2.5e-3 (no dot or no exponent sign) as floats."""
+class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """YAML loader (libyaml's parser where PyYAML has it: ten times faster) that also reads 1e6
+    and 2.5e-3 (no dot or no exponent sign) as floats."""
 
 
 _Loader.add_implicit_resolver(

@@ -16,10 +16,15 @@ from twin_cosim.optimize.algorithms import ALGORITHMS
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_build_prints_the_fmu_path(tmp_path, twin_cli):
+def test_build_prints_the_fmu_and_loops_paths(tmp_path, twin_cli):
+    """``twin build`` builds the FMU and the loops compiled ahead, and prints both paths."""
+    from twin_cosim.loops import ahead
+
     result = twin_cli("build", "--out", str(tmp_path))
     assert result.returncode == 0, result.stderr
-    assert Path(result.stdout.strip()) == tmp_path / "drive2mass.fmu"
+    fmu, library = result.stdout.strip().splitlines()
+    assert Path(fmu) == tmp_path / "drive2mass.fmu"
+    assert Path(library) == ahead.library_path() and Path(library).is_file()
 
 
 def test_simulate_json_and_files(tmp_path, twin_cli):
@@ -51,7 +56,8 @@ def test_simulate_without_plots_writes_the_same_record(tmp_path, twin_cli):
 
 
 def test_the_record_csv_is_what_pandas_writes(tmp_path):
-    """The fast CSV writer of run records writes the bytes of ``DataFrame.to_csv``."""
+    """The fast CSV writer of run records writes the bytes of ``DataFrame.to_csv``, also when
+    a forked child formats the second half of a long record, and leaves no temporary file."""
     import numpy as np
     import pandas as pd
 
@@ -61,13 +67,22 @@ def test_the_record_csv_is_what_pandas_writes(tmp_path):
         [[0.0, -0.0, 1e16, 1e-5, 0.1 + 0.2, np.inf, -np.inf, 5e-324, 9999999999999998.0]] * 3
     )
     values[1] = np.random.default_rng(0).normal(size=values.shape[1]) * 1e-7
+    rng = np.random.default_rng(1)
+    long = rng.normal(size=(12_001, 4)) * 10.0 ** rng.integers(-60, 20, size=(12_001, 4))
     for name, frame in (
+        ("long", pd.DataFrame(long, columns=["t", "x", "error", "current"])),
         ("floats", pd.DataFrame(values, columns=[f"c{i}" for i in range(values.shape[1])])),
         ("nan", pd.DataFrame({"t": [0.0, np.nan], "x": [1.0, 2.5]})),
         ("ints", pd.DataFrame({"t": [0, 1], "x": [1.0, 2.5]})),
     ):
         write_record_csv(tmp_path / f"{name}.csv", frame)
         assert (tmp_path / f"{name}.csv").read_text() == frame.to_csv(index=False), name
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "floats.csv",
+        "ints.csv",
+        "long.csv",
+        "nan.csv",
+    ]
 
 
 def test_bad_scenario_is_a_clear_error(tmp_path, twin_cli):

@@ -152,6 +152,6 @@ def test_fine_tune_gives_a_well_damped_position_step(plant):
         ControllerSettings(ff_velocity=0.0, ff_acceleration=0.0, friction_torque=0.0),
         {"backlash": 0.0, "coulomb_friction": 0.0},
     )
-    x = record["x"].to_numpy()
+    x = np.asarray(record["x"])
     assert x.max() < 1.05e-6  # overshoot below 5 %
     assert abs(x[-1] - 1e-6) < 0.01e-6  # settled

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import json
+import os
 import shlex
+import signal
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    import numpy as np
     import pandas as pd
 
+    from twin_cosim.run_record import RunRecord
     from twin_cosim.scenario import Scenario
 
 
@@ -19,22 +23,66 @@ def write_json(path: Path, data: dict[str, Any]) -> None:
     path.write_text(json.dumps(data, indent=2) + "\n")
 
 
-def write_record_csv(path: Path, record: pd.DataFrame) -> None:
-    """Write a run record (float columns) as CSV: the bytes of ``record.to_csv(path,
-    index=False)`` in about half the time.
+def write_record_csv(path: Path, record: RunRecord | pd.DataFrame) -> None:
+    """Write a run record (float columns) as CSV: the bytes of pandas' ``to_csv(path,
+    index=False)`` of the record in about a quarter of the time.
 
     Each value is written as Python writes a float (the shortest text that reads back the same
-    number; pandas writes the same), a NaN as an empty field (left to pandas).
+    number; pandas writes the same), a NaN as an empty field (left to pandas). Formatting the
+    floats is most of the time: a forked child formats the second half of the rows while this
+    process formats the first (where ``os.fork`` exists). The file appears complete or not at
+    all (written under a temporary name, then renamed).
     """
     import numpy as np  # not at start (twin --help)
 
     values = record.to_numpy()
-    if any(kind != np.float64 for kind in record.dtypes) or np.isnan(values).any():
-        record.to_csv(path, index=False)
+    kinds = getattr(record, "dtypes", [values.dtype])  # a DataFrame's columns may be integers
+    if any(kind != np.float64 for kind in kinds) or np.isnan(values).any():
+        frame = record.frame() if hasattr(record, "frame") else record
+        frame.to_csv(path, index=False)
         return
-    line = ",".join(["%r"] * values.shape[1]) + "\n"
     header = ",".join(str(name) for name in record.columns) + "\n"
-    path.write_text(header + "".join([line % tuple(row) for row in values.tolist()]))
+    half = len(values) // 2 if hasattr(os, "fork") and len(values) >= 10_000 else len(values)
+    temporary = path.with_name(f".{path.name}.{os.getpid()}")
+    second = temporary.with_suffix(".second")
+    child = _format_in_child(values[half:], second) if half < len(values) else None
+    try:
+        text = header + _csv_rows(values[:half])
+        if child is not None:
+            _, status = os.waitpid(child, 0)
+            child = None
+            if status != 0:
+                raise OSError(f"{path}: the process formatting its second half failed")
+            text += second.read_text()
+        temporary.write_text(text)
+        os.replace(temporary, path)
+    finally:
+        if child is not None:  # interrupted while the child formats: stop it
+            os.kill(child, signal.SIGKILL)
+            os.waitpid(child, 0)
+        temporary.unlink(missing_ok=True)
+        second.unlink(missing_ok=True)
+
+
+def _csv_rows(values: np.ndarray) -> str:
+    """CSV lines of float rows, each value as Python's repr (shortest round trip)."""
+    line = ",".join(["%r"] * values.shape[1]) + "\n"
+    return "".join([line % tuple(row) for row in values.tolist()])
+
+
+def _format_in_child(values: np.ndarray, path: Path) -> int:
+    """Fork a child that writes :func:`_csv_rows` of ``values`` to ``path`` and exits (0 when
+    written, 1 otherwise) without running this process's exit handlers; its pid."""
+    child = os.fork()
+    if child == 0:  # pragma: no cover - the child's exit code is what the parent checks
+        code = 1
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_DFL)
+            path.write_text(_csv_rows(values))
+            code = 0
+        finally:
+            os._exit(code)
+    return child
 
 
 def command_line(name: str) -> str:

@@ -22,10 +22,9 @@ from twin_cosim.commands.options import (
 )
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from twin_cosim.controller import TunedParameters
     from twin_cosim.metrics import Metrics
+    from twin_cosim.run_record import RunRecord
     from twin_cosim.scenario import Scenario
 
 
@@ -107,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _simulate(
     scenario: Scenario, tuned: TunedParameters, fmu: Path | None, fast: bool
-) -> tuple[pd.DataFrame, dict[str, Any]]:
+) -> tuple[RunRecord, dict[str, Any]]:
     """The run's record, and the FMU it ran on (``fmu``, else the scenario's) and its wall time.
 
     Returns
@@ -115,12 +114,12 @@ def _simulate(
     tuple
         The record, and ``fmu`` (the FMU's path) and ``wall_s`` (the run's wall time, s).
     """
-    from twin_cosim.cosim import run_scenario
+    from twin_cosim.cosim import run_scenario_record
     from twin_cosim.plant import Plant
 
     with Plant(scenario.plant_fmu(fmu)) as plant:
         start = time.perf_counter()
-        record = run_scenario(plant, scenario, tuned, fast=fast)
+        record = run_scenario_record(plant, scenario, tuned, fast=fast)
         wall = time.perf_counter() - start
         return record, {"fmu": str(plant.fmu_path), "wall_s": wall}
 
@@ -129,7 +128,7 @@ def _summary(
     args: argparse.Namespace,
     scenario: Scenario,
     tuned: TunedParameters,
-    record: pd.DataFrame,
+    record: RunRecord,
     metrics: Metrics,
     ran: dict[str, Any],
     warnings: list[str],
@@ -161,7 +160,7 @@ def _summary(
     }
 
 
-def _validation(scenario: Scenario, record: pd.DataFrame) -> dict[str, Any] | None:
+def _validation(scenario: Scenario, record: RunRecord) -> dict[str, Any] | None:
     """The run against the scenario's measured run (gaps in um and %), None without one."""
     if scenario.measured is None:
         return None

@@ -7,9 +7,9 @@ axes run first on their latest measured positions. Each axis runs the single-axi
 own parameter vector; the axes share the CNC's rates.
 
 Two paths give the same trajectories, as for one axis (:mod:`twin_cosim.cosim`):
-:func:`run_axes_reference` through fmpy in plain Python, :func:`run_axes_fast` compiled by numba
-calling each instance's fmi2 C functions. The record of each axis has the single-axis columns
-(:data:`twin_cosim.cosim.RECORD_COLUMNS`).
+:func:`run_axes_reference` through fmpy in plain Python, :func:`run_axes_fast` in a compiled loop
+(:mod:`twin_cosim.loops`) calling each instance's fmi2 C functions. The record of each axis has
+the single-axis columns (:data:`twin_cosim.cosim.RECORD_COLUMNS`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 import pandas as pd
 
@@ -30,10 +29,8 @@ from twin_cosim.cosim import (
     RECORD_COLUMNS,
     FastCalls,
     RunAborted,
-    compiled_position_loop,
-    compiled_speed_loop,
-    drop_stale_compiled,
 )
+from twin_cosim.loops import ABORTED, compiled_loops
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
 
@@ -42,8 +39,6 @@ _OUT_ANGLE, _OUT_SPEED, _OUT_POSITION = (
     OUTPUT_NAMES.index(n) for n in ("motor_angle", "motor_speed", "load_position")
 )
 _CURRENT = RECORD_COLUMNS.index("current")
-_FMI2_OK_OR_WARNING = 1
-_ABORTED = -2
 
 
 @dataclass(frozen=True)
@@ -183,80 +178,11 @@ def run_axes_reference(
     return _frames(axes, record)
 
 
-@numba.njit(cache=True)
-def _lockstep_loop(
-    set_reals,
-    do_steps,
-    get_reals,
-    components,
-    vr_in,
-    vr_out,
-    p,
-    s,
-    period,
-    ratio,
-    x_ref,
-    v_ref,
-    a_ref,
-    abort_error,
-    record,
-):  # pragma: no cover - compiled
-    n_axes = components.shape[0]
-    inputs = np.zeros((n_axes, vr_in.shape[1]))
-    outputs = np.zeros((n_axes, vr_out.shape[1]))
-    current_sum = np.zeros(n_axes)
-    h = period / ratio
-    for a in range(n_axes):
-        status = get_reals[a](components[a], vr_out[a].ctypes, vr_out.shape[1], outputs[a].ctypes)
-        if status > _FMI2_OK_OR_WARNING:
-            return status, -1, a
-    for i in range(x_ref.shape[1]):
-        t = i * period
-        for a in range(n_axes):
-            position = outputs[a, _OUT_POSITION]
-            compiled_position_loop(p[a], s[a], t, x_ref[a, i], v_ref[a, i], a_ref[a, i], position)
-            record[a, i, 0] = t
-            record[a, i, 1] = x_ref[a, i]
-            record[a, i, 2] = v_ref[a, i]
-            record[a, i, 3] = position
-            record[a, i, 4] = x_ref[a, i] - position
-            record[a, i, 5] = outputs[a, _OUT_ANGLE]
-            record[a, i, 6] = outputs[a, _OUT_SPEED]
-            record[a, i, 7] = s[a, 0]
-            if abs(record[a, i, 4]) > abort_error:
-                return _ABORTED, i * ratio, a
-            current_sum[a] = 0.0
-        for j in range(ratio):
-            k = i * ratio + j
-            for a in range(n_axes):
-                current = compiled_speed_loop(p[a], s[a], k * h, outputs[a, _OUT_SPEED])
-                inputs[a, _IN_CURRENT] = current
-                current_sum[a] += current
-                status = set_reals[a](
-                    components[a], vr_in[a].ctypes, vr_in.shape[1], inputs[a].ctypes
-                )
-                if status > _FMI2_OK_OR_WARNING:
-                    return status, k, a
-                status = do_steps[a](components[a], k * h, h, 1)
-                if status > _FMI2_OK_OR_WARNING:
-                    return status, k, a
-                status = get_reals[a](
-                    components[a], vr_out[a].ctypes, vr_out.shape[1], outputs[a].ctypes
-                )
-                if status > _FMI2_OK_OR_WARNING:
-                    return status, k, a
-        for a in range(n_axes):
-            record[a, i, 8] = current_sum[a] / ratio
-    return 0, -1, -1
-
-
-drop_stale_compiled(_lockstep_loop)
-
-
 def run_axes_fast(
     axes: Sequence[AxisRun], abort_error: float = math.inf
 ) -> dict[str, pd.DataFrame]:
-    """Lockstep run compiled by numba; arguments and records as :func:`run_axes_reference`."""
+    """Lockstep run in the compiled loop (:func:`twin_cosim.loops.kernels.lockstep_loop`);
+    arguments and records as :func:`run_axes_reference`."""
     period, ratio, samples = _check_lockstep(axes)
     calls = [FastCalls(a.plant) for a in axes]
     p = np.stack([controller.parameter_vector(a.tuned, a.settings) for a in axes])
@@ -264,10 +190,10 @@ def run_axes_fast(
     record = np.empty((len(axes), samples, len(RECORD_COLUMNS)))
     for axis in axes:
         axis.plant.start_run(axis.plant_parameters)
-    status, step, at = _lockstep_loop(
-        tuple(c.set_real for c in calls),
-        tuple(c.do_step for c in calls),
-        tuple(c.get_real for c in calls),
+    status, step, at = compiled_loops().lockstep_loop(
+        np.array([c.set_real for c in calls], dtype=np.int64),
+        np.array([c.do_step for c in calls], dtype=np.int64),
+        np.array([c.get_real for c in calls], dtype=np.int64),
         np.array([a.plant.fmu.component for a in axes], dtype=np.int64),
         np.stack([c.vr_in for c in calls]),
         np.stack([c.vr_out for c in calls]),
@@ -281,7 +207,7 @@ def run_axes_fast(
         abort_error,
         record,
     )
-    if status == _ABORTED:
+    if status == ABORTED:
         _raise_aborted(axes[at].name, abort_error, step * period / ratio)
     if status != 0:
         plant = axes[at].plant

@@ -14,8 +14,8 @@ with the feedforwards on), the controller runs as in every run, and a multisine
 
 Each realisation of the multisine runs two periods: the first lets the loop settle into its
 periodic steady state, the second is recorded. Estimates: :mod:`twin_cosim.frequency.estimate`.
-The compiled loop calls the controller's own functions (those of every run) and the FMU's fmi2
-functions, as :mod:`twin_cosim.cosim` does.
+The compiled loop (:func:`twin_cosim.loops.kernels.measurement_loop`) calls the controller's own
+functions (those of every run) and the FMU's fmi2 functions, as every run does.
 """
 
 from __future__ import annotations
@@ -24,27 +24,18 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from twin_cosim import controller
 from twin_cosim.controller import ControllerSettings, TunedParameters
-from twin_cosim.cosim import (
-    compiled_position_loop,
-    compiled_speed_loop,
-    drop_stale_compiled,
-    fast_calls,
-    raise_plant_error,
-)
+from twin_cosim.cosim import fast_calls, raise_plant_error
 from twin_cosim.frequency import estimate
 from twin_cosim.frequency.excitation import Multisine, multisine
 from twin_cosim.frequency.loops import hold_factor
 from twin_cosim.frequency.response import FrequencyResponse, check_loop
-from twin_cosim.plant import CONTRACT_INPUTS, CONTRACT_OUTPUTS, Plant
+from twin_cosim.loops import compiled_loops
+from twin_cosim.plant import Plant
 
-_IN_CURRENT = CONTRACT_INPUTS.index("current_cmd")
-_OUT_SPEED = CONTRACT_OUTPUTS.index("motor_speed")
-_OUT_POSITION = CONTRACT_OUTPUTS.index("load_position")
 EXCITATION_SHARE = 0.05  # default excitation: a current of this share of the current limit (RMS)
 SETTLE_S = 0.25  # s at the operating point before the first realisation
 RAMP_ACCELERATION = 0.5  # m/s^2 up to the operating speed
@@ -115,66 +106,6 @@ def default_amplitude(loop: str, tuned: TunedParameters, settings: ControllerSet
 def block_samples(period: float) -> int:
     """Samples per multisine period at ``period`` (s): a power of two near 1 s."""
     return 2 ** max(4, round(math.log2(1.0 / period)))
-
-
-@numba.njit(cache=True)
-def _measurement_loop(
-    set_real,
-    do_step,
-    get_real,
-    component,
-    vr_in,
-    vr_out,
-    p,
-    s,
-    period,
-    ratio,
-    x_ref,
-    v_ref,
-    a_ref,
-    at_current,
-    at_speed,
-    at_position,
-    speed_noise,
-    speeds,
-    positions,
-):  # pragma: no cover - compiled
-    inputs = np.zeros(vr_in.shape[0])
-    outputs = np.zeros(vr_out.shape[0])
-    h = period / ratio
-    status = get_real(component, vr_out.ctypes, vr_out.shape[0], outputs.ctypes)
-    if status > 1:
-        return status, -1
-    for i in range(x_ref.shape[0]):
-        x = outputs[_OUT_POSITION]
-        setpoint = x_ref[i] + at_position[i]
-        compiled_position_loop(p, s, i * period, setpoint, v_ref[i], a_ref[i], x)
-        positions[i, 0] = setpoint - x
-        positions[i, 1] = x - x_ref[i]
-        for j in range(ratio):
-            k = i * ratio + j
-            w = outputs[_OUT_SPEED] + speed_noise[k]
-            command = s[controller.SPEED_CMD]
-            s[controller.SPEED_CMD] = command + at_speed[k]
-            speeds[k, 0] = s[controller.SPEED_CMD]
-            current = compiled_speed_loop(p, s, k * h, w) + at_current[k]
-            s[controller.SPEED_CMD] = command
-            speeds[k, 1] = w
-            speeds[k, 2] = current
-            inputs[_IN_CURRENT] = current
-            status = set_real(component, vr_in.ctypes, vr_in.shape[0], inputs.ctypes)
-            if status > 1:
-                return status, k
-            status = do_step(component, k * h, h, 1)
-            if status > 1:
-                return status, k
-            status = get_real(component, vr_out.ctypes, vr_out.shape[0], outputs.ctypes)
-            if status > 1:
-                return status, k
-    return 0, -1
-
-
-drop_stale_compiled(_measurement_loop)
 
 
 @dataclass(frozen=True)
@@ -260,7 +191,7 @@ def measure(
     p = controller.parameter_vector(tuned, settings)
     s = controller.initial_state(len(settings.filters))
     plant.start_run(plant_parameters)
-    status, step = _measurement_loop(
+    status, step = compiled_loops().measurement_loop(
         calls.set_real,
         calls.do_step,
         calls.get_real,

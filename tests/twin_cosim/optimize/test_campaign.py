@@ -89,6 +89,27 @@ def test_a_pool_campaign_leaves_the_plant_to_its_workers(short_scenario, tmp_pat
     assert result.stdout.strip() == "[]"
 
 
+def test_a_campaigns_figures_are_drawn_by_its_workers(short_scenario, tmp_path):
+    """``twin optimize`` on a pool writes convergence.png and best_run.png from its workers:
+    the parent never imports matplotlib (nor the plant)."""
+    out = tmp_path / "c"
+    code = (
+        "import sys\n"
+        "from twin_cosim.cli import main\n"
+        f"args = ['optimize', {short_scenario!r}, '--method', 'ce', '--budget', '8',\n"
+        f"        '--workers', '2', '--quiet', '--out', {str(out)!r}]\n"
+        "code = main(args)\n"
+        "print(code, sorted({'numba', 'fmpy', 'matplotlib'} & set(sys.modules)))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "0 []"
+    for figure in ("convergence.png", "best_run.png"):
+        assert (out / figure).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", figure
+
+
 def test_failing_candidates_do_not_stop_the_campaign(short_scenario, tmp_path):
     result = campaign(short_scenario, tmp_path, "ga", workers=1, method="ga", budget=100)
     entries = [
