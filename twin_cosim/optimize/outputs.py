@@ -44,11 +44,13 @@ def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
     fig = Figure(figsize=(9, 7))
     ax, apart = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [4, 1.3]})
     labels = []
+    any_valid = False
     for row, (label, folder) in enumerate(campaigns.items()):
         fitness, status = logged_fitness(folder)
         evaluation = np.arange(1, len(fitness) + 1)
         valid = np.array([s == "ok" for s in status], dtype=bool)
         labels.append(f"{label} ({len(status) - valid.sum()} of {len(status)})")
+        any_valid = any_valid or bool(valid.any())
         (line,) = ax.step(
             evaluation[valid],
             np.minimum.accumulate(fitness[valid]) if valid.any() else [],
@@ -62,7 +64,10 @@ def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
                 evaluation[chosen], np.full(chosen.sum(), row), marker, color=line.get_color()
             )
     ax.set_xscale("log")
-    ax.set_yscale("log")
+    if any_valid:
+        ax.set_yscale("log")
+    else:  # nothing to scale: say so where the runs would be
+        ax.text(0.5, 0.5, "no valid run yet", transform=ax.transAxes, ha="center", va="center")
     for axis in (ax.yaxis, ax.xaxis):
         axis.set_major_formatter(plain)
     ax.yaxis.set_minor_formatter(plain)

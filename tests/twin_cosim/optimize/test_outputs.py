@@ -49,3 +49,9 @@ def test_every_method_has_one_label_for_people():
     assert set(LABELS) == set(METHOD_NAMES)
     assert method_label("cmaes") == "CMA-ES"
     assert [method_label(m) for m in ("ce", "ga", "sa", "de")] == ["CE", "GA", "SA", "DE"]
+
+
+def test_a_campaign_without_a_valid_run_is_drawn_and_says_so(tmp_path):
+    runs = [(2e6, "failed"), (50.0, "stopped"), (2e6, "unstable")]
+    path = outputs.plot_convergence({"CE": _campaign(tmp_path / "c", runs)}, tmp_path / "c.png")
+    assert path.read_bytes()[:4] == b"\x89PNG"
