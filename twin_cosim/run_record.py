@@ -39,6 +39,10 @@ class RunRecord:
         except KeyError:
             raise KeyError(f"no column {column!r}; the record has {self.columns}") from None
 
+    def __setitem__(self, column: str, values: np.ndarray | float) -> None:
+        """Write ``values`` into the column ``column`` (``record["current"] += offset`` works)."""
+        self[column][:] = values
+
     def __len__(self) -> int:
         return self._values.shape[0]
 
