@@ -49,7 +49,7 @@ from twin_cosim.gap.residuals import (
     residuals_of,
     validation_figures,
 )
-from twin_cosim.gap.selection import Judging, Marginal, Round, Selection, Selector
+from twin_cosim.gap.selection import Judging, Marginal, Pair, Round, Selection, Selector
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.measured import MeasuredRun
@@ -241,7 +241,8 @@ def _step(r: Round, dropped: list[str]) -> dict[str, Any]:
     assert best is not None
     return {
         "round": r.index,
-        "effect": r.accepted if len(r.accepted) > 1 else r.accepted[0],
+        "effect": best.name if r.pair else (r.accepted if len(r.accepted) > 1 else r.accepted[0]),
+        "together": list(r.pair.members) if r.pair else [],
         "fitted": best.name,
         "params": best.fit.values,
         "plant_parameters": best.fit.overrides,
@@ -272,7 +273,13 @@ def _round(r: Round) -> dict[str, Any]:
         "metrics_after_calibration": [_metrics(m) for m in r.metrics],
         "fitted": [c.name for c in r.candidates],
         "accepted": r.accepted,
+        "pairs": [_pair_row(p, r) for p in r.pairs],
     }
+
+
+def _pair_row(p: Pair, round_: Round) -> dict[str, Any]:
+    """A screened pair: its row as a candidate's, and what each member adds to the other."""
+    return {**_row(p, round_), "members": list(p.members), "within": [asdict(m) for m in p.within]}
 
 
 def _combined(runs: list[HeldOutRun], key: str) -> dict[str, float]:

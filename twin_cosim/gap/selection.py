@@ -30,6 +30,16 @@ The best passing effect by BIC is accepted; passing effects whose reductions dif
 than ``group_reduction_margin`` and whose predicted changes correlate at ``group_correlation``
 or more form a *group* with it (look-alikes the data cannot tell apart).
 
+Effects that act in the same place (backlash beside Stribeck friction, a Coulomb change beside a
+smaller backlash) can each make the held-out fit worse alone: each fit bends to explain the
+other's part. When no single hypothesis passes a round, the ``pair_candidates`` leading ones by
+training BIC are screened in pairs: the second fitted on top of the first (from its own fit of
+the round), replayed on the held-out runs and judged as one candidate, with the Bonferroni
+count of the round raised by the pairs tried and the fair share doubled; and each member must
+earn its place in the pair: the pair against the other member's fit alone passes the evidence
+and fair-share tests (:attr:`Pair.within`). The best passing pair by BIC is accepted, both
+effects at once.
+
 Effects that only pay off together: after each accepted effect, all accepted effects are refitted
 together on the training data (each on top of the FMU parameters of those before it), and the
 joint fit is kept when it judges better on the held-out data. When the forward rounds end, a
@@ -42,6 +52,7 @@ effect's marginal contribution in the joint model is reported.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -132,6 +143,23 @@ class Judging:
         return left >= threshold or metrics_off(metrics)
 
 
+@dataclass(frozen=True)
+class Marginal:
+    """What one kept effect adds to the joint model on the held-out data.
+
+    ``evidence_z``: the evidence that the model with it fits better than the model refitted
+    without it; ``excess_share``: the share of the energy above the noise it removes from the
+    model without it; ``left_without`` and ``left_with``: the normalised RMS the best calibration
+    correction leaves without and with it.
+    """
+
+    effect: str
+    evidence_z: float
+    excess_share: float
+    left_without: float
+    left_with: float
+
+
 @dataclass
 class Candidate:
     """A fitted hypothesis judged on the held-out data.
@@ -171,6 +199,25 @@ class Candidate:
 
 
 @dataclass
+class Pair(Candidate):
+    """Two hypotheses fitted together (the second on top of the first) and judged as one.
+
+    Attributes
+    ----------
+    members : tuple of str
+        The two hypotheses, the one fitted first (better training BIC alone) first.
+    member_values : tuple of tuple of float
+        Each member's fitted values (physical units): the first's own fit, the second's on top.
+    within : list of Marginal
+        Per member, what it adds to the other member's fit alone on the held-out data.
+    """
+
+    members: tuple[str, ...] = ()
+    member_values: tuple[tuple[float, ...], ...] = ()
+    within: list[Marginal] = field(default_factory=list)
+
+
+@dataclass
 class Round:
     """One round of selection.
 
@@ -193,7 +240,12 @@ class Round:
     candidates : list of Candidate
         Fitted hypotheses, best training BIC first (empty when the gap was not significant).
     accepted : list of str
-        The accepted effect (with its look-alikes) or empty.
+        The accepted effect (with its look-alikes), the two effects of an accepted pair, or
+        empty.
+    pairs : list of Pair
+        Pairs screened when no single hypothesis passed, best training BIC first.
+    pair : Pair or None
+        The accepted pair.
     """
 
     index: int
@@ -206,30 +258,17 @@ class Round:
     metrics: list[MetricComparison]
     candidates: list[Candidate] = field(default_factory=list)
     accepted: list[str] = field(default_factory=list)
+    pairs: list[Pair] = field(default_factory=list)
+    pair: Pair | None = None
 
     @property
     def best(self) -> Candidate | None:
-        """The accepted candidate."""
+        """The accepted candidate (or pair)."""
+        if self.pair is not None:
+            return self.pair
         return next(
             (c for c in self.candidates if self.accepted and c.name == self.accepted[0]), None
         )
-
-
-@dataclass(frozen=True)
-class Marginal:
-    """What one kept effect adds to the joint model on the held-out data.
-
-    ``evidence_z``: the evidence that the model with it fits better than the model refitted
-    without it; ``excess_share``: the share of the energy above the noise it removes from the
-    model without it; ``left_without`` and ``left_with``: the normalised RMS the best calibration
-    correction leaves without and with it.
-    """
-
-    effect: str
-    evidence_z: float
-    excess_share: float
-    left_without: float
-    left_with: float
 
 
 @dataclass(frozen=True)
@@ -345,7 +384,8 @@ class Selector:
         periodic = sum(1 for h in self.library.values() if h.periodic_in)
         later = periodic + self.settings.later_round_candidates
         rounds = self.settings.max_effects
-        return per_round * (rounds + 1) + 2 * first + 2 * later * (rounds - 1)
+        pairs = 2 * math.comb(self.settings.pair_candidates, 2)
+        return per_round * (rounds + 1) + 2 * first + 2 * later * (rounds - 1) + pairs
 
     def basis(self, base: dict[str, float]) -> CalibrationBasis:
         """Calibration directions around the parameter set ``nominal + base`` (each set's
@@ -430,23 +470,33 @@ class Selector:
             )
             starts = {c.name: tuple(c.fit.values.values()) for c in current.candidates}
             passing = [c for c in current.candidates if c.passes]
-            if not passing:
+            if passing:
+                best: Candidate = passing[0]
+                current.accepted = [best.name] + [
+                    c.name
+                    for c in passing[1:]
+                    if abs(c.reduction - best.reduction) < settings.group_reduction_margin
+                    and _correlation(c.change, best.change) >= settings.group_correlation
+                ]
+                found = [(list(current.accepted), tuple(best.fit.values.values()))]
+            elif len(accepted) + 2 <= settings.max_effects:
+                current.pairs = self._screen_pairs(
+                    current, base, held, vector, basis, len(current.candidates)
+                )
+                pair = next((p for p in current.pairs if p.passes), None)
+                if pair is None:
+                    break
+                best, current.pair, current.accepted = pair, pair, list(pair.members)
+                found = [([n], v) for n, v in zip(pair.members, pair.member_values, strict=True)]
+            else:
                 break
-            best = passing[0]
-            current.accepted = [best.name] + [
-                c.name
-                for c in passing[1:]
-                if abs(c.reduction - best.reduction) < settings.group_reduction_margin
-                and _correlation(c.change, best.change) >= settings.group_correlation
-            ]
-            for earlier in accepted:  # the data now tell it apart from an earlier look-alike
-                if best.name in earlier.group[1:]:
-                    earlier.group.remove(best.name)
-            accepted.append(
-                _Accepted(list(current.accepted), tuple(best.fit.values.values()), context)
-            )
+            for group, values in found:
+                for earlier in accepted:  # the data now tell it apart from an earlier look-alike
+                    if group[0] in earlier.group[1:]:
+                        earlier.group.remove(group[0])
+                accepted.append(_Accepted(group, values, context))
             base, replays = self._joint(accepted, dict(best.fit.overrides))
-            remaining = self._next_candidates(current, best.name, remaining)
+            remaining = self._next_candidates(current, {g[0] for g, _ in found}, remaining)
         accepted, base, replays, marginal, dropped = self._backward(accepted, base, replays, start)
         vector = self.judging.vector(self.judging.residuals(replays))
         floor = floor_of(self.basis(base), vector)
@@ -551,10 +601,10 @@ class Selector:
             accepted = accepted[:j] + accepted[j + 1 :]
         return accepted, base, replays, [], dropped
 
-    def _next_candidates(self, done: Round, fitted: str, remaining: list[str]) -> list[str]:
+    def _next_candidates(self, done: Round, fitted: set[str], remaining: list[str]) -> list[str]:
         """Periodic hypotheses and the best of the round by held-out reduction; a look-alike of
-        the accepted effect stays a candidate (two effects at once can look alike alone)."""
-        left = [n for n in remaining if n != fitted]
+        the accepted effects stays a candidate (two effects at once can look alike alone)."""
+        left = [n for n in remaining if n not in fitted]
         periodic = [n for n in left if self.library[n].periodic_in]
         ranked = sorted(
             (c for c in done.candidates if c.name in left and c.name not in periodic),
@@ -587,13 +637,108 @@ class Selector:
                 _bic(fit.train_cost, len(hypothesis.parameters), self.train_seconds),
                 replays=replay,
             )
-            if hypothesis.relative_size is not None and fit.values:
-                values = np.array(list(fit.values.values()))
-                size = hypothesis.relative_size(values, {**self.nominal, **base})
-                candidate.size_above_tolerance = size >= self.settings.calibration_tolerance
+            candidate.size_above_tolerance = self._size_above_tolerance(
+                hypothesis, tuple(fit.values.values()), base
+            )
             self._judge(candidate, held, vector, basis, critical)
             candidates.append(candidate)
         return sorted(candidates, key=lambda c: c.bic)
+
+    def _size_above_tolerance(
+        self, hypothesis: Hypothesis, values: tuple[float, ...], base: dict[str, float]
+    ) -> bool:
+        """Whether a change of a calibrated parameter (fitted ``values`` on top of the FMU
+        parameters ``base``) exceeds the calibration tolerance; True for other effects."""
+        if hypothesis.relative_size is None or not values:
+            return True
+        size = hypothesis.relative_size(np.array(values), {**self.nominal, **base})
+        return size >= self.settings.calibration_tolerance
+
+    def _screen_pairs(
+        self,
+        current: Round,
+        base: dict[str, float],
+        held: Residuals,
+        vector: np.ndarray,
+        basis: CalibrationBasis,
+        singles: int,
+    ) -> list[Pair]:
+        """Pairs of the round's leading hypotheses by training BIC, the second fitted on top of
+        the first, judged as one candidate and each member against the other alone (module
+        docstring); best training BIC first.
+
+        Parameters
+        ----------
+        current
+            The round, its candidates fitted and judged (best training BIC first).
+        base
+            FMU parameters of the accepted effects.
+        held, vector
+            The held-out residual at the start of the round, and its normalised vector.
+        basis
+            Calibration directions around ``base``.
+        singles
+            Hypotheses judged alone in the round (for the Bonferroni count).
+        """
+        leaders = [c for c in current.candidates if math.isfinite(c.bic) and c.fit.values]
+        couples = list(itertools.combinations(leaders[: self.settings.pair_candidates], 2))
+        if not couples:
+            return []
+        fits = self._tasks(
+            "pair_fits",
+            [
+                FitTask(
+                    b.name, dict(a.fit.overrides), current.context, tuple(b.fit.values.values())
+                )
+                for a, b in couples
+            ],
+        )
+        replays = self._tasks("pair_replays", [SimulateTask(f.overrides) for f in fits])
+        critical = critical_z(self.settings.acceptance_level, singles + len(couples))
+        least_share = fair_share(len(self.library))
+        duration = self.judging.duration_s
+        pairs = []
+        for (a, b), fit, replay in zip(couples, fits, replays, strict=True):
+            values = (tuple(a.fit.values.values()), tuple(fit.values.values()))
+            n_parameters = a.n_parameters + b.n_parameters
+            pair = Pair(
+                FitResult(
+                    f"{a.name}+{b.name}",
+                    {f"{a.name}.{k}": v for k, v in a.fit.values.items()}
+                    | {f"{b.name}.{k}": v for k, v in fit.values.items()},
+                    fit.overrides,
+                    fit.train_cost,
+                    fit.replays,
+                    fit.message,
+                ),
+                n_parameters,
+                _bic(fit.train_cost, n_parameters, self.train_seconds),
+                replays=replay,
+                members=(a.name, b.name),
+                member_values=values,
+            )
+            pair.size_above_tolerance = self._size_above_tolerance(
+                self.library[a.name], values[0], base
+            ) and self._size_above_tolerance(self.library[b.name], values[1], a.fit.overrides)
+            self._judge(pair, held, vector, basis, critical, shares=2)
+            with_both = basis.correction(self.judging.vector(self.judging.residuals(replay)))[1]
+            for member, other in ((a, b), (b, a)):
+                alone = self.judging.vector(self.judging.residuals(other.replays))
+                without = basis.correction(alone)[1]
+                z = improvement_z(without, with_both, duration)
+                share = excess_share(without, with_both)
+                pair.within.append(
+                    Marginal(
+                        member.name,
+                        z,
+                        share,
+                        float(np.linalg.norm(without)),
+                        float(np.linalg.norm(with_both)),
+                    )
+                )
+                pair.passes = pair.passes and z >= critical and share >= least_share
+            pairs.append(pair)
+        return sorted(pairs, key=lambda p: p.bic)
 
     def _judge(
         self,
@@ -602,8 +747,11 @@ class Selector:
         vector: np.ndarray,
         basis: CalibrationBasis,
         critical: float,
+        shares: int = 1,
     ) -> None:
-        """Held-out figures and the acceptance tests of a fitted candidate."""
+        """Held-out figures and the acceptance tests of a fitted candidate (of ``shares``
+        hypotheses: the fair share of the excess energy it must remove is that many times one
+        hypothesis')."""
         settings = self.settings
         sigma_x, sigma_i = self.judging.floors.sigma_position_m, self.judging.floors.sigma_current
         after = self.judging.residuals(candidate.replays)
@@ -619,7 +767,7 @@ class Selector:
         candidate.evidence_z = improvement_z(left_without, left_with, self.judging.duration_s)
         candidate.critical_z = critical
         candidate.excess_share = excess_share(left_without, left_with)
-        candidate.fair_share = fair_share(len(self.library))
+        candidate.fair_share = shares * fair_share(len(self.library))
         candidate.position_rms_um = after.position_rms_um()
         candidate.current_rms = after.current_rms()
         worse_x = rms(after.position) - settings.worsen_limit * rms(held.position)  # m
