@@ -38,6 +38,7 @@ from twin_cosim.gap.floors import (
     identify_noise,
     noise_floors,
 )
+from twin_cosim.gap.judging import Judging
 from twin_cosim.gap.location import Location, locate
 from twin_cosim.gap.regimes import REGIMES
 from twin_cosim.gap.replay import Replays, ReplaySpec, TrainingData
@@ -49,7 +50,8 @@ from twin_cosim.gap.residuals import (
     residuals_of,
     validation_figures,
 )
-from twin_cosim.gap.selection import Judging, Marginal, Pair, Round, Selection, Selector
+from twin_cosim.gap.rounds import Marginal, Pair, Round, Selection
+from twin_cosim.gap.selection import Selector
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.measured import MeasuredRun
