@@ -17,8 +17,10 @@ cannot tell apart).
 When no single hypothesis passes, pairs are screened (:mod:`twin_cosim.gap.pairs`). Effects that
 only pay off together: after each accepted effect, all accepted effects are refitted together on
 the training data (each on top of the FMU parameters of those before it), and the joint fit is
-kept when it judges better on the held-out data. When the forward rounds end, the backward pass
-(:mod:`twin_cosim.gap.backward`) drops the effects the joint model does not need.
+kept when it judges better on the held-out data. When the forward rounds end, each accepted
+effect is refitted from a cold start on top of the others (:mod:`twin_cosim.gap.refresh`), and
+the backward pass (:mod:`twin_cosim.gap.backward`) drops the effects the joint model does not
+need.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from twin_cosim.gap.evidence import critical_z
 from twin_cosim.gap.judging import Judging, judge
 from twin_cosim.gap.location import dominant_order
 from twin_cosim.gap.pairs import screen_pairs
+from twin_cosim.gap.refresh import refresh
 from twin_cosim.gap.replay import FitResult, FitTask, JointFitTask, Replays, SimulateTask
 from twin_cosim.gap.residuals import Residuals
 from twin_cosim.gap.rounds import Accepted, Candidate, Round, Selection, bic, correlation
@@ -119,7 +122,8 @@ class Selector:
         later = periodic + self.settings.later_round_candidates
         rounds = self.settings.max_effects
         pairs = 2 * math.comb(self.settings.pair_candidates, 2)
-        return per_round * (rounds + 1) + 2 * first + 2 * later * (rounds - 1) + pairs
+        refreshes = 2 * rounds
+        return per_round * (rounds + 1) + 2 * first + 2 * later * (rounds - 1) + pairs + refreshes
 
     def basis(self, base: dict[str, float]) -> CalibrationBasis:
         """Calibration directions around the parameter set ``nominal + base`` (each set's
@@ -231,6 +235,7 @@ class Selector:
                 accepted.append(Accepted(group, values, context))
             base, replays = self._joint(accepted, dict(best.fit.overrides))
             remaining = self._next_candidates(current, {g[0] for g, _ in found}, remaining)
+        base, replays = refresh(self, accepted, base, replays)
         accepted, base, replays, marginal, dropped = backward(self, accepted, base, replays, start)
         vector = self.judging.vector(self.judging.residuals(replays))
         floor = floor_of(self.basis(base), vector)
