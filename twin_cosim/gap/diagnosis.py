@@ -38,6 +38,7 @@ from twin_cosim.gap.floors import (
     identify_noise,
     noise_floors,
 )
+from twin_cosim.gap.judging import Judging
 from twin_cosim.gap.location import Location, locate
 from twin_cosim.gap.regimes import REGIMES
 from twin_cosim.gap.replay import Replays, ReplaySpec, TrainingData
@@ -49,7 +50,8 @@ from twin_cosim.gap.residuals import (
     residuals_of,
     validation_figures,
 )
-from twin_cosim.gap.selection import Judging, Marginal, Round, Selection, Selector
+from twin_cosim.gap.rounds import Marginal, Pair, Round, Selection
+from twin_cosim.gap.selection import Selector
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.measured import MeasuredRun
@@ -241,7 +243,8 @@ def _step(r: Round, dropped: list[str]) -> dict[str, Any]:
     assert best is not None
     return {
         "round": r.index,
-        "effect": r.accepted if len(r.accepted) > 1 else r.accepted[0],
+        "effect": best.name if r.pair else (r.accepted if len(r.accepted) > 1 else r.accepted[0]),
+        "together": list(r.pair.members) if r.pair else [],
         "fitted": best.name,
         "params": best.fit.values,
         "plant_parameters": best.fit.overrides,
@@ -272,7 +275,13 @@ def _round(r: Round) -> dict[str, Any]:
         "metrics_after_calibration": [_metrics(m) for m in r.metrics],
         "fitted": [c.name for c in r.candidates],
         "accepted": r.accepted,
+        "pairs": [_pair_row(p, r) for p in r.pairs],
     }
+
+
+def _pair_row(p: Pair, round_: Round) -> dict[str, Any]:
+    """A screened pair: its row as a candidate's, and what each member adds to the other."""
+    return {**_row(p, round_), "members": list(p.members), "within": [asdict(m) for m in p.within]}
 
 
 def _combined(runs: list[HeldOutRun], key: str) -> dict[str, float]:

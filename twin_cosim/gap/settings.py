@@ -49,6 +49,10 @@ class DiagnosisSettings:
     later_round_candidates : int
         Hypotheses refitted in a later round besides the periodic ones (best of the previous
         round by held-out reduction).
+    pair_candidates : int
+        Hypotheses screened in pairs when no single one passes a round: the leading ones by
+        training BIC, each pair fitted with the second on top of the first (two effects that
+        act in the same place can each make the fit worse alone and pass together).
     noise_draws : int
         Draws of white noise at the noise floors used to find what noise alone does to each
         metric.
@@ -75,6 +79,7 @@ class DiagnosisSettings:
     group_correlation: float = 0.9
     max_effects: int = 3
     later_round_candidates: int = 12
+    pair_candidates: int = 4
     noise_draws: int = 12
     outlier_share: float = 0.001
     axis_bin: float = 0.5e-3
@@ -83,7 +88,7 @@ class DiagnosisSettings:
     hypotheses: tuple[str, ...] | None = None  # None: the whole library of the plant model
 
 
-_INTEGER_FIELDS = {"max_effects", "later_round_candidates", "noise_draws"}
+_INTEGER_FIELDS = {"max_effects", "later_round_candidates", "pair_candidates", "noise_draws"}
 
 
 def settings_from(

@@ -173,6 +173,36 @@ def test_two_effects_at_once_are_both_found(tmp_path):
 
 
 @pytest.mark.slow
+def test_two_effects_that_each_fail_alone_are_found_as_a_pair(tmp_path):
+    """Backlash beside large Stribeck friction: each fitted alone bends to explain the other's
+    part and makes the held-out fit worse; screened in pairs, both are accepted at once, and
+    each member adds to the other beyond the noise."""
+    summary = blind(
+        tmp_path,
+        [
+            "backlash_change:delta_backlash=7e-6",
+            "stribeck:stribeck_friction=0.22,stribeck_speed=0.3",
+        ],
+        seed=3,
+        max_effects=3,
+    )
+    first = summary["rounds"][0]
+    assert not any(row["passes"] for row in summary["effects"])  # no single effect passes
+    assert sorted(summary["accepted"]) == ["backlash_change", "stribeck"]
+    step = summary["steps"][0]
+    assert sorted(step["together"]) == ["backlash_change", "stribeck"]
+    assert sorted(first["accepted"]) == ["backlash_change", "stribeck"]
+    pair = next(p for p in first["pairs"] if p["passes"])
+    assert sorted(pair["members"]) == sorted(step["together"])
+    for member in pair["within"]:
+        assert member["evidence_z"] >= pair["critical_z"]
+        assert member["excess_share"] >= pair["fair_share"] / 2
+    assert pair["excess_share"] >= pair["fair_share"]
+    assert step["holdout_normalised_rms_after"] < step["holdout_normalised_rms_before"]
+    assert summary["time"]["pair_fits"]["tasks"] == len(first["pairs"])
+
+
+@pytest.mark.slow
 def test_a_tight_spot_is_no_library_effect_and_is_located(twin_cli, tmp_path):
     """A friction bump at 25 mm, built as a patched copy of drive2mass, is found where it is."""
     fmu = build_tight_spot_fmu(1.0, 0.025, 0.5e-3, tmp_path / "spot")
