@@ -24,6 +24,16 @@ CLOSE_UP_BEFORE_S = 0.06
 CLOSE_UP_AFTER_S = 0.24
 
 
+def warm_up() -> None:
+    """Draw a small figure with text into memory: what the first figure of a process loads
+    (the PNG backend, the fonts) is loaded now, e.g. by a process that waits for its data."""
+    import io
+
+    fig = Figure(figsize=(1, 1))
+    fig.subplots().set_title("t [s]")
+    fig.savefig(io.BytesIO(), format="png")
+
+
 def _close_up(
     ax, records: Mapping[str, pd.DataFrame | RunRecord], centre: float, column: str, scale: float
 ) -> None:
@@ -67,7 +77,8 @@ def plot_run(record: pd.DataFrame | RunRecord, metrics: Metrics, title: str, pat
     for ax in axes:
         ax.set_xlabel("t [s]")
         ax.grid(alpha=0.3)
-    fig.tight_layout()
+    # fixed margins that hold these labels: tight_layout would draw the figure once more
+    fig.subplots_adjust(left=0.08, right=0.92, top=0.96, bottom=0.05, hspace=0.45)
     fig.savefig(path, dpi=110)
     return path
 

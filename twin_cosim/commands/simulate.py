@@ -22,6 +22,7 @@ from twin_cosim.commands.options import (
 )
 
 if TYPE_CHECKING:
+    from twin_cosim.commands.painter import Painter
     from twin_cosim.controller import TunedParameters
     from twin_cosim.metrics import Metrics
     from twin_cosim.run_record import RunRecord
@@ -70,6 +71,18 @@ def run(args: argparse.Namespace) -> int:
         from twin_cosim.commands.simulate_program import run_program_command
 
         return run_program_command(args)
+    from twin_cosim.commands.painter import Painter
+
+    painter = None if args.no_plots else Painter.start()  # imports matplotlib meanwhile
+    try:
+        return _run_scenario(args, painter)
+    finally:
+        if painter is not None:
+            painter.close()
+
+
+def _run_scenario(args: argparse.Namespace, painter: Painter | None) -> int:
+    """:func:`run` of a single-axis scenario; ``painter`` draws run.png (None: no figure)."""
     from twin_cosim.metrics import compute_metrics
     from twin_cosim.run_checks import loop_warnings
     from twin_cosim.scenario import load_controller_set, resolve_scenario, with_controller_set
@@ -93,15 +106,17 @@ def run(args: argparse.Namespace) -> int:
         _print_text(scenario.name, metrics, summary, args.machine)
     for warning in loop:  # the plant mismatch was said as it was found
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
-    if not args.no_plots:
+    drawn = True
+    if painter is not None:
         from twin_cosim.paper import set_name
-        from twin_cosim.plots import plot_run
 
         title = f"{scenario.name}: {args.params or set_name(scenario.tuned)}"
-        plot_run(record, metrics, title, out / "run.png")
+        sys.stdout.flush()
+        drawn = painter.draw("twin_cosim.plots:plot_run", record, metrics, title, out / "run.png")
     if not args.json:
-        print(f"wrote {out}/record.csv, " + ("" if args.no_plots else "run.png, ") + "summary.json")
-    return 1 if unusable else 0
+        plot = "run.png, " if painter is not None and drawn else ""
+        print(f"wrote {out}/record.csv, {plot}summary.json")
+    return 1 if unusable or not drawn else 0
 
 
 def _simulate(

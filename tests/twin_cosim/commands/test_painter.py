@@ -1,0 +1,59 @@
+"""The painter: a forked process draws the figure while its command works, and ends with it."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from twin_cosim.commands.painter import Painter
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def _write(path: Path, text: str) -> None:
+    """A stand-in figure: ``text`` written to ``path``."""
+    path.write_text(text)
+
+
+def _fail(path: Path) -> None:
+    raise ValueError(f"{path}: cannot draw this")
+
+
+def test_the_figure_is_drawn_by_the_painter_and_it_is_gone_after(tmp_path):
+    painter = Painter.start()
+    pid = painter.pid
+    assert painter.draw(f"{__name__}:_write", tmp_path / "f.txt", "drawn")
+    assert (tmp_path / "f.txt").read_text() == "drawn"
+    assert pid is not None and painter.pid is None
+    assert not os.path.exists(f"/proc/{pid}")  # reaped, not a zombie
+
+
+def test_a_painter_closed_without_a_figure_ends_without_drawing():
+    painter = Painter.start()
+    pid = painter.pid
+    painter.close()
+    assert not os.path.exists(f"/proc/{pid}")
+
+
+def test_a_failed_drawing_is_said_and_reported(tmp_path, capfd):
+    painter = Painter.start()
+    assert not painter.draw(f"{__name__}:_fail", tmp_path / "f.png")
+    assert "the figure was not drawn" in capfd.readouterr().err
+
+
+def test_simulate_draws_run_png_without_matplotlib_in_its_process(tmp_path):
+    code = (
+        "import sys\n"
+        "from twin_cosim.cli import main\n"
+        f"code = main(['simulate', 'reference1', '--out', {str(tmp_path)!r}])\n"
+        "print(code, sorted({'matplotlib', 'pandas'} & set(sys.modules)))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "0 []"
+    assert (tmp_path / "run.png").read_bytes()[:4] == b"\x89PNG"
+    assert "run.png" in done.stdout
