@@ -19,11 +19,11 @@ from twin_cosim.gap.replay import Replays, SimulateTask
 from twin_cosim.gap.rounds import Accepted, Marginal
 
 if TYPE_CHECKING:
-    from twin_cosim.gap.selection import Selector
+    from twin_cosim.gap.selector_view import SelectorView
 
 
 def without_each(
-    selector: Selector, accepted: list[Accepted], start: Replays
+    selector: SelectorView, accepted: list[Accepted], start: Replays
 ) -> list[tuple[dict[str, float], Replays]]:
     """Per accepted effect (``selector``: the selection), the model refitted without it (FMU
     parameters, replays); the refits run at once. Without a single effect it is the nominal
@@ -42,7 +42,7 @@ def without_each(
 
 
 def backward(
-    selector: Selector,
+    selector: SelectorView,
     accepted: list[Accepted],
     base: dict[str, float],
     replays: Replays,

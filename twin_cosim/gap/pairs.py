@@ -27,11 +27,11 @@ from twin_cosim.gap.residuals import Residuals
 from twin_cosim.gap.rounds import Marginal, Pair, Round, bic
 
 if TYPE_CHECKING:
-    from twin_cosim.gap.selection import Selector
+    from twin_cosim.gap.selector_view import SelectorView
 
 
 def screen_pairs(
-    selector: Selector,
+    selector: SelectorView,
     current: Round,
     base: dict[str, float],
     held: Residuals,

@@ -21,11 +21,11 @@ from twin_cosim.gap.replay import FitTask, Replays, SimulateTask
 from twin_cosim.gap.rounds import Accepted
 
 if TYPE_CHECKING:
-    from twin_cosim.gap.selection import Selector
+    from twin_cosim.gap.selector_view import SelectorView
 
 
 def refresh(
-    selector: Selector, accepted: list[Accepted], base: dict[str, float], replays: Replays
+    selector: SelectorView, accepted: list[Accepted], base: dict[str, float], replays: Replays
 ) -> tuple[dict[str, float], Replays]:
     """The model with its best cold refit of one accepted effect, or as it is.
 
