@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs everything the project needs on a Debian machine with python3 and gcc:
-# valgrind (Debian package, for the leak test), a virtual environment in .venv with the package,
+# valgrind (Debian package, for the leak test), Python's headers (python3-dev, when missing), a
+# virtual environment in .venv with the package,
 # its test tools and Dask. Idempotent; safe to run again.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -12,6 +13,9 @@ apt_install() {
 }
 
 command -v valgrind >/dev/null || apt_install valgrind
+# Python's headers: `twin build` compiles the loops ahead with them (numba.pycc)
+python3 -c 'import os, sysconfig; raise SystemExit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' \
+  || apt_install python3-dev
 if [ ! -x .venv/bin/python ]; then
   python3 -m venv .venv 2>/dev/null || { apt_install python3-venv && python3 -m venv .venv; }
 fi

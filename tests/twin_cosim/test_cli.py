@@ -27,6 +27,23 @@ def test_build_prints_the_fmu_and_loops_paths(tmp_path, twin_cli):
     assert Path(library) == ahead.library_path() and Path(library).is_file()
 
 
+def test_build_warns_when_the_loops_cannot_be_compiled_ahead(tmp_path, monkeypatch, capsys):
+    import argparse
+
+    from twin_cosim.commands import build
+    from twin_cosim.loops import ahead
+
+    def fail(force: bool = False) -> Path:
+        raise ahead.LoopBuildError("compiling the loops ahead failed: Python.h: not found")
+
+    monkeypatch.setattr(ahead, "build", fail)
+    args = argparse.Namespace(model="drive2mass", out=str(tmp_path), force=False)
+    assert build.run(args) == 0
+    captured = capsys.readouterr()
+    assert captured.out.strip() == str(tmp_path / "drive2mass.fmu")
+    assert "Python.h: not found; the loops will compile just in time" in captured.err
+
+
 def test_simulate_json_and_files(tmp_path, twin_cli):
     result = twin_cli(
         "simulate", "scenarios/reference1.yaml", "--params", "ga", "--out", str(tmp_path), "--json"

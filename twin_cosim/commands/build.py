@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from fmu_build.build import CACHE_ENV, DEFAULT_MODEL, available_models, build_fmu
@@ -31,9 +32,17 @@ def add_arguments(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build (or find up to date) the FMU and the compiled loops (in the per-user cache); print
-    their paths."""
+    their paths. Loops that cannot be compiled ahead (no Python headers, say) are a warning:
+    they compile just in time, with the same results."""
     from twin_cosim.loops import ahead
 
     print(build_fmu(args.model, Path(args.out) if args.out else None, force=args.force))
-    print(ahead.build(force=args.force))
+    try:
+        print(ahead.build(force=args.force))
+    except ahead.LoopBuildError as error:
+        print(
+            f"twin build: warning: {error}; the loops will compile just in time (numba), "
+            "with the same results and a slower start",
+            file=sys.stderr,
+        )
     return 0
