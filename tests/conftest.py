@@ -1,4 +1,5 @@
-"""Shared fixtures: the project's FMU (built once per session), open-loop stepping, the CLI."""
+"""Shared fixtures: the project's FMU (built once per session), open-loop stepping, the CLI, the
+last figure a test saved."""
 
 from __future__ import annotations
 
@@ -73,3 +74,19 @@ def open_loop(plant: Plant) -> OpenLoop:
         return result
 
     return run
+
+
+@pytest.fixture()
+def saved_figure(monkeypatch) -> dict:
+    """``{"fig": ...}``: the last matplotlib figure saved during the test (drawn as usual)."""
+    from matplotlib.figure import Figure
+
+    saved = {}
+    original = Figure.savefig
+
+    def keep(fig, *args, **kwargs):
+        saved["fig"] = fig
+        return original(fig, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", keep)
+    return saved

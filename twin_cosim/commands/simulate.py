@@ -111,7 +111,7 @@ def _run_scenario(args: argparse.Namespace, painter: Painter | None) -> int:
         from twin_cosim.paper import set_name
 
         title = f"{scenario.name}: {args.params or set_name(scenario.tuned)}"
-        sys.stdout.flush()
+        sys.stdout.flush()  # the results show while the figure is drawn
         drawn = painter.draw("twin_cosim.plots:plot_run", record, metrics, title, out / "run.png")
     if not args.json:
         plot = "run.png, " if painter is not None and drawn else ""

@@ -11,6 +11,7 @@ import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,6 +22,11 @@ from twin_cosim.optimize.methods import method_label
 from twin_cosim.paper import set_name
 from twin_cosim.scenario import Scenario, with_controller_set
 from twin_cosim.workers import ProcessPool, SerialPool
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from twin_cosim.plant import Plant
 
 # Statuses of the evaluations shown apart from the valid runs: (marker, what it means)
 SET_APART = {
@@ -174,9 +180,9 @@ class CampaignFigureWorker:
 
     def __init__(self, fmu: str) -> None:
         self.fmu = fmu
-        self.plant = None
+        self.plant: Plant | None = None
 
-    def record(self, scenario: Scenario):  # noqa: ANN201 - a pandas DataFrame
+    def record(self, scenario: Scenario) -> pd.DataFrame:
         """The record of ``scenario`` run with its own set on this worker's plant."""
         from twin_cosim.cosim import run_scenario
         from twin_cosim.plant import Plant

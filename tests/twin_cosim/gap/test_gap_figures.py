@@ -8,7 +8,6 @@ import matplotlib
 import numpy as np
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 
 from twin_cosim.gap import figures  # noqa: E402
@@ -49,21 +48,8 @@ def _diagnosis():
     )
 
 
-def _capture_figure(monkeypatch) -> dict:
-    """``{"fig": ...}`` of the next figure saved."""
-    saved = {}
-    original = plt.Figure.savefig
-
-    def keep(fig, *args, **kwargs):
-        saved["fig"] = fig
-        return original(fig, *args, **kwargs)
-
-    monkeypatch.setattr(plt.Figure, "savefig", keep)
-    return saved
-
-
-def test_along_axis_labels_fit_and_name_before_and_after(tmp_path, monkeypatch):
-    saved = _capture_figure(monkeypatch)
+def test_along_axis_labels_fit_and_name_before_and_after(tmp_path, saved_figure):
+    saved = saved_figure
     figures.plot_along_axis(_diagnosis(), tmp_path / "along_axis.png")
     fig = saved["fig"]
     renderer = FigureCanvasAgg(fig).get_renderer()  # the figure was closed after saving
@@ -86,8 +72,8 @@ def test_along_axis_labels_fit_and_name_before_and_after(tmp_path, monkeypatch):
     assert "span along the travel" in legend_texts
 
 
-def test_spectra_say_which_residual_they_show(tmp_path, monkeypatch):
-    saved = _capture_figure(monkeypatch)
+def test_spectra_say_which_residual_they_show(tmp_path, saved_figure):
+    saved = saved_figure
     figures.plot_spectra(_diagnosis(), tmp_path / "spectra.png")
     fig = saved["fig"]
     assert "training data, before the accepted effects" in fig._suptitle.get_text()

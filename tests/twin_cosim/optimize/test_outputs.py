@@ -7,7 +7,6 @@ import json
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 
 from twin_cosim.optimize import outputs  # noqa: E402
 from twin_cosim.optimize.methods import LABELS, METHOD_NAMES, method_label  # noqa: E402
@@ -23,17 +22,10 @@ def _campaign(folder, fitness_status):
     return folder
 
 
-def test_penalised_evaluations_are_shown_apart(tmp_path, monkeypatch):
+def test_penalised_evaluations_are_shown_apart(tmp_path, saved_figure):
     runs = [(2e6, "failed"), (40.0, "ok"), (1e6 + 30.0, "violation"), (12.0, "ok")]
     runs += [(50.0, "stopped"), (2e6, "unstable"), (9.5, "ok")]
-    saved = {}
-    original = plt.Figure.savefig
-
-    def keep(fig, *args, **kwargs):
-        saved["fig"] = fig
-        return original(fig, *args, **kwargs)
-
-    monkeypatch.setattr(plt.Figure, "savefig", keep)
+    saved = saved_figure
     outputs.plot_convergence({"CMA-ES": _campaign(tmp_path / "c", runs)}, tmp_path / "c.png")
     main, apart = saved["fig"].axes
     low, high = main.get_ylim()
