@@ -50,7 +50,7 @@ from twin_cosim.gap.residuals import (
     residuals_of,
     validation_figures,
 )
-from twin_cosim.gap.rounds import Marginal, Pair, Round, Selection
+from twin_cosim.gap.rounds import Marginal, Pair, Round, Selection, Swap
 from twin_cosim.gap.selection import Selector
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
@@ -124,13 +124,15 @@ class Diagnosis:
     accepted_groups: list[list[str]] = field(default_factory=list)
     marginal: list[Marginal] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)
+    swaps: list[Swap] = field(default_factory=list)
     times: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def summary(self) -> dict[str, Any]:
         """The diagnosis as JSON-ready data (the one place it is serialised)."""
         first = next((r for r in self.rounds if r.candidates), None)
         last = next((r for r in reversed(self.rounds) if r.candidates), None)
-        steps = [_step(r, self.dropped) for r in self.rounds if r.accepted]
+        swapped_out = [w.removed for w in self.swaps if w.kept]
+        steps = [_step(r, self.dropped, swapped_out) for r in self.rounds if r.accepted]
         held = self.held_out_runs
         gap = {
             "significant": self.significant,
@@ -156,6 +158,7 @@ class Diagnosis:
                 "accepted": [g if len(g) > 1 else g[0] for g in self.accepted_groups],
                 "marginal": [asdict(m) for m in self.marginal],
                 "dropped": self.dropped,
+                "swaps": [_swap_row(w) for w in self.swaps],
                 "steps": steps,
                 "effects": [_row(c, first) for c in first.candidates] if first else [],
                 "last_round": [_row(c, last) for c in last.candidates] if last else [],
@@ -238,7 +241,7 @@ def _row(c, round_: Round) -> dict[str, Any]:
     }
 
 
-def _step(r: Round, dropped: list[str]) -> dict[str, Any]:
+def _step(r: Round, dropped: list[str], swapped_out: list[str]) -> dict[str, Any]:
     best = r.best
     assert best is not None
     return {
@@ -261,7 +264,35 @@ def _step(r: Round, dropped: list[str]) -> dict[str, Any]:
         "critical_z": best.critical_z,
         "excess_share": best.excess_share,
         "dropped_in_backward_pass": best.name in dropped,
+        "swapped_out": best.name in swapped_out,
         "ranking": [_row(c, r) for c in r.candidates],
+    }
+
+
+def _swap_row(w: Swap) -> dict[str, Any]:
+    """A swap tried: the effect taken out, the rival put in with its fit and its acceptance
+    tests against the model as it was, and whether the swap was made."""
+    c = w.candidate
+    return {
+        "removed": w.removed,
+        "name": c.name,
+        "params": c.fit.values,
+        "train_cost": c.fit.train_cost,
+        "bic": c.bic,
+        "replays": c.fit.replays,
+        "holdout_normalised_rms_after": c.holdout_rms,
+        "holdout_gap_after_um": c.position_rms_um,
+        "holdout_current_after_A": c.current_rms,
+        "holdout_reduction": c.reduction,
+        "reduction_beyond_calibration": c.reduction_beyond_calibration,
+        "evidence_z": c.evidence_z,
+        "critical_z": c.critical_z,
+        "excess_share": c.excess_share,
+        "fair_share": c.fair_share,
+        "size_above_tolerance": c.size_above_tolerance,
+        "consistent": c.consistent,
+        "passes": c.passes,
+        "kept": w.kept,
     }
 
 
@@ -456,6 +487,7 @@ def _diagnose(
         selection.accepted,
         selection.marginal,
         selection.dropped,
+        selection.swaps,
         times,
     )
 

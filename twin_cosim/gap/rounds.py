@@ -143,12 +143,26 @@ class Round:
         )
 
 
+@dataclass
+class Swap:
+    """An accepted effect replaced by a rival from its round (:mod:`twin_cosim.gap.swaps`).
+
+    ``removed``: the accepted effect taken out; ``candidate``: the rival fitted on top of the
+    other accepted effects, judged against the model as it was (its evidence, share of the
+    excess energy and the other acceptance tests); ``kept``: whether the swap was made.
+    """
+
+    removed: str
+    candidate: Candidate
+    kept: bool = False
+
+
 @dataclass(frozen=True)
 class Selection:
     """The rounds, the accepted effects (after the backward pass) and their FMU parameters, the
     replays with them, the calibration floor of what they leave with its calibrated replays,
-    each kept effect's marginal contribution, the effects the backward pass dropped and where
-    the time went (wall s, pool tasks and replays per phase)."""
+    each kept effect's marginal contribution, the effects the backward pass dropped, the swaps
+    tried and where the time went (wall s, pool tasks and replays per phase)."""
 
     rounds: list[Round]
     accepted: list[list[str]]
@@ -158,16 +172,20 @@ class Selection:
     calibrated: Replays
     marginal: list[Marginal] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)
+    swaps: list[Swap] = field(default_factory=list)
     times: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
 @dataclass
 class Accepted:
-    """An accepted effect: its group, fitted values (physical units) and context."""
+    """An accepted effect: its group, fitted values (physical units), context, and the index
+    of the round that accepted it (its rivals are that round's other passing hypotheses; 0:
+    none recorded)."""
 
     group: list[str]
     values: tuple[float, ...]
     context: dict[str, float]
+    round: int = 0
 
     @property
     def name(self) -> str:

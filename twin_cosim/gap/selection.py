@@ -18,8 +18,10 @@ When no single hypothesis passes, pairs are screened (:mod:`twin_cosim.gap.pairs
 only pay off together: after each accepted effect, all accepted effects are refitted together on
 the training data (each on top of the FMU parameters of those before it), and the joint fit is
 kept when it judges better on the held-out data. When the forward rounds end, each accepted
-effect is refitted from a cold start on top of the others (:mod:`twin_cosim.gap.refresh`), and
-the backward pass (:mod:`twin_cosim.gap.backward`) drops the effects the joint model does not
+effect may be swapped for a rival that passed its round (:mod:`twin_cosim.gap.swaps`; the
+rounds resume after a swap while more effects are allowed); then each accepted effect is
+refitted from a cold start on top of the others (:mod:`twin_cosim.gap.refresh`), and the
+backward pass (:mod:`twin_cosim.gap.backward`) drops the effects the joint model does not
 need.
 """
 
@@ -41,8 +43,9 @@ from twin_cosim.gap.pairs import screen_pairs
 from twin_cosim.gap.refresh import refresh
 from twin_cosim.gap.replay import FitResult, FitTask, JointFitTask, Replays, SimulateTask
 from twin_cosim.gap.residuals import Residuals
-from twin_cosim.gap.rounds import Accepted, Candidate, Round, Selection, bic, correlation
+from twin_cosim.gap.rounds import Accepted, Candidate, Round, Selection, Swap, bic, correlation
 from twin_cosim.gap.settings import DiagnosisSettings
+from twin_cosim.gap.swaps import swap
 from twin_cosim.gap.timing import PhaseTimes, makespan
 from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.plant_model import plant_model
@@ -122,8 +125,15 @@ class Selector:
         later = periodic + self.settings.later_round_candidates
         rounds = self.settings.max_effects
         pairs = 2 * math.comb(self.settings.pair_candidates, 2)
-        refreshes = 2 * rounds
-        return per_round * (rounds + 1) + 2 * first + 2 * later * (rounds - 1) + pairs + refreshes
+        refreshes = swaps = 2 * rounds  # swaps: one rival per accepted effect
+        return (
+            per_round * (rounds + 1)
+            + 2 * first
+            + 2 * later * (rounds - 1)
+            + pairs
+            + refreshes
+            + swaps
+        )
 
     def basis(self, base: dict[str, float]) -> CalibrationBasis:
         """Calibration directions around the parameter set ``nominal + base`` (each set's
@@ -173,15 +183,60 @@ class Selector:
         return self.tasks("calibrated_replays", [SimulateTask(corrected)])[0]
 
     def run(self, start: Replays) -> Selection:
-        """Forward selection with joint refits from the replays of the nominal twin, then the
-        backward pass."""
+        """Forward selection with joint refits from the replays of the nominal twin, swaps of
+        accepted effects for rivals of their round (the forward rounds resume after a swap
+        while more effects are allowed), cold refits, then the backward pass."""
         settings = self.settings
         accepted: list[Accepted] = []
+        rounds: list[Round] = []
+        swaps: list[Swap] = []
         base: dict[str, float] = {}
         replays = start
         remaining = list(settings.hypotheses or self.library)
-        rounds: list[Round] = []
         starts: dict[str, tuple[float, ...]] = {}
+        while True:
+            base, replays, starts = self._forward(
+                accepted, rounds, base, replays, remaining, starts
+            )
+            swapped = swap(self, rounds, accepted, base, replays, swaps)
+            if swapped is None:
+                break
+            base, replays = swapped
+            if len(accepted) >= settings.max_effects:
+                break
+            names = {a.name for a in accepted}
+            remaining = [n for n in (settings.hypotheses or self.library) if n not in names]
+        base, replays = refresh(self, accepted, base, replays)
+        accepted, base, replays, marginal, dropped = backward(self, accepted, base, replays, start)
+        vector = self.judging.vector(self.judging.residuals(replays))
+        floor = floor_of(self.basis(base), vector)
+        return Selection(
+            rounds,
+            [a.group for a in accepted],
+            base,
+            replays,
+            floor,
+            self.calibrated_replay(base, floor),
+            marginal=marginal,
+            dropped=dropped,
+            swaps=swaps,
+            times=self.times.as_dict(),
+        )
+
+    def _forward(
+        self,
+        accepted: list[Accepted],
+        rounds: list[Round],
+        base: dict[str, float],
+        replays: Replays,
+        remaining: list[str],
+        starts: dict[str, tuple[float, ...]],
+    ) -> tuple[dict[str, float], Replays, dict[str, tuple[float, ...]]]:
+        """Rounds of forward selection until the gap is not significant, no hypothesis (or
+        pair) passes or the most effects are accepted; ``accepted`` and ``rounds`` grow in
+        place. Returns the accepted effects' FMU parameters, their replays and the last
+        round's fits (the starts of a later round)."""
+        settings = self.settings
         while remaining and len(accepted) < settings.max_effects:
             held = self.judging.residuals(replays)
             vector = self.judging.vector(held)
@@ -232,24 +287,10 @@ class Selector:
                 for earlier in accepted:  # the data now tell it apart from an earlier look-alike
                     if group[0] in earlier.group[1:]:
                         earlier.group.remove(group[0])
-                accepted.append(Accepted(group, values, context))
-            base, replays = self._joint(accepted, dict(best.fit.overrides))
+                accepted.append(Accepted(group, values, context, current.index))
+            base, replays = self.joint(accepted, dict(best.fit.overrides))
             remaining = self._next_candidates(current, {g[0] for g, _ in found}, remaining)
-        base, replays = refresh(self, accepted, base, replays)
-        accepted, base, replays, marginal, dropped = backward(self, accepted, base, replays, start)
-        vector = self.judging.vector(self.judging.residuals(replays))
-        floor = floor_of(self.basis(base), vector)
-        return Selection(
-            rounds,
-            [a.group for a in accepted],
-            base,
-            replays,
-            floor,
-            self.calibrated_replay(base, floor),
-            marginal,
-            dropped,
-            self.times.as_dict(),
-        )
+        return base, replays, starts
 
     def left(self, overrides: dict[str, float], replays: Replays) -> np.ndarray:
         """The normalised held-out residual the best calibration correction leaves."""
@@ -267,7 +308,7 @@ class Selector:
             self.settings.calibration_tolerance,
         )
 
-    def _joint(
+    def joint(
         self, accepted: list[Accepted], sequential: dict[str, float]
     ) -> tuple[dict[str, float], Replays]:
         """The accepted effects' parameters: refitted together when that judges better on the

@@ -1,6 +1,6 @@
-"""What the steps of a selection (the pair screen, the backward pass, the cold refits) use of
-the selector that runs them: a protocol, so that those steps do not import the selector that
-imports them."""
+"""What the steps of a selection (the pair screen, the swaps, the backward pass, the cold
+refits) use of the selector that runs them: a protocol, so that those steps do not import the
+selector that imports them."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 if TYPE_CHECKING:
     import numpy as np
 
+    from twin_cosim.gap.calibration import CalibrationBasis
     from twin_cosim.gap.judging import Judging
     from twin_cosim.gap.replay import JointFitTask, Replays
     from twin_cosim.gap.rounds import Accepted
@@ -43,6 +44,17 @@ class SelectorView(Protocol):
 
     def left(self, overrides: dict[str, float], replays: Replays) -> np.ndarray:
         """The normalised held-out residual the best calibration correction leaves."""
+        ...
+
+    def basis(self, base: dict[str, float]) -> CalibrationBasis:
+        """Calibration directions around the parameter set ``nominal + base``."""
+        ...
+
+    def joint(
+        self, accepted: list[Accepted], sequential: dict[str, float]
+    ) -> tuple[dict[str, float], Replays]:
+        """The accepted effects' parameters (refitted together when that judges better than
+        ``sequential``) and their replays."""
         ...
 
     def refit_task(self, accepted: list[Accepted]) -> JointFitTask:
