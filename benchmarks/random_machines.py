@@ -11,7 +11,7 @@ measured run, ``twin diagnose`` (time split) says what it finds. Scored per mach
 - recall: true effects accepted (an accepted look-alike group that holds the truth counts);
 - precision: accepted effects (or groups) that hold a true effect;
 - null machines (no effect) with anything accepted;
-- the held-out reduction of the normalised RMS, the wall time.
+- the held-out reduction of the normalised RMS by the final model, the wall time.
 
 Thresholds are chosen on the ``--tune`` seeds and reported on the ``--report`` seeds (disjoint
 ranges); results are appended to ``<out>/results.jsonl`` as they come (an interrupted run
@@ -213,14 +213,14 @@ def run_machine(case: dict, folder: Path, workers: int) -> dict:
         return {**case, "crashed": diagnosed.stderr[-2000:], "wall_s": wall, "cpu_s": cpu}
     summary = json.loads(diagnosed.stdout)
     rounds = summary["rounds"]
-    before = rounds[0]["holdout_normalised_rms"]
-    steps = summary["steps"]
-    after = steps[-1]["holdout_normalised_rms_after"] if steps else before
+    remaining = summary["gap"]["remaining"]  # the final model's (after swaps, backward pass)
+    before, after = remaining["normalised_rms_before"], remaining["times_noise_floor"]
     return {
         **case,
         "truth": truth_names(case["effects"]),
         "accepted": summary["accepted"],
         "significant": summary["gap"]["significant"],
+        "swaps": [[w["removed"], w["name"]] for w in summary.get("swaps", []) if w["kept"]],
         "reduction": 1.0 - after / before if before else 0.0,
         "wall_s": wall,
         "cpu_s": cpu,
@@ -273,6 +273,7 @@ def score(results: list[dict]) -> dict:
         "null_machines": nulls,
         "null_alarms": null_alarms,
         "median_reduction": statistics.median(r["reduction"] for r in ok) if ok else float("nan"),
+        "machines_with_a_swap": sum(1 for r in ok if r.get("swaps")),
         "median_wall_s": statistics.median(walls) if walls else float("nan"),
         "max_wall_s": max(walls) if walls else float("nan"),
         "by_effect_count": {
