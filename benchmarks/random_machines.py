@@ -298,6 +298,7 @@ def where_time_goes(results: list[dict]) -> str:
         for phase, figures in r.get("time", {}).items():
             totals[phase].update(figures)
     selection = totals.pop("total", Counter())
+    totals.pop("diagnosis", None)  # the parent's CPU and the idle-wall estimate: not a phase
     lines = ["| phase | wall [s] | share of the diagnoses' wall | tasks | replays |"]
     lines.append("|---|---|---|---|---|")
     rows = [*totals.items(), ("selection (all phases)", selection)]
