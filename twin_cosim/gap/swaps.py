@@ -2,10 +2,10 @@
 
 Forward selection accepts the best passing hypothesis of a round by training BIC, and an effect
 in the wrong place can win it: a stiffness change shifts the resonance, and a backlash or an
-inertia change fitted alone takes that up first (on random machines: a backlash of 8 um fitted
-for a stiffness of -33 % beside an inertia change of -22 %; an inertia change of +21 % for a
-stiffness of -35 %). Once it is in, the right effect fitted on top of it is under the tolerance
-or its fair share, and the joint refits only move the accepted effects locally.
+inertia change fitted alone takes that up first (on random tune machines: an inertia change of
++21 % fitted for a stiffness change of -35 %, one of -23 % for +35 %). Once it is in, the
+right effect fitted on top of it is under the tolerance or its fair share, and the joint
+refits only move the accepted effects locally.
 
 So when the forward rounds end, each accepted effect is replaced in turn by each *rival*: a
 hypothesis that passed every acceptance test in the round that accepted the effect, outside its
