@@ -162,6 +162,9 @@ def test_two_effects_at_once_are_both_found(tmp_path):
     time = summary["time"]  # where the time went: every fit's replays are counted once
     assert time["first_round_fits"]["replays"] == sum(row["replays"] for row in summary["effects"])
     assert time["later_round_fits"]["tasks"] == sum(len(r["fitted"]) for r in summary["rounds"][1:])
+    swaps = summary["swaps"]  # per rival tried: its fit, the joint refit and two replays
+    assert time.get("swap_fits", {"tasks": 0})["tasks"] == 4 * len(swaps)
+    assert all(w["passes"] for w in swaps if w["kept"])
     phases = [v for k, v in time.items() if k not in ("total", "diagnosis")]
     assert time["total"]["replays"] == sum(p["replays"] for p in phases)
     for phase in phases:  # on idle workers a batch takes between its CPU time / 2 and all of it
