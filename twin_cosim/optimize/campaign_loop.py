@@ -28,6 +28,7 @@ from twin_cosim.optimize.campaign_spec import CampaignError
 from twin_cosim.optimize.config import OptimizeConfig
 from twin_cosim.optimize.early_stop import elite_cutoff, guess_above
 from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
+from twin_cosim.optimize.evaluation_order import likeliest_best_first
 from twin_cosim.optimize.evaluator_protocol import Evaluator, SchedulerError
 from twin_cosim.optimize.methods import method_label
 from twin_cosim.optimize.worker_specs import EvaluationTask
@@ -137,6 +138,8 @@ class AskTellLoop:
         for i in rows:
             unique.setdefault(candidate_key(candidates[i]), []).append(i)
         firsts = [same[0] for same in unique.values()]
+        if self.early_stop:  # the cost only: the generation's best known sooner
+            firsts = [firsts[k] for k in self._likeliest_best_first(candidates[firsts])]
 
         def tasks() -> Iterator[EvaluationTask]:
             for i in firsts:
@@ -153,6 +156,18 @@ class AskTellLoop:
             bound[same] = result["status"] == "stopped"
             known.extend(same)
             self.bar.update(len(same))
+
+    def _likeliest_best_first(self, candidates: np.ndarray) -> np.ndarray:
+        """The order of ``candidates`` (physical units) by the fitness the log predicts."""
+        complete = [e for e in self.log.entries if e["status"] != "stopped"]
+        evaluated = np.array([e["x"] for e in complete], dtype=np.float64).reshape(
+            len(complete), candidates.shape[1]
+        )
+        return likeliest_best_first(
+            self.config.to_unit(candidates),
+            self.config.to_unit(evaluated),
+            np.array([e["fitness"] for e in complete]),
+        )
 
     def _answer_from_log(
         self, candidates: np.ndarray, fitness: np.ndarray, bound: np.ndarray
