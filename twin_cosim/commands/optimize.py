@@ -236,6 +236,17 @@ def _spec_and_folder(args: argparse.Namespace) -> tuple[CampaignSpec, Path]:
     return spec, out_folder(args.out, Path("out") / f"optimize-{spec.method}-seed{spec.seed}")
 
 
+def _best(result: CampaignResult) -> str:
+    """The best candidate's outcome in words: its E_pk, or why no run was valid."""
+    if result.metrics is None:
+        return (
+            f"no valid run (the best candidate's status: {result.status}; its score "
+            f"{result.fitness:.4g} um is a penalty; see evaluations.jsonl)"
+        )
+    best = f"best E_pk {result.metrics['E_pk_um']:.3f} um"
+    return best if result.status == "ok" else f"{best}, above the IAU cap (penalised)"
+
+
 def _report(spec: CampaignSpec, result: CampaignResult, out: Path, as_json: bool) -> None:
     """Print the result: one JSON object, or lines for a reader."""
     if as_json:
@@ -252,10 +263,9 @@ def _report(spec: CampaignSpec, result: CampaignResult, out: Path, as_json: bool
         }
         print(json.dumps(summary))
         return
-    m = result.metrics or {}
     print(
-        f"{method_label(spec.method)}: best E_pk {m.get('E_pk_um', float('nan')):.3f} um "
-        f"(reference {result.reference['E_pk_um']:.3f} um) after {result.evaluations} "
-        f"evaluations in {result.wall_s:.1f} s; {result.stop_reason}"
+        f"{method_label(spec.method)}: {_best(result)} (reference "
+        f"{result.reference['E_pk_um']:.3f} um) after {result.evaluations} evaluations in "
+        f"{result.wall_s:.1f} s; {result.stop_reason}"
     )
     print("best parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in result.best_params.items()))
