@@ -102,15 +102,17 @@ class AskTellLoop:
         missing = self._answer_from_log(candidates, fitness, bound)
         known = [i for i in range(len(candidates)) if i not in missing]
         guess = self.guess
+        again = False  # candidates answered before (counted by the progress bar) run again
         while True:
             if missing:
-                self._evaluate(candidates, missing, fitness, bound, known, guess)
+                self._evaluate(candidates, missing, fitness, bound, known, guess, again)
             cutoff = self._cutoff(fitness, bound, known)
             missing = [i for i in range(len(candidates)) if bound[i] and fitness[i] <= cutoff]
             if not missing:
                 break
             known = [i for i in known if i not in missing]
             guess = math.inf  # the cutoff known then, which holds
+            again = True
         self.guess = guess_above(cutoff)
         return fitness
 
@@ -130,10 +132,12 @@ class AskTellLoop:
         bound: np.ndarray,
         known: list[int],
         guess: float,
+        again: bool,
     ) -> None:
         """Evaluate ``rows`` of ``candidates`` (duplicates once), one per free worker, each with
         the cutoff known when it goes out, at most ``guess`` (um); log them and fill their
-        ``fitness`` and ``bound`` (stopped) and the ``known`` rows."""
+        ``fitness`` and ``bound`` (stopped) and the ``known`` rows. Rows evaluated ``again``
+        are not counted by the progress bar a second time."""
         unique: dict[str, list[int]] = {}
         for i in rows:
             unique.setdefault(candidate_key(candidates[i]), []).append(i)
@@ -155,7 +159,8 @@ class AskTellLoop:
             fitness[same] = result["fitness"]
             bound[same] = result["status"] == "stopped"
             known.extend(same)
-            self.bar.update(len(same))
+            if not again:
+                self.bar.update(len(same))
 
     def _likeliest_best_first(self, candidates: np.ndarray) -> np.ndarray:
         """The order of ``candidates`` (physical units) by the fitness the log predicts."""

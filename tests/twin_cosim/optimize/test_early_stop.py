@@ -72,6 +72,8 @@ def test_a_guess_too_low_costs_runs_again_and_changes_nothing(
         dataclasses.replace(spec, early_stop=False), tmp_path / "full", progress=False, workers=1
     )
     monkeypatch.setattr(campaign_loop, "guess_above", lambda cutoff: 0.01 * cutoff)
+    counted = []
+    monkeypatch.setattr(campaign_loop.tqdm, "update", lambda bar, n=1: counted.append(n))
     low = run_campaign(spec, tmp_path / "low", workers=2, progress=False)
     assert (low.best_params, low.fitness, low.evaluations) == (
         full.best_params,
@@ -82,6 +84,7 @@ def test_a_guess_too_low_costs_runs_again_and_changes_nothing(
     keys = [e["key"] for e in logged]
     again = {k for k in keys if keys.count(k) > 1}
     assert again  # stopped below the generation's cutoff, then run again
+    assert sum(counted) == 60  # the progress bar counts each candidate once
     for key in again:
         first = next(e for e in logged if e["key"] == key)
         assert first["status"] == "stopped"
