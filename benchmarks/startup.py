@@ -20,9 +20,10 @@ FMU and the loops built (``twin build``), the extracted FMU in place, files in t
    and ``twin compare`` over the five methods (``--compare-budget`` evaluations each), each
    beside the pure stepping time of the same work: the time inside the compiled loop
    (``closed_loop`` of :mod:`twin_cosim.loops`) for every speed-loop step the command
-   simulates, spread evenly over its workers. The ratio wall / stepping is the figure: these
-   machines are shared and noisy, so the seconds follow the load (printed, with the command
-   line, under the tables).
+   simulates, spread evenly over its workers, each stepping at the speed measured with as
+   many processes stepping at once (slower than one alone where cores share their resources).
+   The ratio wall / stepping is the figure: these machines are shared and noisy, so the
+   seconds follow the load (printed, with the command line, under the tables).
 """
 
 from __future__ import annotations
@@ -361,17 +362,34 @@ def report(args: argparse.Namespace, tmp: Path) -> None:
     for name, seconds in child("pool", str(args.workers)).items():
         print(f"| {name} | {seconds:.3f} |")
     per_step = child("step")
+    together = stepping_together(args.workers)
     run_steps = 155_204  # speed-loop steps of one reference-1 run
-    walls(args, tmp, per_step, run_steps)
+    walls(args, tmp, (per_step, together), run_steps)
 
 
-def walls(args: argparse.Namespace, tmp: Path, per_step: float, run_steps: int) -> None:
-    """Part 4: each command's wall beside the pure stepping of its work."""
+def stepping_together(workers: int) -> float:
+    """Seconds per speed-loop step in each of ``workers`` processes stepping at once (the median
+    of theirs): what a pool's worker steps at while the others step too."""
+    command = [sys.executable, __file__, "--child", "step"]
+    running = [subprocess.Popen(command, stdout=subprocess.PIPE, text=True) for _ in range(workers)]
+    answers = [json.loads(process.communicate()[0]) for process in running]
+    if any(process.returncode for process in running):
+        raise RuntimeError("a stepping process failed")
+    return statistics.median(answers)
+
+
+def walls(
+    args: argparse.Namespace, tmp: Path, per_step: tuple[float, float], run_steps: int
+) -> None:
+    """Part 4: each command's wall beside the pure stepping of its work (``per_step``: seconds
+    per speed-loop step alone, and in each of ``args.workers`` processes stepping at once)."""
     w = args.workers
-    one_run = run_steps * per_step
+    alone, together = per_step
+    one_run = run_steps * alone
     print(
         f"\n## Walls (median of {args.repeat}) beside pure stepping "
-        f"({per_step * 1e6:.3f} us per step, {w} workers)\n"
+        f"({alone * 1e6:.3f} us per step alone, {together * 1e6:.3f} us in each of {w} "
+        f"processes stepping at once; a command of {w} workers is set beside the latter)\n"
     )
     print(
         "| command | wall [s] | in the loop [s] | stepping [s] | wall / stepping |\n"
@@ -419,7 +437,7 @@ def walls(args: argparse.Namespace, tmp: Path, per_step: float, run_steps: int) 
                 f"`twin optimize reference1 --method ce --seed 11 --workers {w}"
                 f"{' --budget 20' if extra else ''}` ({evaluations} evaluations)",
                 seconds,
-                steps * per_step / w,
+                steps * together / w,
                 loop,
             )
         )
@@ -446,15 +464,16 @@ def walls(args: argparse.Namespace, tmp: Path, per_step: float, run_steps: int) 
         row(
             f"`twin diagnose diagnosis --measured null.csv --workers {w}` (null run)",
             median_wall(diagnose, tmp, args.repeat),
-            stepping / w,
+            stepping * together / alone / w,
         )
     )
     if not args.quick:
-        compare(args, tmp, per_step, run_steps)
+        compare(args, tmp, together, run_steps)
 
 
 def compare(args: argparse.Namespace, tmp: Path, per_step: float, run_steps: int) -> None:
-    """``twin compare`` over the five methods: its wall, the share in campaign loops, stepping."""
+    """``twin compare`` over the five methods: its wall, the share in campaign loops, stepping
+    (``per_step``: seconds per speed-loop step of a worker while the others step too)."""
     w = args.workers
     path = (
         comparison_file(tmp, args.compare_budget)

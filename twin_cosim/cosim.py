@@ -16,6 +16,7 @@ first on the latest measured position. The record holds one row per position-loo
 from __future__ import annotations
 
 import ctypes
+import functools
 import math
 import weakref
 from collections.abc import Mapping
@@ -72,11 +73,20 @@ def _check_inputs(grid: ReferenceGrid, signal: np.ndarray | None, what: str) -> 
     """An input signal per position sample (zeros when None), checked for shape and finiteness."""
     n = len(grid.position)
     if signal is None:
-        return np.zeros(n)
+        return _zeros(n)
     signal = np.ascontiguousarray(signal, dtype=np.float64)
     if signal.shape != (n,) or not np.all(np.isfinite(signal)):
         raise ValueError(f"{what} must be {n} finite values, one per position sample")
     return signal
+
+
+@functools.lru_cache(maxsize=8)
+def _zeros(n: int) -> np.ndarray:
+    """``n`` zeros, read-only: a signal that is off, made once per length (the loops only read
+    their inputs)."""
+    zeros = np.zeros(n)
+    zeros.flags.writeable = False
+    return zeros
 
 
 def _contiguous(values: np.ndarray) -> np.ndarray:

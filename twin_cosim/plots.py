@@ -101,6 +101,7 @@ def plot_error_comparison(
         ax.set_xlabel("t [s]")
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)  # beside the data
-    fig.tight_layout()
+    # fixed margins that hold the legends beside: tight_layout would draw the figure once more
+    fig.subplots_adjust(left=0.08, right=0.78, top=0.96, bottom=0.06, hspace=0.35)
     fig.savefig(path, dpi=110)
     return path

@@ -45,7 +45,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 from pathlib import Path
@@ -155,10 +155,14 @@ class SerialPool:
         self._factory = factory
 
     def imap(
-        self, tasks: Sequence[Any], factory: WorkerFactory | None = None
+        self,
+        tasks: Iterable[Any],
+        factory: WorkerFactory | None = None,
+        in_flight: int | None = None,
     ) -> Iterator[tuple[int, Any]]:
         """Yield (task index, result) for each task, in order, on ``factory``'s worker (None:
-        the last factory's)."""
+        the last factory's); each task is taken from ``tasks`` after the result before it was
+        consumed (``in_flight`` is 1 whatever it is given as)."""
         if factory is not None:
             self._use(factory)
         if self._worker is None:
@@ -334,23 +338,41 @@ class ProcessPool:
         self._factory, self._factory_file = factory, str(path)
 
     def imap(
-        self, tasks: Sequence[Any], factory: WorkerFactory | None = None
+        self,
+        tasks: Iterable[Any],
+        factory: WorkerFactory | None = None,
+        in_flight: int | None = None,
     ) -> Iterator[tuple[int, Any]]:
         """Yield (task index, result) in order of completion, on ``factory``'s workers (None:
-        the last factory's)."""
+        the last factory's).
+
+        ``in_flight`` tasks at most are given out at a time (None: all at once); the next task
+        is taken from ``tasks`` once a result was yielded and its consumer asks for the next
+        one, so a task made then may use every result before it.
+        """
         if factory is not None:
             self._use(factory)
         self._used = True
-        with deferred_signals():
-            futures = {
-                self.executor.submit(_run_in_process, task, self._factory_file): i
-                for i, task in enumerate(tasks)
-            }
-        self._running = set(futures)
+        pending = enumerate(tasks)
+        futures: dict[Future, int] = {}
+        self._running = set()
+
+        def give_out() -> None:
+            with deferred_signals():
+                while in_flight is None or len(self._running) < in_flight:
+                    taken = next(pending, None)
+                    if taken is None:
+                        return
+                    future = self.executor.submit(_run_in_process, taken[1], self._factory_file)
+                    futures[future] = taken[0]
+                    self._running.add(future)
+
+        give_out()
         while self._running:
             for future in wait_interruptibly(self._done_within):
                 self._running.discard(future)
-                yield futures[future], future.result()
+                yield futures.pop(future), future.result()
+            give_out()
 
     def _done_within(self, timeout_s: float) -> set[Future] | None:
         """The running tasks answered within ``timeout_s`` (s); None: none yet."""
@@ -398,9 +420,9 @@ class BoundPool:
         self.factory = factory
         self.workers = pool.workers
 
-    def imap(self, tasks: Sequence[Any]) -> Iterator[tuple[int, Any]]:
+    def imap(self, tasks: Iterable[Any], in_flight: int | None = None) -> Iterator[tuple[int, Any]]:
         """Yield (task index, result) as :meth:`ProcessPool.imap` does."""
-        return self.pool.imap(tasks, self.factory)
+        return self.pool.imap(tasks, self.factory, in_flight)
 
     def close(self) -> None:
         """Nothing to free: the pool belongs to its owner."""

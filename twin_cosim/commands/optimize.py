@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -23,6 +24,7 @@ from twin_cosim.optimize.methods import METHOD_NAMES, method_label, method_list
 
 if TYPE_CHECKING:
     from twin_cosim.optimize.campaign_spec import CampaignResult, CampaignSpec
+    from twin_cosim.painter import Painter
     from twin_cosim.workers import ProcessPool, SerialPool
 
 
@@ -131,9 +133,11 @@ def _robust_options(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run (or resume) the campaign, print its result, then write its plots.
 
-    A machine scenario (axes:) runs its own campaign; otherwise the pool's processes start
-    first, so that they load the co-simulation while this process reads the campaign.
+    A machine scenario (axes:) runs its own campaign; otherwise the painter of the figures
+    (which loads matplotlib meanwhile) and the pool's processes start first, so that they load
+    while this process reads the campaign.
     """
+    from twin_cosim.painter import Painter
     from twin_cosim.pool_runs import prepare_campaign_worker
     from twin_cosim.scenario import is_machine_scenario
     from twin_cosim.workers import make_pool
@@ -144,13 +148,21 @@ def run(args: argparse.Namespace) -> int:
         return run_machine_campaign(args)
     if args.program or args.target:
         raise ValueError("--program and --target: for a machine scenario (axes:)")
-    local = 1 if args.scheduler else args.workers  # with Dask: reference and plot runs here
-    with make_pool(None, local, prepare_campaign_worker) as pool:
-        return _run_on(args, pool)
+    local = 1 if args.scheduler else args.workers  # with Dask: the reference runs here
+    painter = None if args.no_plots else Painter.start()
+    try:
+        with make_pool(None, local, prepare_campaign_worker) as pool:
+            return _run_on(args, pool, painter)
+    finally:
+        if painter is not None:
+            painter.close()
 
 
-def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
-    """The campaign, its result and its plots, with ``pool`` running the plant."""
+def _run_on(
+    args: argparse.Namespace, pool: SerialPool | ProcessPool, painter: Painter | None
+) -> int:
+    """The campaign and its result with ``pool`` running the plant; its plots drawn by
+    ``painter`` (None: no plots). 1 when the plots could not be drawn."""
     from twin_cosim.optimize.campaign import run_campaign
     from twin_cosim.optimize.cases import campaign_scenarios
 
@@ -174,14 +186,16 @@ def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
             exc.hint = f"; the log is intact: twin optimize {scenarios_given} --resume {out}"
         raise
     _report(spec, result, out, args.json)
-    if not args.no_plots:
+    drawn = True
+    if painter is not None:
         from twin_cosim.optimize.outputs import write_campaign_plots
 
-        write_campaign_plots(out, spec, scenarios[0], pool)
+        sys.stdout.flush()  # the result shows while the figures are drawn
+        drawn = write_campaign_plots(out, spec, scenarios[0], painter)
     if not args.json:
-        plots = "" if args.no_plots else ", convergence.png, best_run.png"
+        plots = ", convergence.png, best_run.png" if painter is not None and drawn else ""
         print(f"wrote {out}/result.json, evaluations.jsonl{plots}")
-    return 0
+    return 0 if drawn else 1
 
 
 def _given(args: argparse.Namespace) -> dict[str, Any]:
@@ -222,6 +236,17 @@ def _spec_and_folder(args: argparse.Namespace) -> tuple[CampaignSpec, Path]:
     return spec, out_folder(args.out, Path("out") / f"optimize-{spec.method}-seed{spec.seed}")
 
 
+def _best(result: CampaignResult) -> str:
+    """The best candidate's outcome in words: its E_pk, or why no run was valid."""
+    if result.metrics is None:
+        return (
+            f"no valid run (the best candidate's status: {result.status}; its score "
+            f"{result.fitness:.4g} um is a penalty; see evaluations.jsonl)"
+        )
+    best = f"best E_pk {result.metrics['E_pk_um']:.3f} um"
+    return best if result.status == "ok" else f"{best}, above the IAU cap (penalised)"
+
+
 def _report(spec: CampaignSpec, result: CampaignResult, out: Path, as_json: bool) -> None:
     """Print the result: one JSON object, or lines for a reader."""
     if as_json:
@@ -238,10 +263,9 @@ def _report(spec: CampaignSpec, result: CampaignResult, out: Path, as_json: bool
         }
         print(json.dumps(summary))
         return
-    m = result.metrics or {}
     print(
-        f"{method_label(spec.method)}: best E_pk {m.get('E_pk_um', float('nan')):.3f} um "
-        f"(reference {result.reference['E_pk_um']:.3f} um) after {result.evaluations} "
-        f"evaluations in {result.wall_s:.1f} s; {result.stop_reason}"
+        f"{method_label(spec.method)}: {_best(result)} (reference "
+        f"{result.reference['E_pk_um']:.3f} um) after {result.evaluations} evaluations in "
+        f"{result.wall_s:.1f} s; {result.stop_reason}"
     )
     print("best parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in result.best_params.items()))

@@ -22,9 +22,9 @@ from twin_cosim.commands.options import (
 )
 
 if TYPE_CHECKING:
-    from twin_cosim.commands.painter import Painter
     from twin_cosim.controller import TunedParameters
     from twin_cosim.metrics import Metrics
+    from twin_cosim.painter import Painter
     from twin_cosim.run_record import RunRecord
     from twin_cosim.scenario import Scenario
 
@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         from twin_cosim.commands.simulate_program import run_program_command
 
         return run_program_command(args)
-    from twin_cosim.commands.painter import Painter
+    from twin_cosim.painter import Painter
 
     painter = None if args.no_plots else Painter.start()  # imports matplotlib meanwhile
     try:

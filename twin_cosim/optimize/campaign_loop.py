@@ -5,15 +5,18 @@ inside the bounds. Resuming replays the optimizer from its seed, answering from 
 batch already evaluated, so a resumed campaign ends exactly where an uninterrupted one would.
 
 Early stopping (CE, on by default where exact, see :mod:`twin_cosim.optimize.early_stop`): a
-generation's candidates go out in groups of as many as there are workers, each with the cutoff
-known at that moment; a stopped candidate's lower bound is reused from the log only within its
-own generation (elsewhere it is evaluated again).
+generation's candidates go out one per free worker (as many at a time as there are workers),
+each with the cutoff known when it goes; a stopped candidate's lower bound is reused from the
+log only within its own generation (elsewhere it is evaluated again). Without early stopping a
+generation goes out at once.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -23,8 +26,9 @@ from twin_cosim.optimize.algorithms.base import Optimizer
 from twin_cosim.optimize.campaign_folder import write_progress
 from twin_cosim.optimize.campaign_spec import CampaignError
 from twin_cosim.optimize.config import OptimizeConfig
-from twin_cosim.optimize.early_stop import elite_cutoff
+from twin_cosim.optimize.early_stop import elite_cutoff, guess_above
 from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
+from twin_cosim.optimize.evaluation_order import likeliest_best_first
 from twin_cosim.optimize.evaluator_protocol import Evaluator, SchedulerError
 from twin_cosim.optimize.methods import method_label
 from twin_cosim.optimize.worker_specs import EvaluationTask
@@ -68,6 +72,7 @@ class AskTellLoop:
         self.bar = bar
         self.logged_before = {entry["key"] for entry in log.entries}
         self.reused = 0  # answers from entries logged before this run
+        self.guess = math.inf  # the guess of the next generation's cutoff (um)
 
     def run(self, out_dir: Path, start: float) -> None:
         """Ask and tell until the optimizer stops; the log synced to disk and ``progress.json``
@@ -86,22 +91,94 @@ class AskTellLoop:
             self.bar.set_postfix(gen=optimizer.generation, best_um=f"{optimizer.best[1]:.3f}")
 
     def _generation(self, candidates: np.ndarray) -> np.ndarray:
-        """The fitness (um) of every candidate of a generation (physical units, one per row)."""
+        """The fitness (um) of every candidate of a generation (physical units, one per row).
+
+        With early stopping, each candidate goes out with the cutoff known then, lowered to the
+        guess from the previous generation; once every candidate is answered, those stopped
+        below the generation's cutoff (where the guess was too low) run again with it.
+        """
         fitness = np.empty(len(candidates))
-        missing = self._answer_from_log(candidates, fitness)
-        unique: dict[str, list[int]] = {}
-        for i in missing:
-            unique.setdefault(candidate_key(candidates[i]), []).append(i)
-        firsts = [rows[0] for rows in unique.values()]
+        bound = np.zeros(len(candidates), dtype=bool)  # a stopped candidate's lower bound
+        missing = self._answer_from_log(candidates, fitness, bound)
         known = [i for i in range(len(candidates)) if i not in missing]
-        group = self.evaluator.workers if self.early_stop else max(1, len(firsts))
-        for start_at in range(0, len(firsts), group):
-            chosen = firsts[start_at : start_at + group]
-            self._evaluate(candidates, chosen, unique, fitness, known)
+        guess = self.guess
+        again = False  # candidates answered before (counted by the progress bar) run again
+        while True:
+            if missing:
+                self._evaluate(candidates, missing, fitness, bound, known, guess, again)
+            cutoff = self._cutoff(fitness, bound, known)
+            missing = [i for i in range(len(candidates)) if bound[i] and fitness[i] <= cutoff]
+            if not missing:
+                break
+            known = [i for i in known if i not in missing]
+            guess = math.inf  # the cutoff known then, which holds
+            again = True
+        self.guess = guess_above(cutoff)
         return fitness
 
-    def _answer_from_log(self, candidates: np.ndarray, fitness: np.ndarray) -> list[int]:
-        """Fill ``fitness`` from the log where it answers; the rows it does not answer."""
+    def _cutoff(self, fitness: np.ndarray, bound: np.ndarray, known: list[int]) -> float:
+        """The generation's cutoff from the values known (um; inf without early stopping):
+        from the complete evaluations only (a lower bound is no value)."""
+        if not self.early_stop:
+            return math.inf
+        complete = [i for i in known if not bound[i]]
+        return elite_cutoff(self.optimizer, len(fitness), fitness[complete])
+
+    def _evaluate(
+        self,
+        candidates: np.ndarray,
+        rows: list[int],
+        fitness: np.ndarray,
+        bound: np.ndarray,
+        known: list[int],
+        guess: float,
+        again: bool,
+    ) -> None:
+        """Evaluate ``rows`` of ``candidates`` (duplicates once), one per free worker, each with
+        the cutoff known when it goes out, at most ``guess`` (um); log them and fill their
+        ``fitness`` and ``bound`` (stopped) and the ``known`` rows. Rows evaluated ``again``
+        are not counted by the progress bar a second time."""
+        unique: dict[str, list[int]] = {}
+        for i in rows:
+            unique.setdefault(candidate_key(candidates[i]), []).append(i)
+        firsts = [same[0] for same in unique.values()]
+        if self.early_stop:  # the cost only: the generation's best known sooner
+            firsts = [firsts[k] for k in self._likeliest_best_first(candidates[firsts])]
+
+        def tasks() -> Iterator[EvaluationTask]:
+            for i in firsts:
+                cutoff = min(self._cutoff(fitness, bound, known), guess)
+                yield EvaluationTask(candidates[i], cutoff)
+
+        in_flight = self.evaluator.workers if self.early_stop else None
+        for j, result in self.evaluator.imap(tasks(), in_flight):
+            entry = self.log.append(candidates[firsts[j]], result, self.optimizer.generation)
+            if result["status"] != "ok":
+                LOG.info("candidate %s: %s (%s)", entry["x"], result["status"], result["reason"])
+            same = unique[entry["key"]]
+            fitness[same] = result["fitness"]
+            bound[same] = result["status"] == "stopped"
+            known.extend(same)
+            if not again:
+                self.bar.update(len(same))
+
+    def _likeliest_best_first(self, candidates: np.ndarray) -> np.ndarray:
+        """The order of ``candidates`` (physical units) by the fitness the log predicts."""
+        complete = [e for e in self.log.entries if e["status"] != "stopped"]
+        evaluated = np.array([e["x"] for e in complete], dtype=np.float64).reshape(
+            len(complete), candidates.shape[1]
+        )
+        return likeliest_best_first(
+            self.config.to_unit(candidates),
+            self.config.to_unit(evaluated),
+            np.array([e["fitness"] for e in complete]),
+        )
+
+    def _answer_from_log(
+        self, candidates: np.ndarray, fitness: np.ndarray, bound: np.ndarray
+    ) -> list[int]:
+        """Fill ``fitness`` (and ``bound``: a stopped candidate's lower bound) from the log where
+        it answers; the rows it does not answer."""
         missing = []
         for i, x in enumerate(candidates):
             entry = self.log.lookup(x)
@@ -111,37 +188,10 @@ class AskTellLoop:
                 missing.append(i)
             else:
                 fitness[i] = entry["fitness"]
+                bound[i] = entry["status"] == "stopped"
                 self.reused += entry["key"] in self.logged_before
         self.bar.update(len(candidates) - len(missing))
         return missing
-
-    def _evaluate(
-        self,
-        candidates: np.ndarray,
-        chosen: list[int],
-        unique: dict[str, list[int]],
-        fitness: np.ndarray,
-        known: list[int],
-    ) -> None:
-        """Evaluate the ``chosen`` rows with the cutoff known now; log and fill their fitness.
-
-        ``unique`` maps a candidate's key to its rows (duplicates get the same answer);
-        ``known`` lists the rows whose fitness is known, extended here.
-        """
-        cutoff = (
-            elite_cutoff(self.optimizer, len(candidates), fitness[known])
-            if self.early_stop
-            else float("inf")
-        )
-        tasks = [EvaluationTask(candidates[i], cutoff) for i in chosen]
-        for j, result in self.evaluator.imap(tasks):
-            entry = self.log.append(candidates[chosen[j]], result, self.optimizer.generation)
-            if result["status"] != "ok":
-                LOG.info("candidate %s: %s (%s)", entry["x"], result["status"], result["reason"])
-            rows = unique[entry["key"]]
-            fitness[rows] = result["fitness"]
-            known.extend(rows)
-            self.bar.update(len(rows))
 
 
 def run_loop(

@@ -16,8 +16,9 @@ from __future__ import annotations
 import logging
 import queue
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from concurrent.futures import CancelledError
+from typing import Any
 
 import numpy as np
 from distributed import Client, Future, Reschedule, WorkerPlugin, get_worker
@@ -127,8 +128,11 @@ class DaskEvaluator:
         self.client.register_plugin(ObjectivePlugin(spec), name=PLUGIN_NAME)
         self.workers = max(1, len(self.client.scheduler_info()["workers"]))
 
-    def imap(self, candidates: np.ndarray) -> Iterator[tuple[int, Result]]:
-        """Yield (row index, result) in order of completion.
+    def imap(
+        self, tasks: Iterable[Any], in_flight: int | None = None
+    ) -> Iterator[tuple[int, Result]]:
+        """Yield (task index, result) in order of completion, with at most ``in_flight`` tasks
+        on the cluster at a time (None: all at once).
 
         Raises
         ------
@@ -136,15 +140,25 @@ class DaskEvaluator:
             When the connection to the scheduler is lost.
         """
         finished: queue.Queue[Future] = queue.Queue()
-        try:
+        pending = enumerate(tasks)
+        index: dict[str, int] = {}
+
+        def give_out() -> None:
             with deferred_signals():  # Ctrl-C never lands inside the client's machinery
-                futures = self.client.map(_evaluate_on_worker, list(candidates), pure=False)
-                for future in futures:
+                while in_flight is None or len(index) < in_flight:
+                    taken = next(pending, None)
+                    if taken is None:
+                        return
+                    future = self.client.submit(_evaluate_on_worker, taken[1], pure=False)
+                    index[future.key] = taken[0]
                     future.add_done_callback(finished.put)
-            index = {future.key: i for i, future in enumerate(futures)}
-            for _ in futures:
+
+        try:
+            give_out()
+            while index:
                 future = wait_interruptibly(lambda timeout_s: _next_within(finished, timeout_s))
-                yield index[future.key], future.result()
+                yield index.pop(future.key), future.result()
+                give_out()
         except LOST as exc:
             first_line = (str(exc).splitlines() or [""])[0]
             raise SchedulerError(

@@ -8,7 +8,7 @@ An evaluator (serial, a local process pool of :mod:`twin_cosim.workers`, or Dask
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator
 from typing import Any, Protocol
 
 Result = dict[str, Any]
@@ -23,8 +23,12 @@ class Evaluator(Protocol):
 
     workers: int
 
-    def imap(self, tasks: Sequence[Any]) -> Iterator[tuple[int, Result]]:
-        """Yield (task index, result) in order of completion."""
+    def imap(
+        self, tasks: Iterable[Any], in_flight: int | None = None
+    ) -> Iterator[tuple[int, Result]]:
+        """Yield (task index, result) in order of completion, with at most ``in_flight`` tasks
+        given out at a time (None: all at once); the next task is taken from ``tasks`` once
+        the consumer asks for the next result."""
         ...
 
     def close(self) -> None:

@@ -1,15 +1,16 @@
 """Figures of optimizer campaigns: convergence and the best run against the reference set.
 
-A campaign's two figures are drawn by its pool's workers, side by side (the best run's records
-made where they are drawn), while the parent, which loads neither the plant nor matplotlib,
-waits.
+A campaign's two figures are drawn by the command's painter (:mod:`twin_cosim.painter`,
+forked at the command's start: matplotlib is loaded while the campaign runs), side by side (the
+best run's records made where they are drawn); the command's process loads neither matplotlib
+nor the plant.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Mapping
-from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -21,12 +22,9 @@ from twin_cosim.optimize.campaign_spec import CampaignSpec, controller_set_of
 from twin_cosim.optimize.methods import method_label
 from twin_cosim.paper import set_name
 from twin_cosim.scenario import Scenario, with_controller_set
-from twin_cosim.workers import ProcessPool, SerialPool
 
 if TYPE_CHECKING:
-    import pandas as pd
-
-    from twin_cosim.plant import Plant
+    from twin_cosim.painter import Painter
 
 # Statuses of the evaluations shown apart from the valid runs: (marker, what it means)
 SET_APART = {
@@ -95,16 +93,17 @@ def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
         fontsize=8,
     )
     apart.grid(alpha=0.3, axis="x", which="both")
-    fig.tight_layout()
+    # fixed margins that hold the labels and the legend below: tight_layout would draw twice
+    fig.subplots_adjust(left=0.2, right=0.97, top=0.97, bottom=0.19, hspace=0.12)
     fig.savefig(path, dpi=110)
     return path
 
 
 def write_campaign_plots(
-    out_dir: Path, spec: CampaignSpec, scenario: Scenario, pool: SerialPool | ProcessPool
-) -> None:
-    """``convergence.png`` and ``best_run.png`` (best set against the scenario's own set), each
-    drawn by a worker of ``pool``.
+    out_dir: Path, spec: CampaignSpec, scenario: Scenario, painter: Painter
+) -> bool:
+    """``convergence.png`` and ``best_run.png`` (best set against the scenario's own set), drawn
+    by ``painter``; True when both were drawn (the painter says why otherwise).
 
     Parameters
     ----------
@@ -114,88 +113,63 @@ def write_campaign_plots(
         The campaign's spec (method, seed, plant FMU).
     scenario
         The campaign's first scenario, resolved (:func:`campaign_scenarios`).
-    pool
-        Draws the figures and runs the two sets (:mod:`twin_cosim.workers`).
+    painter
+        The command's painter (:mod:`twin_cosim.painter`), started with the command.
     """
     out_dir = Path(out_dir)
     result = json.loads((out_dir / "result.json").read_text())
     best = with_controller_set(scenario, controller_set_of(result))
     label = method_label(spec.method)
     title = f"{scenario.name}: {label} campaign, seed {spec.seed}"
-    tasks = [
-        ConvergenceFigure(label, out_dir),
-        BestRunFigure(scenario, best, label, title, out_dir / "best_run.png"),
-    ]
-    list(pool.imap(tasks, CampaignFigures(str(scenario.plant_fmu(spec.fmu)))))
+    fmu = str(scenario.plant_fmu(spec.fmu))
+    return painter.draw(
+        f"{__name__}:draw_campaign_figures", out_dir, fmu, scenario, best, label, title
+    )
 
 
-@dataclass(frozen=True)
-class ConvergenceFigure:
-    """Task: ``convergence.png`` of the campaign folder ``out_dir`` of ``method`` (its label)."""
+def draw_campaign_figures(
+    out_dir: Path, fmu: str, scenario: Scenario, best: Scenario, label: str, title: str
+) -> None:
+    """Draw a campaign's two figures side by side (run by its painter).
 
-    method: str
-    out_dir: Path
+    Parameters
+    ----------
+    out_dir
+        The campaign folder; the figures are written there.
+    fmu
+        The plant FMU both sets of ``best_run.png`` run on.
+    scenario, best
+        The campaign's first scenario with its own set, and with the best set.
+    label
+        The method's label for people (CE, GA, ...).
+    title
+        Title of ``best_run.png``.
+    """
+    from twin_cosim.painter import draw_side_by_side
 
-    def draw(self, worker: CampaignFigureWorker) -> Path:
-        """Draw it; the written path."""
-        return plot_convergence({self.method: self.out_dir}, self.out_dir / "convergence.png")
-
-
-@dataclass(frozen=True)
-class BestRunFigure:
-    """Task: the best set's run against the scenario's own set (``best`` is the scenario with
-    the best set), close-up on the own set's peak, written to ``path``; ``method`` is the
-    method's label."""
-
-    scenario: Scenario
-    best: Scenario
-    method: str
-    title: str
-    path: Path
-
-    def draw(self, worker: CampaignFigureWorker) -> Path:
-        """Run both sets on the worker's plant and draw them; the written path."""
-        from twin_cosim.plots import plot_error_comparison  # where figures are drawn only
-
-        own = set_name(self.scenario.tuned)
-        runs = {own: worker.record(self.scenario), f"best {self.method}": worker.record(self.best)}
-        peak = compute_metrics(runs[own], self.scenario.metrics_window).t_E_pk
-        return plot_error_comparison(runs, peak, self.title, self.path)
+    draw_side_by_side(
+        partial(plot_convergence, {label: out_dir}, out_dir / "convergence.png"),
+        partial(plot_best_run, fmu, scenario, best, label, title, out_dir / "best_run.png"),
+    )
 
 
-@dataclass(frozen=True)
-class CampaignFigures:
-    """The recipe of a :class:`CampaignFigureWorker`: the FMU its plant loads."""
+def plot_best_run(
+    fmu: str, scenario: Scenario, best: Scenario, label: str, title: str, path: Path
+) -> Path:
+    """The best set's run against the scenario's own set on the plant ``fmu``, close-up on the
+    own set's peak error, written to ``path`` (``label``: the method's label)."""
+    from twin_cosim.cosim import run_scenario_record  # where figures are drawn only
+    from twin_cosim.plant import Plant
+    from twin_cosim.plots import plot_error_comparison
 
-    fmu: str
-
-    def build(self) -> CampaignFigureWorker:
-        """The worker, in the process that runs it."""
-        return CampaignFigureWorker(self.fmu)
-
-
-class CampaignFigureWorker:
-    """A worker drawing a campaign's figures; its plant is loaded at the first run a figure
-    needs."""
-
-    def __init__(self, fmu: str) -> None:
-        self.fmu = fmu
-        self.plant: Plant | None = None
-
-    def record(self, scenario: Scenario) -> pd.DataFrame:
-        """The record of ``scenario`` run with its own set on this worker's plant."""
-        from twin_cosim.cosim import run_scenario
-        from twin_cosim.plant import Plant
-
-        if self.plant is None:
-            self.plant = Plant(self.fmu)
-        return run_scenario(self.plant, scenario)
-
-    def __call__(self, task: ConvergenceFigure | BestRunFigure) -> Path:
-        """Draw the figure ``task``; its path."""
-        return task.draw(self)
-
-    def close(self) -> None:
-        """Free the plant, if loaded."""
-        if self.plant is not None:
-            self.plant.close()
+    plant = Plant(fmu)
+    try:
+        own = set_name(scenario.tuned)
+        runs = {
+            own: run_scenario_record(plant, scenario),
+            f"best {label}": run_scenario_record(plant, best),
+        }
+    finally:
+        plant.close()
+    peak = compute_metrics(runs[own], scenario.metrics_window).t_E_pk
+    return plot_error_comparison(runs, peak, title, path)

@@ -89,9 +89,9 @@ def test_a_pool_campaign_leaves_the_plant_to_its_workers(short_scenario, tmp_pat
     assert result.stdout.strip() == "[]"
 
 
-def test_a_campaigns_figures_are_drawn_by_its_workers(short_scenario, tmp_path):
-    """``twin optimize`` on a pool writes convergence.png and best_run.png from its workers:
-    the parent never imports matplotlib (nor the plant)."""
+def test_a_campaigns_figures_are_drawn_by_its_painter(short_scenario, tmp_path):
+    """``twin optimize`` on a pool writes convergence.png and best_run.png from its painter:
+    the command's process never imports matplotlib, pandas nor the plant."""
     out = tmp_path / "c"
     code = (
         "import sys\n"
@@ -99,7 +99,7 @@ def test_a_campaigns_figures_are_drawn_by_its_workers(short_scenario, tmp_path):
         f"args = ['optimize', {short_scenario!r}, '--method', 'ce', '--budget', '8',\n"
         f"        '--workers', '2', '--quiet', '--out', {str(out)!r}]\n"
         "code = main(args)\n"
-        "print(code, sorted({'numba', 'fmpy', 'matplotlib'} & set(sys.modules)))\n"
+        "print(code, sorted({'numba', 'fmpy', 'matplotlib', 'pandas'} & set(sys.modules)))\n"
     )
     done = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=False
@@ -108,6 +108,22 @@ def test_a_campaigns_figures_are_drawn_by_its_workers(short_scenario, tmp_path):
     assert done.stdout.strip().splitlines()[-1] == "0 []"
     for figure in ("convergence.png", "best_run.png"):
         assert (out / figure).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", figure
+
+
+def test_a_figure_that_cannot_be_written_is_said_and_fails_the_command(
+    short_scenario, tmp_path, twin_cli
+):
+    out = tmp_path / "c"
+    (out / "best_run.png").mkdir(parents=True)  # a folder where the figure goes
+    done = twin_cli(
+        "optimize", short_scenario, "--method", "ce", "--budget", "8", "--workers", "2",
+        "--quiet", "--out", str(out),
+    )  # fmt: skip
+    assert done.returncode == 1
+    assert "the figure was not drawn" in done.stderr and "best_run.png" in done.stderr
+    assert (out / "result.json").exists()  # the result is kept
+    assert (out / "convergence.png").read_bytes()[:4] == b"\x89PNG"
+    assert "best_run.png" not in done.stdout
 
 
 def test_failing_candidates_do_not_stop_the_campaign(short_scenario, tmp_path):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -9,6 +10,7 @@ import numpy as np
 import pytest
 from scenario_texts import scenario_text
 
+from twin_cosim.optimize import campaign_loop
 from twin_cosim.optimize.algorithms import make_optimizer
 from twin_cosim.optimize.campaign import run_campaign
 from twin_cosim.optimize.campaign_spec import CampaignSpec
@@ -60,3 +62,44 @@ def test_early_stop_changes_nothing_but_the_cost(short_scenario, tmp_path):
     exact = {e["key"]: e["fitness"] for e in entries(tmp_path / "full")}
     for entry in stopped:  # a lower bound of the value the full run found
         assert entry["fitness"] <= exact[entry["key"]]
+
+
+def test_a_guess_too_low_costs_runs_again_and_changes_nothing(
+    short_scenario, tmp_path, monkeypatch
+):
+    spec = CampaignSpec(short_scenario, "ce", seed=5, budget=60)
+    full = run_campaign(
+        dataclasses.replace(spec, early_stop=False), tmp_path / "full", progress=False, workers=1
+    )
+    monkeypatch.setattr(campaign_loop, "guess_above", lambda cutoff: 0.01 * cutoff)
+    counted = []
+    monkeypatch.setattr(campaign_loop.tqdm, "update", lambda bar, n=1: counted.append(n))
+    low = run_campaign(spec, tmp_path / "low", workers=2, progress=False)
+    assert (low.best_params, low.fitness, low.evaluations) == (
+        full.best_params,
+        full.fitness,
+        full.evaluations,
+    )
+    logged = entries(tmp_path / "low")
+    keys = [e["key"] for e in logged]
+    again = {k for k in keys if keys.count(k) > 1}
+    assert again  # stopped below the generation's cutoff, then run again
+    assert sum(counted) == 60  # the progress bar counts each candidate once
+    for key in again:
+        first = next(e for e in logged if e["key"] == key)
+        assert first["status"] == "stopped"
+
+
+def test_a_resumed_generation_runs_a_lower_bound_below_its_cutoff_again(short_scenario, tmp_path):
+    spec = CampaignSpec(short_scenario, "ce", seed=5, budget=60)
+    done = run_campaign(spec, tmp_path / "c", workers=1, progress=False)
+    log = tmp_path / "c" / "evaluations.jsonl"
+    logged = entries(tmp_path / "c")
+    stopped = next(i for i, e in enumerate(logged) if e["status"] == "stopped")
+    logged[stopped]["fitness"] = 0.0  # a lower bound that cannot rule the candidate out
+    log.write_text("".join(json.dumps(e) + "\n" for e in logged))
+    resumed = run_campaign(spec, tmp_path / "c", workers=1, resume=True, progress=False)
+    assert (resumed.best_params, resumed.fitness) == (done.best_params, done.fitness)
+    again = entries(tmp_path / "c")[len(logged) :]
+    assert [e["key"] for e in again] == [logged[stopped]["key"]]
+    assert again[0]["fitness"] > 0.0

@@ -1,10 +1,11 @@
-"""A forked process that imports matplotlib while its command computes, then draws one figure.
+"""A forked process that imports matplotlib while its command computes, then draws its figures.
 
 matplotlib's import (about a third of a second) and the drawing are most of what a user waits
 for when a quick command ends with a figure. A command forks the painter at its start, before it
 loads a plant or numpy (nothing to inherit but the interpreter), goes on with its work, writes
 its results, then hands the painter the drawing function and its arguments and waits for the
-figure. The painter ends without drawing when its command ends without handing it anything (an
+figure (a drawing function may draw several side by side: :func:`draw_side_by_side`). The
+painter ends without drawing when its command ends without handing it anything (an
 error, an interrupt, ``kill -9``: the pipe closes). Where ``os.fork`` does not exist the figure
 is drawn in the command's own process.
 """
@@ -16,6 +17,7 @@ import os
 import pickle
 import signal
 import sys
+from collections.abc import Callable
 from typing import Any
 
 # Called by the painter while it waits: imports matplotlib, its PNG backend and fonts
@@ -96,6 +98,49 @@ def _paint(read_end: int) -> int:  # pragma: no cover - runs in the forked child
     except Exception as error:  # any failure of the drawing: said, and the figure is missing
         print(f"twin: error: the figure was not drawn: {error}", file=sys.stderr, flush=True)
         return 1
+
+
+def draw_side_by_side(*figures: Callable[[], object]) -> None:
+    """Draw several figures at once: each but the last in a process forked from this one (which
+    shares what this one has loaded, e.g. a warm matplotlib), the last here; sequentially where
+    ``os.fork`` does not exist.
+
+    Raises
+    ------
+    RuntimeError
+        When a forked drawing failed (it said why on stderr).
+    """
+    if not hasattr(os, "fork"):
+        for figure in figures:
+            figure()
+        return
+    children = []
+    sys.stdout.flush()
+    sys.stderr.flush()
+    for figure in figures[:-1]:
+        pid = os.fork()
+        if pid == 0:  # pragma: no cover - runs in the child; its exit code is what is tested
+            os._exit(_draw_here(figure))
+        children.append(pid)
+    try:
+        figures[-1]()
+    finally:
+        failed = sum(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) != 0 for pid in children)
+    if failed:
+        raise RuntimeError(f"{failed} of {len(figures)} figures drawn side by side failed")
+
+
+def _draw_here(figure: Callable[[], object]) -> int:  # pragma: no cover - in a forked child
+    """Draw ``figure`` in this (forked) process; the exit code (1: failed, said on stderr)."""
+    try:
+        figure()
+        return 0
+    except Exception as error:
+        print(f"twin: error: the figure was not drawn: {error}", file=sys.stderr, flush=True)
+        return 1
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
 
 
 def _resolve(function: str) -> Any:

@@ -5,11 +5,14 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from functools import partial
 from pathlib import Path
 
-from twin_cosim.commands.painter import Painter
+import pytest
 
-ROOT = Path(__file__).resolve().parents[3]
+from twin_cosim.painter import Painter, draw_side_by_side
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _write(path: Path, text: str) -> None:
@@ -41,6 +44,21 @@ def test_a_failed_drawing_is_said_and_reported(tmp_path, capfd):
     painter = Painter.start()
     assert not painter.draw(f"{__name__}:_fail", tmp_path / "f.png")
     assert "the figure was not drawn" in capfd.readouterr().err
+
+
+def test_figures_side_by_side_are_all_drawn(tmp_path):
+    draw_side_by_side(
+        partial(_write, tmp_path / "a.txt", "first"), partial(_write, tmp_path / "b.txt", "second")
+    )
+    assert (tmp_path / "a.txt").read_text() == "first"
+    assert (tmp_path / "b.txt").read_text() == "second"
+
+
+def test_a_figure_failing_beside_another_is_said_and_raised(tmp_path, capfd):
+    with pytest.raises(RuntimeError, match="1 of 2 figures"):
+        draw_side_by_side(partial(_fail, tmp_path / "a.png"), partial(_write, tmp_path / "b", "x"))
+    assert "a.png: cannot draw this" in capfd.readouterr().err
+    assert (tmp_path / "b").read_text() == "x"  # the other one is drawn all the same
 
 
 def test_simulate_draws_run_png_without_matplotlib_in_its_process(tmp_path):
