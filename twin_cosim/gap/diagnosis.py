@@ -50,7 +50,7 @@ from twin_cosim.gap.residuals import (
     residuals_of,
     validation_figures,
 )
-from twin_cosim.gap.rounds import Marginal, Pair, Round, Selection, Swap
+from twin_cosim.gap.rounds import Candidate, Marginal, Pair, Round, Selection, Swap
 from twin_cosim.gap.selection import Selector
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
@@ -215,6 +215,19 @@ def _metrics(c: MetricComparison) -> dict[str, Any]:
     }
 
 
+def _acceptance_tests(c: Candidate) -> dict[str, Any]:
+    """What a candidate's acceptance tests measured (a round's candidates and a swap's rival)."""
+    return {
+        "holdout_reduction": c.reduction,
+        "reduction_beyond_calibration": c.reduction_beyond_calibration,
+        "evidence_z": c.evidence_z,
+        "critical_z": c.critical_z,
+        "excess_share": c.excess_share,
+        "fair_share": c.fair_share,
+        "size_above_tolerance": c.size_above_tolerance,
+    }
+
+
 def _row(c, round_: Round) -> dict[str, Any]:
     fit = c.fit
     return {
@@ -227,13 +240,7 @@ def _row(c, round_: Round) -> dict[str, Any]:
         "holdout_gap_after_um": c.position_rms_um,
         "holdout_current_before_A": round_.current_rms,
         "holdout_current_after_A": c.current_rms,
-        "holdout_reduction": c.reduction,
-        "reduction_beyond_calibration": c.reduction_beyond_calibration,
-        "evidence_z": c.evidence_z,
-        "critical_z": c.critical_z,
-        "excess_share": c.excess_share,
-        "fair_share": c.fair_share,
-        "size_above_tolerance": c.size_above_tolerance,
+        **_acceptance_tests(c),
         "explained_normalised_rms": c.explained,
         "calibration_floor_normalised_rms": round_.calibration.explained,
         "consistent": c.consistent,
@@ -283,13 +290,7 @@ def _swap_row(w: Swap) -> dict[str, Any]:
         "holdout_normalised_rms_after": c.holdout_rms,
         "holdout_gap_after_um": c.position_rms_um,
         "holdout_current_after_A": c.current_rms,
-        "holdout_reduction": c.reduction,
-        "reduction_beyond_calibration": c.reduction_beyond_calibration,
-        "evidence_z": c.evidence_z,
-        "critical_z": c.critical_z,
-        "excess_share": c.excess_share,
-        "fair_share": c.fair_share,
-        "size_above_tolerance": c.size_above_tolerance,
+        **_acceptance_tests(c),
         "consistent": c.consistent,
         "passes": c.passes,
         "kept": w.kept,
