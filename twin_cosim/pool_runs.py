@@ -25,8 +25,8 @@ RunTask = tuple["Scenario", "TunedParameters | None"]  # a scenario and a set (N
 
 def prepare_worker(modules: tuple[str, ...] = ()) -> None:
     """What a pool's process does as it starts, before its first task: import the co-simulation
-    (numpy, pandas, fmpy), load the compiled loops and import ``modules`` (those of its
-    workers), while the parent prepares.
+    (numpy, fmpy; pandas only where a task asks for a DataFrame), load the compiled loops and
+    import ``modules`` (those of its workers), while the parent prepares.
 
     A pool of campaign or diagnosis workers takes :func:`prepare_campaign_worker` or
     :func:`prepare_replay_worker`.
