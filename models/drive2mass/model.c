@@ -405,6 +405,7 @@ void model_update_outputs(ModelInstance *inst, double t) {
     int k;
     load_state(inst, x);
     for (k = 0; k < NOISE_HARMONICS; k++) {
+        if (s->noise_amplitude[k] == 0.0) continue;   /* adds +-0: the sum is the same */
         noise += s->noise_amplitude[k] * sin(s->noise_omega[k] * t + s->noise_phase[k]);
     }
     v->motor_angle = s->motor_angle;
