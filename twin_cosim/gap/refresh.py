@@ -8,7 +8,9 @@ transfer machine: 0.107 N.m at 0.87 rad/s for 0.160 N.m at 0.58 rad/s). So, befo
 pass, each accepted effect fitted by least squares is refitted with the full global search
 (:class:`~twin_cosim.gap.replay.FitTask` without a start) on top of the others as they are
 now; the refit that leaves the least after the best calibration correction on the held-out
-data replaces its effect when it leaves less than the model as it is.
+data replaces its effect when it leaves less than the model as it is. The selection runs it
+when the forward rounds end and after a swap, before the next swaps are judged
+(:meth:`twin_cosim.gap.selection.Selector.run`).
 """
 
 from __future__ import annotations
@@ -26,8 +28,9 @@ if TYPE_CHECKING:
 
 def refresh(
     selector: SelectorView, accepted: list[Accepted], base: dict[str, float], replays: Replays
-) -> tuple[dict[str, float], Replays]:
-    """The model with its best cold refit of one accepted effect, or as it is.
+) -> tuple[dict[str, float], Replays] | None:
+    """The model with its best cold refit of one accepted effect, or None when no refit
+    leaves less than the model as it is.
 
     Parameters
     ----------
@@ -40,11 +43,12 @@ def refresh(
 
     Returns
     -------
-    tuple
-        FMU parameters and replays of the model kept.
+    tuple or None
+        FMU parameters and replays of the model with the refit (None: a single effect, or no
+        refit leaves less).
     """
     if len(accepted) < 2:
-        return base, replays
+        return None
     movable = [a for a in accepted if selector.library[a.name].kind == "continuous"]
     others = [
         {k: v for k, v in base.items() if k not in selector.library[a.name].sets} for a in movable
@@ -63,7 +67,7 @@ def refresh(
         if left < best:
             best, choice = left, (effect, fit, trial)
     if choice is None:
-        return base, replays
+        return None
     effect, fit, trial = choice
     effect.values = tuple(fit.values.values())
     return dict(fit.overrides), trial

@@ -18,10 +18,13 @@ When no single hypothesis passes, pairs are screened (:mod:`twin_cosim.gap.pairs
 only pay off together: after each accepted effect, all accepted effects are refitted together on
 the training data (each on top of the FMU parameters of those before it), and the joint fit is
 kept when it judges better on the held-out data. When the forward rounds end, each accepted
-effect may be swapped for a rival that passed its round (:mod:`twin_cosim.gap.swaps`; the
-rounds resume after a swap while more effects are allowed); then each accepted effect is
-refitted from a cold start on top of the others (:mod:`twin_cosim.gap.refresh`), and the
-backward pass (:mod:`twin_cosim.gap.backward`) drops the effects the joint model does not
+effect is refitted from a cold start on top of the others (:mod:`twin_cosim.gap.refresh`;
+the rounds resume when a refit replaced its effect and more effects are allowed), then each
+accepted effect may be swapped for a rival that passed its round (:mod:`twin_cosim.gap.swaps`;
+the model after a swap is refitted cold in turn, and the rounds resume while more effects are
+allowed). The swaps are judged against the refitted model: an effect accepted early and
+fitted while later ones were missing can make a wrong rival look better than the model. The
+backward pass (:mod:`twin_cosim.gap.backward`) then drops the effects the joint model does not
 need.
 """
 
@@ -125,7 +128,8 @@ class Selector:
         later = periodic + self.settings.later_round_candidates
         rounds = self.settings.max_effects
         pairs = 2 * math.comb(self.settings.pair_candidates, 2)
-        refreshes = swaps = 2 * rounds  # swaps: one rival per accepted effect
+        swaps = 2 * rounds  # one rival per accepted effect
+        refreshes = 2 * rounds * (rounds + 1)  # after each accepted effect and a swap
         return (
             per_round * (rounds + 1)
             + 2 * first
@@ -183,9 +187,10 @@ class Selector:
         return self.tasks("calibrated_replays", [SimulateTask(corrected)])[0]
 
     def run(self, start: Replays) -> Selection:
-        """Forward selection with joint refits from the replays of the nominal twin, swaps of
-        accepted effects for rivals of their round (the forward rounds resume after a swap
-        while more effects are allowed), cold refits, then the backward pass."""
+        """Forward selection with joint refits from the replays of the nominal twin, cold
+        refits of the accepted effects and swaps for rivals of their round (the forward rounds
+        resume after a refit that replaced its effect or a swap, while more effects are
+        allowed), then the backward pass."""
         settings = self.settings
         accepted: list[Accepted] = []
         rounds: list[Round] = []
@@ -194,19 +199,30 @@ class Selector:
         replays = start
         remaining = list(settings.hypotheses or self.library)
         starts: dict[str, tuple[float, ...]] = {}
+        fresh = False  # the model refitted cold since it last changed
         while True:
+            count = len(accepted)
             base, replays, starts = self._forward(
                 accepted, rounds, base, replays, remaining, starts
             )
+            fresh = fresh and len(accepted) == count
+            if not fresh:
+                fresh = True
+                refitted = refresh(self, accepted, base, replays)
+                if refitted is not None:
+                    base, replays = refitted
+                    if len(accepted) < settings.max_effects:
+                        remaining = self._not_accepted(accepted)
+                        continue
             swapped = swap(self, rounds, accepted, base, replays, swaps)
             if swapped is None:
                 break
             base, replays = swapped
+            fresh = False
             if len(accepted) >= settings.max_effects:
+                base, replays = refresh(self, accepted, base, replays) or (base, replays)
                 break
-            names = {a.name for a in accepted}
-            remaining = [n for n in (settings.hypotheses or self.library) if n not in names]
-        base, replays = refresh(self, accepted, base, replays)
+            remaining = self._not_accepted(accepted)
         accepted, base, replays, marginal, dropped = backward(self, accepted, base, replays, start)
         vector = self.judging.vector(self.judging.residuals(replays))
         floor = floor_of(self.basis(base), vector)
@@ -324,6 +340,11 @@ class Selector:
         if left_joint < np.linalg.norm(self.left(sequential, replays)):
             return joint, joint_replays
         return sequential, replays
+
+    def _not_accepted(self, accepted: list[Accepted]) -> list[str]:
+        """The hypotheses a resumed round fits: all but the accepted effects."""
+        names = {a.name for a in accepted}
+        return [n for n in (self.settings.hypotheses or self.library) if n not in names]
 
     def _next_candidates(self, done: Round, fitted: set[str], remaining: list[str]) -> list[str]:
         """Periodic hypotheses and the best of the round by held-out reduction; a look-alike of
