@@ -167,11 +167,11 @@ def _run_on(
     from twin_cosim.optimize.cases import campaign_scenarios
 
     spec, out = _spec_and_folder(args)
-    if painter is not None:
+    scenarios = campaign_scenarios(spec)
+    if painter is not None:  # the painter resolves them as this process did
         from twin_cosim.optimize.outputs import start_campaign_plots
 
         start_campaign_plots(spec, painter)
-    scenarios = campaign_scenarios(spec)
     if not args.resume:
         warn_plant_mismatch(scenarios[0], plant_path(args))
     try:
