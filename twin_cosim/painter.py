@@ -4,10 +4,12 @@ matplotlib's import (about a third of a second) and the drawing are most of what
 for when a quick command ends with a figure. A command forks the painter at its start, before it
 loads a plant or numpy (nothing to inherit but the interpreter), goes on with its work, writes
 its results, then hands the painter the drawing function and its arguments and waits for the
-figure (a drawing function may draw several side by side: :func:`draw_side_by_side`). The
-painter ends without drawing when its command ends without handing it anything (an
-error, an interrupt, ``kill -9``: the pipe closes). Where ``os.fork`` does not exist the figure
-is drawn in the command's own process.
+figure (a drawing function may draw several side by side: :func:`draw_side_by_side`). A
+command that knows part of its figure's data early (e.g. the run of a campaign's own set) hands
+the painter that computation first (:meth:`Painter.prepare`): the painter does it while the
+command works, and its drawing function receives the value. The painter ends without drawing
+when its command ends without handing it a figure (an error, an interrupt, ``kill -9``: the pipe
+closes). Where ``os.fork`` does not exist the figure is drawn in the command's own process.
 """
 
 from __future__ import annotations
@@ -18,21 +20,28 @@ import pickle
 import signal
 import sys
 from collections.abc import Callable
-from typing import Any
+from typing import Any, BinaryIO
 
 # Called by the painter while it waits: imports matplotlib, its PNG backend and fonts
 WARM_UP = "twin_cosim.plots:warm_up"
+
+# The messages a command hands its painter: (kind, "module:function", arguments), pickled
+_PREPARE = "prepare"
+_DRAW = "draw"
 
 
 class Painter:
     """One figure drawn by a forked process (or here, without ``os.fork``).
 
-    Use :meth:`start` at the command's start, :meth:`draw` once its results are written.
+    Use :meth:`start` at the command's start, :meth:`prepare` (optional) once the figure's
+    early data is known, :meth:`draw` once its results are written. A message is small (the
+    painter computes what it needs from it): a command never waits for a busy painter to read.
     """
 
-    def __init__(self, pid: int | None, write_end: int | None) -> None:
+    def __init__(self, pid: int | None, pipe: BinaryIO | None) -> None:
         self.pid = pid
-        self.write_end = write_end
+        self.pipe = pipe
+        self._preparation: tuple[str, tuple[Any, ...]] | None = None  # without os.fork
 
     @classmethod
     def start(cls) -> Painter:
@@ -47,34 +56,61 @@ class Painter:
             os.close(write_end)
             os._exit(_paint(read_end))
         os.close(read_end)
-        return cls(pid, write_end)
+        return cls(pid, os.fdopen(write_end, "wb"))
+
+    def prepare(self, function: str, *arguments: Any) -> None:
+        """Have the painter compute ``function(*arguments)`` now, while this process goes on;
+        the drawing function of :meth:`draw` receives its value as its first argument.
+
+        ``function`` is named ``"module:function"``, like the drawing function.
+        """
+        if self.pid is None:
+            self._preparation = (function, arguments)
+            return
+        self._send(_PREPARE, function, arguments)
 
     def draw(self, function: str, *arguments: Any) -> bool:
-        """Draw ``function(*arguments)`` and wait for it; True when the figure was drawn (the
-        painter says why on stderr otherwise).
+        """Draw ``function(*arguments)`` (after :meth:`prepare`: ``function(prepared,
+        *arguments)``) and wait for it; True when the figure was drawn (the painter says why on
+        stderr otherwise).
 
         ``function`` is named ``"module:function"``, so that this process never imports what
         draws (matplotlib).
         """
         if self.pid is None:
+            if self._preparation is not None:
+                prepare, given = self._preparation
+                arguments = (_resolve(prepare)(*given), *arguments)
             _resolve(function)(*arguments)
             return True
-        payload = pickle.dumps((function, arguments), protocol=pickle.HIGHEST_PROTOCOL)
-        try:
-            with os.fdopen(self.write_end, "wb") as pipe:
-                self.write_end = None
-                pipe.write(payload)
-        except BrokenPipeError:  # the painter died (it said why)
-            pass
+        self._send(_DRAW, function, arguments)
+        self._close_pipe()
         return self._wait() == 0
 
     def close(self) -> None:
         """End the painter without a figure (its command ends without one)."""
-        if self.write_end is not None:
-            os.close(self.write_end)
-            self.write_end = None
+        self._close_pipe()
         if self.pid is not None:
             self._wait()
+
+    def _send(self, kind: str, function: str, arguments: tuple[Any, ...]) -> None:
+        """Hand the painter one message (a painter that died said why; :meth:`draw` reports
+        its status)."""
+        try:
+            pickle.dump((kind, function, arguments), self.pipe, pickle.HIGHEST_PROTOCOL)
+            self.pipe.flush()
+        except BrokenPipeError:
+            pass
+
+    def _close_pipe(self) -> None:
+        """Close this end of the pipe: the painter reads the end of its messages."""
+        if self.pipe is None:
+            return
+        try:
+            self.pipe.close()
+        except BrokenPipeError:  # what was left to flush had no reader
+            pass
+        self.pipe = None
 
     def _wait(self) -> int:
         """The painter's exit status (0: drawn), once it has ended."""
@@ -84,17 +120,23 @@ class Painter:
 
 
 def _paint(read_end: int) -> int:  # pragma: no cover - runs in the forked child
-    """The painter's life: import, read its figure (none: end), draw; the exit code."""
+    """The painter's life: import, then the command's messages: compute what is to prepare,
+    draw the figure (no figure: end); the exit code."""
     try:
         signal.signal(signal.SIGINT, signal.SIG_DFL)  # Ctrl-C ends it with its command
         _resolve(WARM_UP)()
+        prepared: tuple[Any, ...] = ()
         with os.fdopen(read_end, "rb") as pipe:
-            payload = pipe.read()
-        if not payload:
-            return 0
-        function, arguments = pickle.loads(payload)
-        _resolve(function)(*arguments)
-        return 0
+            while True:
+                try:
+                    kind, function, arguments = pickle.load(pipe)
+                except EOFError:  # the command ended without a figure
+                    return 0
+                if kind == _PREPARE:
+                    prepared = (_resolve(function)(*arguments),)
+                    continue
+                _resolve(function)(*prepared, *arguments)
+                return 0
     except Exception as error:  # any failure of the drawing: said, and the figure is missing
         print(f"twin: error: the figure was not drawn: {error}", file=sys.stderr, flush=True)
         return 1

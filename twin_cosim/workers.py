@@ -268,6 +268,29 @@ def _children_start_blocking_interrupts() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
+# Environment variables of the BLAS thread count (OpenBLAS, which numpy and SciPy ship, and
+# OpenMP builds)
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")
+
+
+@contextmanager
+def _children_with_one_blas_thread() -> Iterator[None]:
+    """Processes started in this block use one BLAS thread, unless the user set the count.
+
+    The pool's processes fill the cores, and their linear algebra is small (the fits of a
+    diagnosis, a metric): more BLAS threads would only spin beside the other processes. This
+    process keeps its own setting (spawned children read the environment as they start).
+    """
+    added = [name for name in BLAS_THREAD_VARIABLES if name not in os.environ]
+    for name in added:
+        os.environ[name] = "1"
+    try:
+        yield
+    finally:
+        for name in added:
+            os.environ.pop(name, None)
+
+
 def _run_in_process(task: Any, factory_file: str | None) -> Any:
     """Run ``task`` on the worker of the factory stored in ``factory_file`` (None: the pool's
     own), building it first when this process holds another factory's."""
@@ -321,7 +344,11 @@ class ProcessPool:
             initargs=(factory, self.folder, os.getpid(), prepare),
         )
         try:
-            with deferred_signals(), _children_start_blocking_interrupts():
+            with (
+                deferred_signals(),
+                _children_start_blocking_interrupts(),
+                _children_with_one_blas_thread(),
+            ):
                 for _ in range(self.workers):  # each submit starts one process
                     self.executor.submit(_started)
         except BaseException:  # Ctrl-C meanwhile: nothing is left running

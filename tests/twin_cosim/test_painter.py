@@ -33,6 +33,46 @@ def test_the_figure_is_drawn_by_the_painter_and_it_is_gone_after(tmp_path):
     assert not os.path.exists(f"/proc/{pid}")  # reaped, not a zombie
 
 
+def _prepare(text: str) -> str:
+    """A stand-in preparation: what the figure is drawn from, made before the figure."""
+    return text.upper()
+
+
+def _write_prepared(prepared: str, path: Path, suffix: str) -> None:
+    path.write_text(prepared + suffix)
+
+
+def _fail_to_prepare(text: str) -> str:
+    raise ValueError(f"cannot prepare {text}")
+
+
+@pytest.mark.parametrize("forked", [True, False])
+def test_what_is_prepared_reaches_the_drawing_function_first(tmp_path, monkeypatch, forked):
+    if not forked:  # a platform without os.fork: the painter is this process
+        monkeypatch.delattr(os, "fork")
+    painter = Painter.start()
+    assert (painter.pid is not None) == forked
+    painter.prepare(f"{__name__}:_prepare", "early data")
+    assert painter.draw(f"{__name__}:_write_prepared", tmp_path / "f.txt", "!")
+    assert (tmp_path / "f.txt").read_text() == "EARLY DATA!"
+
+
+def test_a_failed_preparation_is_said_and_the_figure_reported_missing(tmp_path, capfd):
+    painter = Painter.start()
+    painter.prepare(f"{__name__}:_fail_to_prepare", "this")
+    assert not painter.draw(f"{__name__}:_write_prepared", tmp_path / "f.txt", "!")
+    assert "the figure was not drawn: cannot prepare this" in capfd.readouterr().err
+    assert not (tmp_path / "f.txt").exists()
+
+
+def test_a_painter_closed_after_a_preparation_ends_without_drawing(tmp_path):
+    painter = Painter.start()
+    pid = painter.pid
+    painter.prepare(f"{__name__}:_prepare", "x")
+    painter.close()
+    assert not os.path.exists(f"/proc/{pid}")
+
+
 def test_a_painter_closed_without_a_figure_ends_without_drawing():
     painter = Painter.start()
     pid = painter.pid

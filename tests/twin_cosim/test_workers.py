@@ -174,6 +174,38 @@ def test_one_pool_serves_several_factories_in_turn(private_tmp, workers):
     assert list(private_tmp.iterdir()) == []
 
 
+class BlasThreadsWorker:
+    """A worker that answers the BLAS thread counts its process was started with."""
+
+    def __call__(self, task: object) -> tuple[str | None, str | None]:
+        return os.environ.get("OPENBLAS_NUM_THREADS"), os.environ.get("OMP_NUM_THREADS")
+
+    def close(self) -> None:
+        pass
+
+
+class BlasThreads:
+    def build(self) -> BlasThreadsWorker:
+        return BlasThreadsWorker()
+
+
+@pytest.mark.parametrize("user_setting", [None, "3"])
+def test_the_pool_processes_use_one_blas_thread_unless_the_user_said(
+    private_tmp, monkeypatch, user_setting
+):
+    """The processes fill the cores: BLAS threads beside them would only spin. A count the
+    user set is kept, and this process's own environment is left as it was."""
+    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+        monkeypatch.delenv(name, raising=False)
+    if user_setting is not None:
+        monkeypatch.setenv("OPENBLAS_NUM_THREADS", user_setting)
+    with make_pool(BlasThreads(), 2) as pool:
+        answers = {result for _, result in pool.imap(range(4))}
+    assert answers == {(user_setting or "1", "1")}
+    assert os.environ.get("OPENBLAS_NUM_THREADS") == user_setting
+    assert "OMP_NUM_THREADS" not in os.environ
+
+
 def wait_for_ever() -> None:
     """A preparation that never ends."""
     while True:

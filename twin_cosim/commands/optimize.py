@@ -168,6 +168,10 @@ def _run_on(
 
     spec, out = _spec_and_folder(args)
     scenarios = campaign_scenarios(spec)
+    if painter is not None:  # the painter resolves them as this process did
+        from twin_cosim.optimize.outputs import start_campaign_plots
+
+        start_campaign_plots(spec, painter)
     if not args.resume:
         warn_plant_mismatch(scenarios[0], plant_path(args))
     try:
@@ -191,7 +195,7 @@ def _run_on(
         from twin_cosim.optimize.outputs import write_campaign_plots
 
         sys.stdout.flush()  # the result shows while the figures are drawn
-        drawn = write_campaign_plots(out, spec, scenarios[0], painter)
+        drawn = write_campaign_plots(out, spec, painter)
     if not args.json:
         plots = ", convergence.png, best_run.png" if painter is not None and drawn else ""
         print(f"wrote {out}/result.json, evaluations.jsonl{plots}")

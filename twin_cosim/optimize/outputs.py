@@ -1,15 +1,16 @@
 """Figures of optimizer campaigns: convergence and the best run against the reference set.
 
 A campaign's two figures are drawn by the command's painter (:mod:`twin_cosim.painter`,
-forked at the command's start: matplotlib is loaded while the campaign runs), side by side (the
-best run's records made where they are drawn); the command's process loads neither matplotlib
-nor the plant.
+forked at the command's start: matplotlib is loaded and the own set's run made while the
+campaign runs), side by side (the best run's record made where it is drawn); the command's
+process loads neither matplotlib nor the plant.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Mapping
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -25,6 +26,7 @@ from twin_cosim.scenario import Scenario, with_controller_set
 
 if TYPE_CHECKING:
     from twin_cosim.painter import Painter
+    from twin_cosim.run_record import RunRecord
 
 # Statuses of the evaluations shown apart from the valid runs: (marker, what it means)
 SET_APART = {
@@ -99,77 +101,95 @@ def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
     return path
 
 
-def write_campaign_plots(
-    out_dir: Path, spec: CampaignSpec, scenario: Scenario, painter: Painter
-) -> bool:
+@dataclass(frozen=True)
+class OwnSetRun:
+    """What both figures of a campaign start from, made by the painter while the campaign
+    runs (:func:`start_campaign_plots`): the campaign's first scenario (resolved), the plant
+    FMU it runs on, and the run of the scenario's own set."""
+
+    scenario: Scenario
+    fmu: str
+    record: RunRecord
+
+
+def start_campaign_plots(spec: CampaignSpec, painter: Painter) -> None:
+    """Have ``painter`` run the campaign's own set now (:func:`run_own_set`), while the
+    campaign runs; :func:`write_campaign_plots` then draws with it."""
+    painter.prepare(f"{__name__}:run_own_set", spec)
+
+
+def run_own_set(spec: CampaignSpec) -> OwnSetRun:
+    """The campaign's first scenario, resolved as the campaign resolves it
+    (:func:`~twin_cosim.optimize.cases.campaign_scenarios`), run with its own set."""
+    from twin_cosim.optimize.cases import campaign_scenarios
+
+    scenario = campaign_scenarios(spec)[0]
+    fmu = str(scenario.plant_fmu(spec.fmu))
+    return OwnSetRun(scenario, fmu, _run_record(fmu, scenario))
+
+
+def write_campaign_plots(out_dir: Path, spec: CampaignSpec, painter: Painter) -> bool:
     """``convergence.png`` and ``best_run.png`` (best set against the scenario's own set), drawn
-    by ``painter``; True when both were drawn (the painter says why otherwise).
+    by ``painter`` after :func:`start_campaign_plots`; True when both were drawn (the painter
+    says why otherwise).
 
     Parameters
     ----------
     out_dir
         Folder of a finished campaign (its ``result.json`` and ``evaluations.jsonl``).
     spec
-        The campaign's spec (method, seed, plant FMU).
-    scenario
-        The campaign's first scenario, resolved (:func:`campaign_scenarios`).
+        The campaign's spec (method, seed, scenarios, plant FMU).
     painter
         The command's painter (:mod:`twin_cosim.painter`), started with the command.
     """
-    out_dir = Path(out_dir)
-    result = json.loads((out_dir / "result.json").read_text())
-    best = with_controller_set(scenario, controller_set_of(result))
-    label = method_label(spec.method)
-    title = f"{scenario.name}: {label} campaign, seed {spec.seed}"
-    fmu = str(scenario.plant_fmu(spec.fmu))
-    return painter.draw(
-        f"{__name__}:draw_campaign_figures", out_dir, fmu, scenario, best, label, title
-    )
+    return painter.draw(f"{__name__}:draw_campaign_figures", Path(out_dir), spec)
 
 
-def draw_campaign_figures(
-    out_dir: Path, fmu: str, scenario: Scenario, best: Scenario, label: str, title: str
-) -> None:
+def draw_campaign_figures(own: OwnSetRun, out_dir: Path, spec: CampaignSpec) -> None:
     """Draw a campaign's two figures side by side (run by its painter).
 
     Parameters
     ----------
+    own
+        The run of the campaign's own set (:func:`run_own_set`).
     out_dir
-        The campaign folder; the figures are written there.
-    fmu
-        The plant FMU both sets of ``best_run.png`` run on.
-    scenario, best
-        The campaign's first scenario with its own set, and with the best set.
-    label
-        The method's label for people (CE, GA, ...).
-    title
-        Title of ``best_run.png``.
+        The campaign folder: its ``result.json`` and ``evaluations.jsonl`` are read, the figures
+        written there.
+    spec
+        The campaign's spec (method, seed).
     """
     from twin_cosim.painter import draw_side_by_side
 
+    result = json.loads((out_dir / "result.json").read_text())
+    best = with_controller_set(own.scenario, controller_set_of(result))
+    label = method_label(spec.method)
+    title = f"{own.scenario.name}: {label} campaign, seed {spec.seed}"
     draw_side_by_side(
         partial(plot_convergence, {label: out_dir}, out_dir / "convergence.png"),
-        partial(plot_best_run, fmu, scenario, best, label, title, out_dir / "best_run.png"),
+        partial(plot_best_run, own, best, label, title, out_dir / "best_run.png"),
     )
 
 
-def plot_best_run(
-    fmu: str, scenario: Scenario, best: Scenario, label: str, title: str, path: Path
-) -> Path:
-    """The best set's run against the scenario's own set on the plant ``fmu``, close-up on the
-    own set's peak error, written to ``path`` (``label``: the method's label)."""
+def plot_best_run(own: OwnSetRun, best: Scenario, label: str, title: str, path: Path) -> Path:
+    """The best set's run against the scenario's own set (its run ``own``), close-up on the own
+    set's peak error, written to ``path`` (``label``: the method's label)."""
+    from twin_cosim.plots import plot_error_comparison  # where figures are drawn only
+
+    runs = {
+        set_name(own.scenario.tuned): own.record,
+        f"best {label}": _run_record(own.fmu, best),
+    }
+    peak = compute_metrics(own.record, own.scenario.metrics_window).t_E_pk
+    return plot_error_comparison(runs, peak, title, path)
+
+
+def _run_record(fmu: str, scenario: Scenario) -> RunRecord:
+    """The run of ``scenario`` on a plant of ``fmu``."""
     from twin_cosim.cosim import run_scenario_record  # where figures are drawn only
     from twin_cosim.plant import Plant
-    from twin_cosim.plots import plot_error_comparison
 
     plant = Plant(fmu)
     try:
-        own = set_name(scenario.tuned)
-        runs = {
-            own: run_scenario_record(plant, scenario),
-            f"best {label}": run_scenario_record(plant, best),
-        }
+        return run_scenario_record(plant, scenario)
     finally:
         plant.close()
-    peak = compute_metrics(runs[own], scenario.metrics_window).t_E_pk
-    return plot_error_comparison(runs, peak, title, path)
