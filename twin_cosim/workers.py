@@ -268,6 +268,20 @@ def _children_start_blocking_interrupts() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
+def tasks_to_give(
+    pending: Iterator[tuple[int, Any]], running: int, in_flight: int | None
+) -> Iterator[tuple[int, Any]]:
+    """The (index, task) pairs of ``pending`` to give out now, with ``running`` tasks out: until
+    ``in_flight`` are out (None: every one left). Each is taken from ``pending`` as it is given
+    out, so a task made by a generator may use every result before it."""
+    while in_flight is None or running < in_flight:
+        taken = next(pending, None)
+        if taken is None:
+            return
+        running += 1
+        yield taken
+
+
 # Environment variables of the BLAS thread count (OpenBLAS, which numpy and SciPy ship, and
 # OpenMP builds)
 BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")
@@ -386,12 +400,9 @@ class ProcessPool:
 
         def give_out() -> None:
             with deferred_signals():
-                while in_flight is None or len(self._running) < in_flight:
-                    taken = next(pending, None)
-                    if taken is None:
-                        return
-                    future = self.executor.submit(_run_in_process, taken[1], self._factory_file)
-                    futures[future] = taken[0]
+                for index, task in tasks_to_give(pending, len(self._running), in_flight):
+                    future = self.executor.submit(_run_in_process, task, self._factory_file)
+                    futures[future] = index
                     self._running.add(future)
 
         give_out()

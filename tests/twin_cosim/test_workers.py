@@ -20,7 +20,7 @@ from scenario_texts import scenario_text
 
 from twin_cosim.optimize.objective import ObjectiveSpec
 from twin_cosim.scenario import load_scenario
-from twin_cosim.workers import ProcessPool, command_temp_folder, make_pool
+from twin_cosim.workers import ProcessPool, command_temp_folder, make_pool, tasks_to_give
 
 ROOT = Path(__file__).resolve().parents[2]
 SHORT = scenario_text(back=False)
@@ -172,6 +172,34 @@ def test_one_pool_serves_several_factories_in_turn(private_tmp, workers):
     assert [(tag, task) for tag, task, _ in second + again] == [("b", 5), ("b", 6), ("b", 7)]
     assert {pid for *_, pid in second + again} <= {pid for *_, pid in first}
     assert list(private_tmp.iterdir()) == []
+
+
+def test_tasks_are_given_until_in_flight_are_out():
+    pending = enumerate("abcde")
+    assert list(tasks_to_give(pending, 1, 3)) == [(0, "a"), (1, "b")]
+    assert list(tasks_to_give(pending, 3, 3)) == []
+    assert list(tasks_to_give(pending, 0, None)) == [(2, "c"), (3, "d"), (4, "e")]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_task_is_made_only_when_a_worker_takes_it(private_tmp, workers):
+    """With ``in_flight`` the generator of tasks runs only as results are consumed: each task is
+    made with fewer than ``in_flight`` tasks out, and may use every result consumed before."""
+    consumed: list[int] = []
+    made_after: list[int] = []
+
+    def tasks():
+        for task in range(8):
+            made_after.append(len(consumed))
+            yield task
+
+    with make_pool(Tagged("a"), workers) as pool:
+        for _, (_, task, _) in pool.imap(tasks(), in_flight=2):
+            consumed.append(task)
+    assert sorted(consumed) == list(range(8))
+    first_out = min(workers, 2)  # a serial pool takes one task at a time
+    assert made_after[:first_out] == [0] * first_out
+    assert all(0 <= k - n < 2 for k, n in enumerate(made_after))
 
 
 class BlasThreadsWorker:

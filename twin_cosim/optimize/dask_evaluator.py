@@ -27,6 +27,7 @@ from distributed.comm.core import CommClosedError
 from twin_cosim.interrupts import deferred_signals, wait_interruptibly
 from twin_cosim.optimize.evaluator_protocol import Result, SchedulerError
 from twin_cosim.optimize.objective import Objective, ObjectiveSpec
+from twin_cosim.workers import tasks_to_give
 
 LOG = logging.getLogger(__name__)
 PLUGIN_NAME = "twin-objective"
@@ -145,12 +146,9 @@ class DaskEvaluator:
 
         def give_out() -> None:
             with deferred_signals():  # Ctrl-C never lands inside the client's machinery
-                while in_flight is None or len(index) < in_flight:
-                    taken = next(pending, None)
-                    if taken is None:
-                        return
-                    future = self.client.submit(_evaluate_on_worker, taken[1], pure=False)
-                    index[future.key] = taken[0]
+                for i, task in tasks_to_give(pending, len(index), in_flight):
+                    future = self.client.submit(_evaluate_on_worker, task, pure=False)
+                    index[future.key] = i
                     future.add_done_callback(finished.put)
 
         try:

@@ -188,8 +188,5 @@ def _run_record(fmu: str, scenario: Scenario) -> RunRecord:
     from twin_cosim.cosim import run_scenario_record  # where figures are drawn only
     from twin_cosim.plant import Plant
 
-    plant = Plant(fmu)
-    try:
+    with Plant(fmu) as plant:
         return run_scenario_record(plant, scenario)
-    finally:
-        plant.close()
