@@ -49,7 +49,7 @@ from twin_cosim.controller import TUNED_NAMES, TunedParameters
 from twin_cosim.cosim import RunAborted
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.config import DEFAULT_BOUNDS, OptimizeConfig
-from twin_cosim.optimize.early_stop import lower_bound_above
+from twin_cosim.optimize.early_stop import OwnEvaluations, lower_bound_above
 from twin_cosim.optimize.objective import EvaluationTask, evaluation_result
 from twin_cosim.plant import PlantError
 from twin_cosim.scenario.machine import MachineScenario
@@ -242,6 +242,7 @@ class ContourObjective:
         self.spec = spec
         self.plants = MachinePlants(spec.machine)
         self._order = list(range(len(spec.cases)))
+        self._own = OwnEvaluations()
 
     def reference_values(self) -> list[dict[str, Any]]:
         """Each case's values with the machine's own sets (the reference)."""
@@ -249,7 +250,8 @@ class ContourObjective:
         return [case_values(machine, self.plants, case, math.inf) for case in self.spec.cases]
 
     def __call__(self, task: EvaluationTask | np.ndarray) -> dict[str, Any]:
-        """Evaluate one candidate (an EvaluationTask or a vector of every axis' parameters).
+        """Evaluate one candidate (an EvaluationTask, its cutoff lowered by this worker's own
+        complete evaluations of its generation, or a vector of every axis' parameters).
 
         Returns
         -------
@@ -258,9 +260,10 @@ class ContourObjective:
             ``reason``, ``metrics`` (the worst case's target value and per case the values) and
             ``steps`` (speed-loop steps simulated, all axes).
         """
-        x, cutoff = (
-            (task.x, task.cutoff_um) if isinstance(task, EvaluationTask) else (task, math.inf)
-        )
+        return self._own.evaluate(task, self._evaluate)
+
+    def _evaluate(self, x: np.ndarray, cutoff: float) -> dict[str, Any]:
+        """The result of :meth:`__call__` for ``x`` with cutoff ``cutoff`` (um)."""
         settings = self.spec.settings
         config = settings.config
         failure = 2.0 * config.penalty_um

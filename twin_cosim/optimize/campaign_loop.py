@@ -5,9 +5,11 @@ inside the bounds. Resuming replays the optimizer from its seed, answering from 
 batch already evaluated, so a resumed campaign ends exactly where an uninterrupted one would.
 
 Early stopping (CE, on by default where exact, see :mod:`twin_cosim.optimize.early_stop`): a
-generation's candidates go out one per free worker (as many at a time as there are workers),
-each with the cutoff known when it goes; a stopped candidate's lower bound is reused from the
-log only within its own generation (elsewhere it is evaluated again). Without early stopping a
+generation's candidates go out one at a time, one more at a time than there are workers (a
+worker that finishes finds its next candidate waiting), each with the cutoff known when it goes
+and its generation's key, by which the worker lowers that cutoff with its own complete
+evaluations of the generation; a stopped candidate's lower bound is reused from the log only
+within its own generation (elsewhere it is evaluated again). Without early stopping a
 generation goes out at once.
 """
 
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import math
+import secrets
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,7 +29,7 @@ from twin_cosim.optimize.algorithms.base import Optimizer
 from twin_cosim.optimize.campaign_folder import write_progress
 from twin_cosim.optimize.campaign_spec import CampaignError
 from twin_cosim.optimize.config import OptimizeConfig
-from twin_cosim.optimize.early_stop import elite_cutoff, guess_above
+from twin_cosim.optimize.early_stop import elite_count, elite_cutoff, guess_above
 from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
 from twin_cosim.optimize.evaluation_order import likeliest_best_first
 from twin_cosim.optimize.evaluator_protocol import Evaluator, SchedulerError
@@ -50,7 +53,8 @@ class AskTellLoop:
     evaluator
         Scores the candidates the log cannot answer.
     early_stop
-        Send candidates in groups of ``evaluator.workers`` with the cutoff known then.
+        Send candidates one at a time, ``evaluator.workers + 1`` out at a time, each with the
+        cutoff known then.
     bar
         Progress bar (evaluations).
     """
@@ -73,6 +77,7 @@ class AskTellLoop:
         self.logged_before = {entry["key"] for entry in log.entries}
         self.reused = 0  # answers from entries logged before this run
         self.guess = math.inf  # the guess of the next generation's cutoff (um)
+        self.key = secrets.token_hex(8)  # with the generation's number: its key for the workers
 
     def run(self, out_dir: Path, start: float) -> None:
         """Ask and tell until the optimizer stops; the log synced to disk and ``progress.json``
@@ -134,8 +139,10 @@ class AskTellLoop:
         guess: float,
         again: bool,
     ) -> None:
-        """Evaluate ``rows`` of ``candidates`` (duplicates once), one per free worker, each with
-        the cutoff known when it goes out, at most ``guess`` (um); log them and fill their
+        """Evaluate ``rows`` of ``candidates`` (duplicates once), one more out at a time than
+        there are workers, each with the cutoff known when it goes out, at most ``guess`` (um),
+        and the generation's key and elite count (by which a worker lowers the cutoff with its
+        own complete evaluations of the generation); log them and fill their
         ``fitness`` and ``bound`` (stopped) and the ``known`` rows. Rows evaluated ``again``
         are not counted by the progress bar a second time."""
         unique: dict[str, list[int]] = {}
@@ -145,12 +152,15 @@ class AskTellLoop:
         if self.early_stop:  # the cost only: the generation's best known sooner
             firsts = [firsts[k] for k in self._likeliest_best_first(candidates[firsts])]
 
+        generation = f"{self.key}:{self.optimizer.generation}"
+        elite = elite_count(self.optimizer, len(candidates)) if self.early_stop else 0
+
         def tasks() -> Iterator[EvaluationTask]:
             for i in firsts:
                 cutoff = min(self._cutoff(fitness, bound, known), guess)
-                yield EvaluationTask(candidates[i], cutoff)
+                yield EvaluationTask(candidates[i], cutoff, generation, elite)
 
-        in_flight = self.evaluator.workers if self.early_stop else None
+        in_flight = self.evaluator.workers + 1 if self.early_stop else None
         for j, result in self.evaluator.imap(tasks(), in_flight):
             entry = self.log.append(candidates[firsts[j]], result, self.optimizer.generation)
             if result["status"] != "ok":

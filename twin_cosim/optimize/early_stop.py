@@ -16,6 +16,12 @@ method decides exactly as it would with the full value. Where it is exact:
   generation is answered, those stopped below the generation's cutoff run again with it (the
   cutoff known then), so the method is told exactly what it would be told without a guess. The
   cutoff is taken over the complete evaluations only: a lower bound is no value.
+- **A worker's own evaluations**: a campaign keeps one candidate more out than it has workers, so
+  a worker that finishes finds its next candidate waiting; that candidate's cutoff was taken
+  before the command read the worker's last result. Any of the generation's complete values
+  make a cutoff (a candidate above the elite-count-th best of some of them has that many
+  better), so the worker lowers the cutoff by its own complete evaluations of the generation
+  (:class:`OwnEvaluations`).
 - **Over several runs** (robust objective): with the worst case over scenarios x samples, a
   candidate stops at its first run above the cutoff; with the mean over n runs, once the sum so
   far exceeds n c (every run adds >= 0).
@@ -29,10 +35,13 @@ in E_pk but would stop the run).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from twin_cosim.optimize.algorithms.base import ceil_count
+from twin_cosim.optimize.worker_specs import EvaluationTask
 
 EXACT_METHODS = ("ce",)
 
@@ -49,18 +58,29 @@ def window_spans_run(window: tuple[float, float | None], duration: float) -> boo
     return t0 <= 1e-12 and (t_end is None or t_end >= duration - 1e-9)
 
 
+def elite_count(optimizer, batch_size: int) -> int:
+    """How many complete values of a generation of ``batch_size`` make its cutoff: the CE elite
+    count; 0 for a method where a cutoff is not exact."""
+    if optimizer.name not in EXACT_METHODS:
+        return 0
+    return ceil_count(optimizer.settings.elite_fraction, batch_size)
+
+
+def kth_best(values: np.ndarray | list[float], k: int) -> float:
+    """The ``k``-th lowest of ``values`` (k >= 1), the cutoff they make; inf with fewer than
+    ``k`` values or k = 0."""
+    if k < 1 or len(values) < k:
+        return math.inf
+    return float(np.partition(np.asarray(values, dtype=np.float64), k - 1)[k - 1])
+
+
 def elite_cutoff(optimizer, batch_size: int, known: np.ndarray) -> float:
     """The cutoff (fitness units) of a CE generation of ``batch_size`` given the values known.
 
     Returns inf while fewer than the elite count are known, or for a method where a cutoff is
     not exact.
     """
-    if optimizer.name not in EXACT_METHODS:
-        return math.inf
-    n_elite = ceil_count(optimizer.settings.elite_fraction, batch_size)
-    if len(known) < n_elite:
-        return math.inf
-    return float(np.partition(np.asarray(known, dtype=np.float64), n_elite - 1)[n_elite - 1])
+    return kth_best(known, elite_count(optimizer, batch_size))
 
 
 def guess_above(cutoff: float) -> float:
@@ -71,3 +91,41 @@ def guess_above(cutoff: float) -> float:
 def lower_bound_above(cutoff: float) -> float:
     """The value told for a stopped candidate: the next float above the cutoff."""
     return float(np.nextafter(cutoff, math.inf))
+
+
+class OwnEvaluations:
+    """A worker's complete evaluations of the generation under way, which lower the cutoff of
+    the generation's next candidate it runs (see the module's docstring).
+
+    A task of another generation (its key differs) starts over; a task without a generation
+    or elite count keeps its own cutoff.
+    """
+
+    def __init__(self) -> None:
+        self._generation = ""
+        self._values: list[float] = []
+
+    def evaluate(
+        self,
+        task: EvaluationTask | np.ndarray,
+        evaluate: Callable[[np.ndarray, float], dict[str, Any]],
+    ) -> dict[str, Any]:
+        """``evaluate(x, cutoff_um)`` of the task's candidate with the lower of its cutoff (um)
+        and the one this worker's own complete evaluations of its generation make; a plain
+        candidate (no task) has no cutoff.
+
+        Returns
+        -------
+        dict
+            The result of ``evaluate`` (its ``fitness``, um, and ``status``; ``stopped``: a
+            lower bound, not a value).
+        """
+        if not isinstance(task, EvaluationTask):
+            return evaluate(task, math.inf)
+        if task.generation != self._generation:
+            self._generation, self._values = task.generation, []
+        own = kth_best(self._values, task.elite) if task.generation else math.inf
+        result = evaluate(task.x, min(task.cutoff_um, own))
+        if task.generation and result["status"] != "stopped":
+            self._values.append(result["fitness"])
+        return result

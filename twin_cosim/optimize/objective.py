@@ -38,7 +38,7 @@ from twin_cosim.controller import ControllerSettings
 from twin_cosim.cosim import RunAborted, run_scenario_record
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.config import OptimizeConfig, load_config
-from twin_cosim.optimize.early_stop import lower_bound_above, window_spans_run
+from twin_cosim.optimize.early_stop import OwnEvaluations, lower_bound_above, window_spans_run
 from twin_cosim.optimize.worker_specs import EvaluationTask, ObjectiveSpec
 from twin_cosim.oscillation import record_findings
 from twin_cosim.plant import Plant, PlantError
@@ -91,6 +91,7 @@ class Objective:
                     _Case(label, scenario, window, overrides, limits[i], scales[i], steps)
                 )
         self._order = list(range(count))
+        self._own = OwnEvaluations()
         self.exact_early_stop = all(
             window_spans_run(c.window, c.scenario.reference.duration) for c in self.cases
         )
@@ -121,7 +122,8 @@ class Objective:
 
     def __call__(self, task: np.ndarray | EvaluationTask) -> dict[str, Any]:
         """Evaluate one candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H, filter dimensions...]
-        (physical units).
+        (physical units), or a task (its cutoff lowered by this worker's own complete
+        evaluations of its generation, :class:`~twin_cosim.optimize.early_stop.OwnEvaluations`).
 
         Returns
         -------
@@ -130,9 +132,10 @@ class Objective:
             ``metrics`` (None when the run did not complete; with several runs the aggregate
             and ``runs``) and ``steps`` (speed-loop steps simulated).
         """
-        x, cutoff = (
-            (task.x, task.cutoff_um) if isinstance(task, EvaluationTask) else (task, math.inf)
-        )
+        return self._own.evaluate(task, self._evaluate)
+
+    def _evaluate(self, x: np.ndarray, cutoff: float) -> dict[str, Any]:
+        """The result of :meth:`__call__` for candidate ``x`` with cutoff ``cutoff`` (um)."""
         if not self.exact_early_stop:
             cutoff = math.inf
         failure = 2.0 * self.config.penalty_um

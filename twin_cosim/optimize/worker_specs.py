@@ -30,11 +30,27 @@ RUN_MODULE = "twin_cosim.optimize.objective"
 
 @dataclass(frozen=True)
 class EvaluationTask:
-    """A candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] (then any filter dimensions) and the
-    cutoff (um) of its fitness."""
+    """A candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] (then any filter dimensions), the
+    cutoff (um) of its fitness, and the generation it belongs to.
+
+    Attributes
+    ----------
+    x : numpy.ndarray
+        The candidate, physical units.
+    cutoff_um : float
+        The cutoff known when the task was sent, um (inf: none).
+    generation : str
+        The generation's key, unique across the campaigns a pool runs ("": none).
+    elite : int
+        The generation's elite count: that many of its complete values make a cutoff (0: no
+        cutoff). A worker lowers the cutoff by its own complete evaluations of the generation
+        (:class:`~twin_cosim.optimize.early_stop.OwnEvaluations`).
+    """
 
     x: np.ndarray
     cutoff_um: float = math.inf
+    generation: str = ""
+    elite: int = 0
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,14 @@ from twin_cosim.optimize import campaign_loop
 from twin_cosim.optimize.algorithms import make_optimizer
 from twin_cosim.optimize.campaign import run_campaign
 from twin_cosim.optimize.campaign_spec import CampaignSpec
-from twin_cosim.optimize.early_stop import elite_cutoff, lower_bound_above, window_spans_run
+from twin_cosim.optimize.early_stop import (
+    OwnEvaluations,
+    elite_cutoff,
+    kth_best,
+    lower_bound_above,
+    window_spans_run,
+)
+from twin_cosim.optimize.worker_specs import EvaluationTask
 
 SHORT = scenario_text(optimize="methods: {ce: {population_size: 10, elite_fraction: 0.2}}")
 
@@ -25,6 +32,47 @@ def test_elite_cutoff_is_the_elite_count_th_best_known():
     assert elite_cutoff(ce, 10, np.array([5.0, 3.0, 4.0])) == 4.0
     assert elite_cutoff(make_optimizer("cmaes", 6, 0), 10, np.array([1.0, 2.0])) == math.inf
     assert lower_bound_above(4.0) > 4.0
+
+
+def test_kth_best_needs_k_values():
+    assert kth_best([5.0, 3.0, 4.0], 2) == 4.0
+    assert kth_best([5.0], 2) == math.inf
+    assert kth_best([5.0], 0) == math.inf
+
+
+class Recorded:
+    """An evaluation that answers the fitness it is given and keeps the cutoffs it saw."""
+
+    def __init__(self) -> None:
+        self.cutoffs: list[float] = []
+
+    def __call__(self, fitness: float, status: str = "ok"):
+        def evaluate(x, cutoff_um):
+            self.cutoffs.append(cutoff_um)
+            return {"fitness": fitness, "status": status}
+
+        return evaluate
+
+
+def test_a_worker_lowers_the_cutoff_by_its_own_complete_values_of_the_generation():
+    own, seen = OwnEvaluations(), Recorded()
+    x = np.zeros(6)
+    own.evaluate(EvaluationTask(x, 10.0, "g", 1), seen(4.0))
+    own.evaluate(EvaluationTask(x, 10.0, "g", 1), seen(3.0, "stopped"))  # a bound, no value
+    own.evaluate(EvaluationTask(x, 2.0, "g", 1), seen(6.0))  # the task's cutoff is lower
+    own.evaluate(EvaluationTask(x, 10.0, "g", 1), seen(5.0))
+    own.evaluate(EvaluationTask(x, 10.0, "h", 1), seen(1.0))  # another generation starts over
+    own.evaluate(EvaluationTask(x, 10.0, "h", 2), seen(7.0))  # an elite of 2: one value known
+    own.evaluate(EvaluationTask(x, 10.0, "h", 2), seen(7.0))
+    own.evaluate(x, seen(1.0))  # a plain candidate has no cutoff
+    assert seen.cutoffs == [10.0, 4.0, 2.0, 4.0, 10.0, 10.0, 7.0, math.inf]
+
+
+def test_a_task_without_a_generation_keeps_its_cutoff():
+    own, seen = OwnEvaluations(), Recorded()
+    for _ in range(2):
+        own.evaluate(EvaluationTask(np.zeros(6), 10.0), seen(1.0))
+    assert seen.cutoffs == [10.0, 10.0]
 
 
 def test_window_spans_run():

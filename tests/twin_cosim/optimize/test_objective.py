@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,7 @@ from scenario_texts import scenario_text
 from twin_cosim.controller import TunedParameters
 from twin_cosim.cosim import run_scenario
 from twin_cosim.metrics import compute_metrics
+from twin_cosim.optimize.early_stop import lower_bound_above
 from twin_cosim.optimize.objective import EvaluationTask, Objective, ObjectiveSpec
 from twin_cosim.paper import TABLE3
 from twin_cosim.scenario import load_scenario
@@ -35,6 +37,18 @@ def test_valid_candidate_scores_its_epk(objective, plant):
     record = run_scenario(plant, load_scenario(REFERENCE1), TABLE3["ga"])
     assert result["status"] == "ok"
     assert result["fitness"] == compute_metrics(record).E_pk_um
+
+
+def test_a_worse_candidate_of_the_same_generation_stops_at_the_better_ones_value(objective):
+    better = objective(EvaluationTask(TABLE3["ga"].as_array(), math.inf, "g", 1))
+    worse = objective(EvaluationTask(TABLE3["ft"].as_array(), math.inf, "g", 1))
+    assert better["status"] == "ok"
+    assert worse["status"] == "stopped"
+    assert worse["fitness"] == lower_bound_above(better["fitness"])
+    alone = objective(EvaluationTask(TABLE3["ft"].as_array(), math.inf, "h", 1))
+    assert alone["status"] == "ok"  # in another generation, the better one's value is no cutoff
+    assert alone["fitness"] > worse["fitness"]
+    assert alone["steps"] > worse["steps"]
 
 
 def test_iau_cap_violation_is_penalised(objective):
