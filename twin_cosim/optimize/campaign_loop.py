@@ -5,8 +5,9 @@ inside the bounds. Resuming replays the optimizer from its seed, answering from 
 batch already evaluated, so a resumed campaign ends exactly where an uninterrupted one would.
 
 Early stopping (CE, on by default where exact, see :mod:`twin_cosim.optimize.early_stop`): a
-generation's candidates go out one at a time, one more at a time than there are workers (a
-worker that finishes finds its next candidate waiting), each with the cutoff known when it goes
+generation's candidates go out one at a time, on a local process pool one more at a time than
+there are workers (a worker that finishes finds its next candidate waiting; ``ahead`` of the
+evaluator), each with the cutoff known when it goes
 and its generation's key, by which the worker lowers that cutoff with its own complete
 evaluations of the generation; a stopped candidate's lower bound is reused from the log only
 within its own generation (elsewhere it is evaluated again). Without early stopping a
@@ -53,8 +54,8 @@ class AskTellLoop:
     evaluator
         Scores the candidates the log cannot answer.
     early_stop
-        Send candidates one at a time, ``evaluator.workers + 1`` out at a time, each with the
-        cutoff known then.
+        Send candidates one at a time, ``evaluator.workers + evaluator.ahead`` out at a time,
+        each with the cutoff known then.
     bar
         Progress bar (evaluations).
     """
@@ -139,8 +140,8 @@ class AskTellLoop:
         guess: float,
         again: bool,
     ) -> None:
-        """Evaluate ``rows`` of ``candidates`` (duplicates once), one more out at a time than
-        there are workers, each with the cutoff known when it goes out, at most ``guess`` (um),
+        """Evaluate ``rows`` of ``candidates`` (duplicates once), ``ahead`` more out at a time
+        than there are workers, each with the cutoff known when it goes out, at most ``guess`` (um),
         and the generation's key and elite count (by which a worker lowers the cutoff with its
         own complete evaluations of the generation); log them and fill their
         ``fitness`` and ``bound`` (stopped) and the ``known`` rows. Rows evaluated ``again``
@@ -160,7 +161,7 @@ class AskTellLoop:
                 cutoff = min(self._cutoff(fitness, bound, known), guess)
                 yield EvaluationTask(candidates[i], cutoff, generation, elite)
 
-        in_flight = self.evaluator.workers + 1 if self.early_stop else None
+        in_flight = self.evaluator.workers + self.evaluator.ahead if self.early_stop else None
         for j, result in self.evaluator.imap(tasks(), in_flight):
             entry = self.log.append(candidates[firsts[j]], result, self.optimizer.generation)
             if result["status"] != "ok":

@@ -128,6 +128,8 @@ class DaskEvaluator:
         self.client = connect(scheduler, timeout)
         self.client.register_plugin(ObjectivePlugin(spec), name=PLUGIN_NAME)
         self.workers = max(1, len(self.client.scheduler_info()["workers"]))
+        # One task per worker, as measured so far (a cluster was not timed with more)
+        self.ahead = 0
 
     def imap(
         self, tasks: Iterable[Any], in_flight: int | None = None

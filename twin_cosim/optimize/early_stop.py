@@ -16,12 +16,12 @@ method decides exactly as it would with the full value. Where it is exact:
   generation is answered, those stopped below the generation's cutoff run again with it (the
   cutoff known then), so the method is told exactly what it would be told without a guess. The
   cutoff is taken over the complete evaluations only: a lower bound is no value.
-- **A worker's own evaluations**: a campaign keeps one candidate more out than it has workers, so
-  a worker that finishes finds its next candidate waiting; that candidate's cutoff was taken
-  before the command read the worker's last result. Any of the generation's complete values
-  make a cutoff (a candidate above the elite-count-th best of some of them has that many
-  better), so the worker lowers the cutoff by its own complete evaluations of the generation
-  (:class:`OwnEvaluations`).
+- **A worker's own evaluations**: on a local process pool a campaign keeps one candidate more
+  out than it has workers, so a worker that finishes finds its next candidate waiting; that
+  candidate's cutoff was taken before the command read the worker's last result. Any of the
+  generation's complete values make a cutoff (a candidate above the elite-count-th best of some
+  of them has that many better), so the worker lowers the cutoff by its own complete
+  evaluations of the generation (:class:`OwnEvaluations`).
 - **Over several runs** (robust objective): with the worst case over scenarios x samples, a
   candidate stops at its first run above the cutoff; with the mean over n runs, once the sum so
   far exceeds n c (every run adds >= 0).

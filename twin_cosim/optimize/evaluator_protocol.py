@@ -19,9 +19,19 @@ class SchedulerError(ValueError):
 
 
 class Evaluator(Protocol):
-    """Scores tasks on ``workers`` workers, each holding its own plant."""
+    """Scores tasks on ``workers`` workers, each holding its own plant.
+
+    Attributes
+    ----------
+    workers : int
+        Workers scoring tasks at once.
+    ahead : int
+        Tasks given out beyond one per worker by a campaign that gives them one at a time
+        (early stopping): a worker that finishes finds its next task waiting.
+    """
 
     workers: int
+    ahead: int
 
     def imap(
         self, tasks: Iterable[Any], in_flight: int | None = None

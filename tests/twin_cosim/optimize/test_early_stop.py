@@ -22,6 +22,7 @@ from twin_cosim.optimize.early_stop import (
     window_spans_run,
 )
 from twin_cosim.optimize.worker_specs import EvaluationTask
+from twin_cosim.workers import BoundPool
 
 SHORT = scenario_text(optimize="methods: {ce: {population_size: 10, elite_fraction: 0.2}}")
 
@@ -110,6 +111,27 @@ def test_early_stop_changes_nothing_but_the_cost(short_scenario, tmp_path):
     exact = {e["key"]: e["fitness"] for e in entries(tmp_path / "full")}
     for entry in stopped:  # a lower bound of the value the full run found
         assert entry["fitness"] <= exact[entry["key"]]
+
+
+def test_a_process_pool_has_one_candidate_waiting_beyond_its_workers(
+    short_scenario, tmp_path, monkeypatch
+):
+    asked = []
+    given = BoundPool.imap
+
+    def recorded(pool, tasks, in_flight=None):
+        asked.append(in_flight)
+        return given(pool, tasks, in_flight)
+
+    monkeypatch.setattr(BoundPool, "imap", recorded)
+    spec = CampaignSpec(short_scenario, "ce", seed=5, budget=20)
+    run_campaign(spec, tmp_path / "pool", workers=2, progress=False)
+    assert set(asked) == {3}
+    asked.clear()
+    run_campaign(
+        dataclasses.replace(spec, early_stop=False), tmp_path / "all", workers=2, progress=False
+    )
+    assert set(asked) == {None}  # without early stopping a generation goes out at once
 
 
 def test_a_guess_too_low_costs_runs_again_and_changes_nothing(
