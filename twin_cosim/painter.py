@@ -10,10 +10,6 @@ the painter that computation first (:meth:`Painter.prepare`): the painter does i
 command works, and its drawing function receives the value. The painter ends without drawing
 when its command ends without handing it a figure (an error, an interrupt, ``kill -9``: the pipe
 closes). Where ``os.fork`` does not exist the figure is drawn in the command's own process.
-
-The painter runs at a lower scheduling priority (:data:`PAINTER_NICE`): while a campaign's
-workers fill the cores, they go first and the painter imports in the time they leave (between
-generations); on idle cores it runs as fast.
 """
 
 from __future__ import annotations
@@ -28,10 +24,6 @@ from typing import Any, BinaryIO
 
 # Called by the painter while it waits: imports matplotlib, its PNG backend and fonts
 WARM_UP = "twin_cosim.plots:warm_up"
-
-# Added to the painter's nice value: its import and figures yield to the command's own processes
-# (on Linux with autogroups, nice acts among the processes of one session: the command's)
-PAINTER_NICE = 10
 
 # The messages a command hands its painter: (kind, "module:function", arguments), pickled
 _PREPARE = "prepare"
@@ -132,7 +124,6 @@ def _paint(read_end: int) -> int:  # pragma: no cover - runs in the forked child
     draw the figure (no figure: end); the exit code."""
     try:
         signal.signal(signal.SIGINT, signal.SIG_DFL)  # Ctrl-C ends it with its command
-        os.nice(PAINTER_NICE)
         _resolve(WARM_UP)()
         prepared: tuple[Any, ...] = ()
         with os.fdopen(read_end, "rb") as pipe:

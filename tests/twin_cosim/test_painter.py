@@ -5,13 +5,12 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import time
 from functools import partial
 from pathlib import Path
 
 import pytest
 
-from twin_cosim.painter import PAINTER_NICE, Painter, draw_side_by_side
+from twin_cosim.painter import Painter, draw_side_by_side
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -45,18 +44,6 @@ def _write_prepared(prepared: str, path: Path, suffix: str) -> None:
 
 def _fail_to_prepare(text: str) -> str:
     raise ValueError(f"cannot prepare {text}")
-
-
-def test_the_painter_yields_to_its_command(tmp_path):
-    painter = Painter.start()
-    own = os.getpriority(os.PRIO_PROCESS, 0)
-    expected = min(own + PAINTER_NICE, 19)
-    deadline = time.monotonic() + 10.0
-    while os.getpriority(os.PRIO_PROCESS, painter.pid) != expected:
-        assert time.monotonic() < deadline, "the painter's nice value never rose"
-        time.sleep(0.01)
-    assert painter.draw(f"{__name__}:_write", tmp_path / "f.txt", "drawn")
-    assert os.getpriority(os.PRIO_PROCESS, 0) == own  # the command's own is unchanged
 
 
 @pytest.mark.parametrize("forked", [True, False])
