@@ -30,7 +30,12 @@ from twin_cosim.optimize.algorithms.base import Optimizer
 from twin_cosim.optimize.campaign_folder import write_progress
 from twin_cosim.optimize.campaign_spec import CampaignError
 from twin_cosim.optimize.config import OptimizeConfig
-from twin_cosim.optimize.early_stop import elite_count, elite_cutoff, guess_above
+from twin_cosim.optimize.early_stop import (
+    elite_count,
+    elite_cutoff,
+    guess_above,
+    guess_after_miss,
+)
 from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
 from twin_cosim.optimize.evaluation_order import likeliest_best_first
 from twin_cosim.optimize.evaluator_protocol import Evaluator, SchedulerError
@@ -101,7 +106,8 @@ class AskTellLoop:
 
         With early stopping, each candidate goes out with the cutoff known then, lowered to the
         guess from the previous generation; once every candidate is answered, those stopped
-        below the generation's cutoff (where the guess was too low) run again with it.
+        below the generation's cutoff (where the guess was too low) run again with the cutoff
+        known then, lowered to a second guess (a third pass has none).
         """
         fitness = np.empty(len(candidates))
         bound = np.zeros(len(candidates), dtype=bool)  # a stopped candidate's lower bound
@@ -117,7 +123,7 @@ class AskTellLoop:
             if not missing:
                 break
             known = [i for i in known if i not in missing]
-            guess = math.inf  # the cutoff known then, which holds
+            guess = math.inf if again else guess_after_miss(guess)
             again = True
         self.guess = guess_above(cutoff)
         return fitness

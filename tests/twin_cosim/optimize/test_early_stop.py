@@ -15,6 +15,7 @@ from twin_cosim.optimize.algorithms import make_optimizer
 from twin_cosim.optimize.campaign import run_campaign
 from twin_cosim.optimize.campaign_spec import CampaignSpec
 from twin_cosim.optimize.early_stop import (
+    MISS_FACTOR,
     OwnEvaluations,
     elite_cutoff,
     kth_best,
@@ -158,6 +159,13 @@ def test_a_guess_too_low_costs_runs_again_and_changes_nothing(
     for key in again:
         first = next(e for e in logged if e["key"] == key)
         assert first["status"] == "stopped"
+    thrice = [k for k in again if keys.count(k) == 3]
+    assert thrice  # a second guess still too low: a third pass, without a guess, ends it
+    for key in thrice:
+        first, second, third = (e for e in logged if e["key"] == key)
+        assert (first["status"], second["status"]) == ("stopped", "stopped")
+        assert second["fitness"] == pytest.approx(MISS_FACTOR * first["fitness"], rel=1e-12)
+        assert third["status"] != "stopped" or third["fitness"] > second["fitness"]
 
 
 def test_a_resumed_generation_runs_a_lower_bound_below_its_cutoff_again(short_scenario, tmp_path):
