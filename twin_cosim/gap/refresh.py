@@ -11,6 +11,13 @@ now; the refit that leaves the least after the best calibration correction on th
 data replaces its effect when it leaves less than the model as it is. The selection runs it
 when the forward rounds end and after a swap, before the next swaps are judged
 (:meth:`twin_cosim.gap.selection.Selector.run`).
+
+The refit's gain is judged as a round's candidate is (:class:`~twin_cosim.gap.rounds.Refit`):
+its evidence z beyond the noise against the one-sided quantile of ``acceptance_level`` shared
+by the refits tried, and its share of the energy above the noise against the fair share. Only
+a refit that passes lets the forward rounds resume: a refit that moves a curve within the
+noise leaves the next round the same candidates to judge against nearly the same residual
+(on the issue's three-effect machine: one round more, 230 replays, nothing accepted).
 """
 
 from __future__ import annotations
@@ -19,8 +26,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from twin_cosim.gap.evidence import critical_z, excess_share, fair_share, improvement_z
 from twin_cosim.gap.replay import FitTask, Replays, SimulateTask
-from twin_cosim.gap.rounds import Accepted
+from twin_cosim.gap.rounds import Accepted, Refit
 
 if TYPE_CHECKING:
     from twin_cosim.gap.selector_view import SelectorView
@@ -28,9 +36,9 @@ if TYPE_CHECKING:
 
 def refresh(
     selector: SelectorView, accepted: list[Accepted], base: dict[str, float], replays: Replays
-) -> tuple[dict[str, float], Replays] | None:
-    """The model with its best cold refit of one accepted effect, or None when no refit
-    leaves less than the model as it is.
+) -> tuple[dict[str, float], Replays, Refit] | None:
+    """The model with its best cold refit of one accepted effect and the refit's record, or
+    None when no refit leaves less than the model as it is.
 
     Parameters
     ----------
@@ -44,8 +52,8 @@ def refresh(
     Returns
     -------
     tuple or None
-        FMU parameters and replays of the model with the refit (None: a single effect, or no
-        refit leaves less).
+        FMU parameters and replays of the model with the refit, and its record (None: a single
+        effect, or no refit leaves less).
     """
     if len(accepted) < 2:
         return None
@@ -60,14 +68,25 @@ def refresh(
     trials = selector.tasks(
         "refresh_fits", [SimulateTask(f.overrides, with_training=True) for f in fits]
     )
-    best = float(np.linalg.norm(selector.left(base, replays)))
-    choice = None
+    before = selector.left(base, replays)
+    best, choice = float(np.linalg.norm(before)), None
     for effect, fit, trial in zip(movable, fits, trials, strict=True):
-        left = float(np.linalg.norm(selector.left(fit.overrides, trial)))
-        if left < best:
-            best, choice = left, (effect, fit, trial)
+        after = selector.left(fit.overrides, trial)
+        if float(np.linalg.norm(after)) < best:
+            best, choice = float(np.linalg.norm(after)), (effect, fit, trial, after)
     if choice is None:
         return None
-    effect, fit, trial = choice
-    effect.values = tuple(fit.values.values())
-    return dict(fit.overrides), trial
+    effect, fit, trial, after = choice
+    record = Refit(
+        effect.name,
+        effect.values,
+        tuple(fit.values.values()),
+        float(np.linalg.norm(before)),
+        best,
+        improvement_z(before, after, selector.judging.duration_s),
+        critical_z(selector.settings.acceptance_level, len(movable)),
+        excess_share(before, after),
+        fair_share(len(selector.library)),
+    )
+    effect.values = record.values_after
+    return dict(fit.overrides), trial, record
