@@ -63,7 +63,7 @@ def refresh(
     ]
     fits = selector.tasks(
         "refresh_fits",
-        [FitTask(a.name, o, a.context) for a, o in zip(movable, others, strict=True)],
+        [FitTask(a.name, o, a.context, profile=True) for a, o in zip(movable, others, strict=True)],
     )
     trials = selector.tasks(
         "refresh_fits", [SimulateTask(f.overrides, with_training=True) for f in fits]

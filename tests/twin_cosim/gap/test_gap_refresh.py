@@ -85,7 +85,7 @@ def test_the_best_cold_refit_replaces_its_effect_when_it_leaves_less():
     assert accepted[1].values == (0.15,)  # the other refit left more: unchanged
     fits = [t for t in selection.asked if isinstance(t, FitTask)]
     assert [t.hypothesis for t in fits] == ["stribeck", "inertia_change"]  # no scan refitted
-    assert fits[0].start is None  # a cold start: the full global search
+    assert fits[0].start is None and fits[0].profile  # a cold start: the profile over the shape
     assert "stribeck_friction" not in fits[0].base and "motor_inertia" in fits[0].base
     assert "motor_inertia" not in fits[1].base and "stribeck_speed" in fits[1].base
     assert record.effect == "stribeck"
