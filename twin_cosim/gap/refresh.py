@@ -5,9 +5,11 @@ the joint refits after each round move it only locally (a few least-squares step
 curve fitted beside a missing inertia change can stay in the wrong valley of the rough training
 cost for good, with about the right area under the curve and the wrong level and width (on a
 transfer machine: 0.107 N.m at 0.87 rad/s for 0.160 N.m at 0.58 rad/s). So, before the backward
-pass, each accepted effect fitted by least squares is refitted with the full global search
-(:class:`~twin_cosim.gap.replay.FitTask` without a start) on top of the others as they are
-now; the refit that leaves the least after the best calibration correction on the held-out
+pass, each accepted effect fitted by least squares is refitted from a search over its whole
+range (:class:`~twin_cosim.gap.replay.FitTask` without a start: the global search of round 1,
+or for a level and a shape parameter such as the Stribeck level and speed the profile over the
+shape, :func:`~twin_cosim.gap.replay.profile_start`) on top of the others as they are now; the
+refit that leaves the least after the best calibration correction on the held-out
 data replaces its effect when it leaves less than the model as it is. The selection runs it
 when the forward rounds end and after a swap, before the next swaps are judged
 (:meth:`twin_cosim.gap.selection.Selector.run`).
