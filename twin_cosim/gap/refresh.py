@@ -7,8 +7,9 @@ cost for good, with about the right area under the curve and the wrong level and
 transfer machine: 0.107 N.m at 0.87 rad/s for 0.160 N.m at 0.58 rad/s). So, before the backward
 pass, each accepted effect fitted by least squares is refitted from a search over its whole
 range (:class:`~twin_cosim.gap.replay.FitTask` without a start: the global search of round 1,
-or for a level and a shape parameter such as the Stribeck level and speed the profile over the
-shape, :func:`~twin_cosim.gap.replay.profile_start`) on top of the others as they are now; the
+and for a level and a shape parameter such as the Stribeck level and speed also the profile
+over the shape, :func:`~twin_cosim.gap.replay.profile_start`: the two searches stop in
+different valleys of a rough cost) on top of the others as they are now; the
 refit that leaves the least after the best calibration correction on the held-out
 data replaces its effect when it leaves less than the model as it is. The selection runs it
 when the forward rounds end and after a swap, before the next swaps are judged
@@ -29,7 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from twin_cosim.gap.evidence import critical_z, excess_share, fair_share, improvement_z
-from twin_cosim.gap.replay import FitTask, Replays, SimulateTask
+from twin_cosim.gap.replay import FitTask, Replays, SimulateTask, shape_index
 from twin_cosim.gap.rounds import Accepted, Refit
 
 if TYPE_CHECKING:
@@ -59,20 +60,29 @@ def refresh(
     """
     if len(accepted) < 2:
         return None
-    movable = [a for a in accepted if selector.library[a.name].kind == "continuous"]
-    others = [
-        {k: v for k, v in base.items() if k not in selector.library[a.name].sets} for a in movable
+    library = selector.library
+    movable = [a for a in accepted if library[a.name].kind == "continuous"]
+    tries = [(a, False) for a in movable] + [
+        (a, True) for a in movable if shape_index(library[a.name]) is not None
     ]
     fits = selector.tasks(
         "refresh_fits",
-        [FitTask(a.name, o, a.context, profile=True) for a, o in zip(movable, others, strict=True)],
+        [
+            FitTask(
+                a.name,
+                {k: v for k, v in base.items() if k not in library[a.name].sets},
+                a.context,
+                profile=profile,
+            )
+            for a, profile in tries
+        ],
     )
     trials = selector.tasks(
         "refresh_fits", [SimulateTask(f.overrides, with_training=True) for f in fits]
     )
     before = selector.left(base, replays)
     best, choice = float(np.linalg.norm(before)), None
-    for effect, fit, trial in zip(movable, fits, trials, strict=True):
+    for (effect, _), fit, trial in zip(tries, fits, trials, strict=True):
         after = selector.left(fit.overrides, trial)
         if float(np.linalg.norm(after)) < best:
             best, choice = float(np.linalg.norm(after)), (effect, fit, trial, after)
@@ -86,9 +96,9 @@ def refresh(
         float(np.linalg.norm(before)),
         best,
         improvement_z(before, after, selector.judging.duration_s),
-        critical_z(selector.settings.acceptance_level, len(movable)),
+        critical_z(selector.settings.acceptance_level, len(tries)),
         excess_share(before, after),
-        fair_share(len(selector.library)),
+        fair_share(len(library)),
     )
     effect.values = record.values_after
     return dict(fit.overrides), trial, record
