@@ -45,7 +45,14 @@ from twin_cosim.gap.judging import Judging, judge
 from twin_cosim.gap.location import dominant_order
 from twin_cosim.gap.pairs import screen_pairs
 from twin_cosim.gap.refresh import refresh
-from twin_cosim.gap.replay import FitResult, FitTask, JointFitTask, Replays, SimulateTask
+from twin_cosim.gap.replay import (
+    FitResult,
+    FitTask,
+    JointFitTask,
+    Replays,
+    SimulateTask,
+    shape_index,
+)
 from twin_cosim.gap.residuals import Residuals
 from twin_cosim.gap.rounds import (
     Accepted,
@@ -139,7 +146,9 @@ class Selector:
         rounds = self.settings.max_effects
         pairs = 2 * math.comb(self.settings.pair_candidates, 2)
         swaps = 2 * rounds  # one rival per accepted effect
-        refreshes = 2 * rounds * (rounds + 1)  # after each accepted effect and a swap
+        # after each accepted effect and a swap: each effect, a level-and-shape one twice
+        shaped = sum(1 for h in self.library.values() if shape_index(h) is not None)
+        refreshes = 2 * (rounds + min(shaped, rounds)) * (rounds + 1)
         return (
             per_round * (rounds + 1)
             + 2 * first
