@@ -50,7 +50,7 @@ from twin_cosim.gap.residuals import (
     residuals_of,
     validation_figures,
 )
-from twin_cosim.gap.rounds import Candidate, Marginal, Pair, Round, Selection, Swap
+from twin_cosim.gap.rounds import Candidate, Marginal, Pair, Refit, Round, Selection, Swap
 from twin_cosim.gap.selection import Selector
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
@@ -125,6 +125,7 @@ class Diagnosis:
     marginal: list[Marginal] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)
     swaps: list[Swap] = field(default_factory=list)
+    refits: list[Refit] = field(default_factory=list)
     times: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def summary(self) -> dict[str, Any]:
@@ -159,6 +160,7 @@ class Diagnosis:
                 "marginal": [asdict(m) for m in self.marginal],
                 "dropped": self.dropped,
                 "swaps": [_swap_row(w) for w in self.swaps],
+                "refits": [{**asdict(r), "significant": r.significant} for r in self.refits],
                 "steps": steps,
                 "effects": [_row(c, first) for c in first.candidates] if first else [],
                 "last_round": [_row(c, last) for c in last.candidates] if last else [],
@@ -489,6 +491,7 @@ def _diagnose(
         selection.marginal,
         selection.dropped,
         selection.swaps,
+        selection.refits,
         times,
     )
 

@@ -50,6 +50,11 @@ GLOBAL_POPULATION_PER_PARAMETER = 8
 # and from the previous round's fit (later rounds: the start is already near a valley).
 GLOBAL_GENERATIONS = 3
 WARM_GENERATIONS = 1
+# A cold refit of a level and a shape parameter (on a log scale) profiles over the shape: the
+# level fitted at PROFILE_POINTS shape values evenly spaced on the fit's unit scale, with
+# PROFILE_EVALUATIONS residual evaluations each (plus their Jacobians).
+PROFILE_POINTS = 12
+PROFILE_EVALUATIONS = 3
 FAILURE_FACTOR = 10.0  # a failed replay's residual, relative to the fit's starting residual
 FAILURE_FLOOR = 1e3  # least normalised residual per sample of a failed replay
 
@@ -168,6 +173,7 @@ class FitTask:
     base: dict[str, float]
     context: dict[str, float]
     start: tuple[float, ...] | None = None  # the previous round's fit (physical units)
+    profile: bool = False  # a level and a shape parameter: start from the shape's profile
 
 
 @dataclass(frozen=True)
@@ -404,7 +410,10 @@ class Replayer:
         def residual_of_unit(u: np.ndarray) -> np.ndarray:
             return self.training_residual(overrides_of(hypothesis.from_unit(u)))
 
-        u0, grid_replays = self._coarse_start(hypothesis, residual_of_unit, task.start)
+        if task.profile and shape_index(hypothesis) is not None:
+            u0, grid_replays = profile_start(hypothesis, residual_of_unit)
+        else:
+            u0, grid_replays = self._coarse_start(hypothesis, residual_of_unit, task.start)
         solution = least_squares(
             residual_of_unit,
             u0,
@@ -474,3 +483,62 @@ class Replayer:
     def close(self) -> None:
         """Free the plant."""
         self.plant.close()
+
+
+def shape_index(hypothesis: Hypothesis) -> int | None:
+    """Index of the shape parameter of a hypothesis of a level and a shape (the one of its two
+    parameters the fit moves on a log scale, e.g. the Stribeck speed), or None."""
+    logs = [i for i, p in enumerate(hypothesis.parameters) if p.log]
+    if len(hypothesis.parameters) != 2 or len(logs) != 1:
+        return None
+    return logs[0]
+
+
+def profile_start(hypothesis: Hypothesis, residual_of_unit) -> tuple[np.ndarray, int]:
+    """Start of a cold fit of a level and a shape parameter: the profile over the shape.
+
+    The training cost is rough in the shape (a Stribeck curve too wide with a level too low
+    has about the right area: a valley of its own, and the global search's few generations
+    can stop there), while at a given shape the level enters the residual nearly linearly. So
+    the level is fitted by least squares (PROFILE_EVALUATIONS evaluations, from its start
+    value) at PROFILE_POINTS shape values spread evenly on the unit (log) scale, and the
+    best of these starts the local fit of both.
+
+    Parameters
+    ----------
+    hypothesis
+        The hypothesis (two parameters, one on a log scale: :func:`shape_index`).
+    residual_of_unit
+        Normalised training residual of the parameters on the unit scale.
+
+    Returns
+    -------
+    numpy.ndarray, int
+        The start on the unit scale and the replays the profile took.
+    """
+    shape = shape_index(hypothesis)
+    level = 1 - shape
+    initial = np.clip(hypothesis.initial_unit(), 0.0, 1.0)
+    best, replays = (math.inf, initial), 0
+    for value in (np.arange(PROFILE_POINTS) + 0.5) / PROFILE_POINTS:
+
+        def at_shape(a: np.ndarray, value: float = value) -> np.ndarray:
+            u = np.empty(2)
+            u[level], u[shape] = a[0], value
+            return residual_of_unit(u)
+
+        solution = least_squares(
+            at_shape,
+            initial[level : level + 1],
+            bounds=(0.0, 1.0),
+            diff_step=FIT_STEP,
+            max_nfev=PROFILE_EVALUATIONS,
+            x_scale=1.0,
+        )
+        replays += int(solution.nfev + (solution.njev or 0))
+        cost = float(np.mean(solution.fun**2))
+        if cost < best[0]:
+            u = np.empty(2)
+            u[level], u[shape] = solution.x[0], value
+            best = (cost, u)
+    return best[1], replays

@@ -1,6 +1,6 @@
 """The records of the selection: fitted hypotheses judged on the held-out data (a single one,
-or a pair fitted together), what a kept effect adds to the joint model, a round, the selection's
-outcome, and the ranking helpers (BIC, correlation of predicted changes)."""
+or a pair fitted together), what a kept effect adds to the joint model, a round, a cold refit,
+the selection's outcome, and the ranking helpers (BIC, correlation of predicted changes)."""
 
 from __future__ import annotations
 
@@ -158,11 +158,41 @@ class Swap:
 
 
 @dataclass(frozen=True)
+class Refit:
+    """An accepted effect replaced by its cold refit (:mod:`twin_cosim.gap.refresh`).
+
+    ``values_before`` and ``values_after``: the effect's fitted values (physical units) before
+    and after; ``left_before`` and ``left_after``: the normalised held-out RMS the best
+    calibration correction leaves with the model before and after; ``evidence_z`` and
+    ``excess_share``: the refit's gain judged as a round's candidate is
+    (:func:`~twin_cosim.gap.evidence.improvement_z`, :func:`~twin_cosim.gap.evidence.excess_share`)
+    against ``critical_z`` (the refits tried share the level) and ``fair_share``.
+    """
+
+    effect: str
+    values_before: tuple[float, ...]
+    values_after: tuple[float, ...]
+    left_before: float
+    left_after: float
+    evidence_z: float
+    critical_z: float
+    excess_share: float
+    fair_share: float
+
+    @property
+    def significant(self) -> bool:
+        """Whether the refit's gain passes the evidence and fair-share tests of a candidate: a
+        model that changed this much may let a further round accept an effect."""
+        return self.evidence_z >= self.critical_z and self.excess_share >= self.fair_share
+
+
+@dataclass(frozen=True)
 class Selection:
     """The rounds, the accepted effects (after the backward pass) and their FMU parameters, the
     replays with them, the calibration floor of what they leave with its calibrated replays,
     each kept effect's marginal contribution, the effects the backward pass dropped, the swaps
-    tried and where the time went (wall s, pool tasks and replays per phase)."""
+    tried, the cold refits that replaced their effect and where the time went (wall s, pool
+    tasks and replays per phase)."""
 
     rounds: list[Round]
     accepted: list[list[str]]
@@ -173,6 +203,7 @@ class Selection:
     marginal: list[Marginal] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)
     swaps: list[Swap] = field(default_factory=list)
+    refits: list[Refit] = field(default_factory=list)
     times: dict[str, dict[str, float]] = field(default_factory=dict)
 
 

@@ -19,7 +19,8 @@ only pay off together: after each accepted effect, all accepted effects are refi
 the training data (each on top of the FMU parameters of those before it), and the joint fit is
 kept when it judges better on the held-out data. When the forward rounds end, each accepted
 effect is refitted from a cold start on top of the others (:mod:`twin_cosim.gap.refresh`;
-the rounds resume when a refit replaced its effect and more effects are allowed), then each
+the rounds resume when a refit replaced its effect with a gain that passes a candidate's
+evidence and fair-share tests, and more effects are allowed), then each
 accepted effect may be swapped for a rival that passed its round (:mod:`twin_cosim.gap.swaps`;
 the model after a swap is refitted cold in turn, and the rounds resume while more effects are
 allowed). The swaps are judged against the refitted model: an effect accepted early and
@@ -44,9 +45,25 @@ from twin_cosim.gap.judging import Judging, judge
 from twin_cosim.gap.location import dominant_order
 from twin_cosim.gap.pairs import screen_pairs
 from twin_cosim.gap.refresh import refresh
-from twin_cosim.gap.replay import FitResult, FitTask, JointFitTask, Replays, SimulateTask
+from twin_cosim.gap.replay import (
+    FitResult,
+    FitTask,
+    JointFitTask,
+    Replays,
+    SimulateTask,
+    shape_index,
+)
 from twin_cosim.gap.residuals import Residuals
-from twin_cosim.gap.rounds import Accepted, Candidate, Round, Selection, Swap, bic, correlation
+from twin_cosim.gap.rounds import (
+    Accepted,
+    Candidate,
+    Refit,
+    Round,
+    Selection,
+    Swap,
+    bic,
+    correlation,
+)
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.swaps import swap
 from twin_cosim.gap.timing import PhaseTimes, makespan
@@ -129,7 +146,9 @@ class Selector:
         rounds = self.settings.max_effects
         pairs = 2 * math.comb(self.settings.pair_candidates, 2)
         swaps = 2 * rounds  # one rival per accepted effect
-        refreshes = 2 * rounds * (rounds + 1)  # after each accepted effect and a swap
+        # after each accepted effect and a swap: each effect, a level-and-shape one twice
+        shaped = sum(1 for h in self.library.values() if shape_index(h) is not None)
+        refreshes = 2 * (rounds + min(shaped, rounds)) * (rounds + 1)
         return (
             per_round * (rounds + 1)
             + 2 * first
@@ -189,12 +208,13 @@ class Selector:
     def run(self, start: Replays) -> Selection:
         """Forward selection with joint refits from the replays of the nominal twin, cold
         refits of the accepted effects and swaps for rivals of their round (the forward rounds
-        resume after a refit that replaced its effect or a swap, while more effects are
-        allowed), then the backward pass."""
+        resume after a refit whose gain passes the evidence tests or a swap, while more effects
+        are allowed), then the backward pass."""
         settings = self.settings
         accepted: list[Accepted] = []
         rounds: list[Round] = []
         swaps: list[Swap] = []
+        refits: list[Refit] = []
         base: dict[str, float] = {}
         replays = start
         remaining = list(settings.hypotheses or self.library)
@@ -208,19 +228,17 @@ class Selector:
             fresh = fresh and len(accepted) == count
             if not fresh:
                 fresh = True
-                refitted = refresh(self, accepted, base, replays)
-                if refitted is not None:
-                    base, replays = refitted
-                    if len(accepted) < settings.max_effects:
-                        remaining = self._not_accepted(accepted)
-                        continue
+                base, replays, moved = self._refreshed(accepted, base, replays, refits)
+                if moved and len(accepted) < settings.max_effects:
+                    remaining = self._not_accepted(accepted)
+                    continue
             swapped = swap(self, rounds, accepted, base, replays, swaps)
             if swapped is None:
                 break
             base, replays = swapped
             fresh = False
             if len(accepted) >= settings.max_effects:
-                base, replays = refresh(self, accepted, base, replays) or (base, replays)
+                base, replays, _ = self._refreshed(accepted, base, replays, refits)
                 break
             remaining = self._not_accepted(accepted)
         accepted, base, replays, marginal, dropped = backward(self, accepted, base, replays, start)
@@ -236,8 +254,26 @@ class Selector:
             marginal=marginal,
             dropped=dropped,
             swaps=swaps,
+            refits=refits,
             times=self.times.as_dict(),
         )
+
+    def _refreshed(
+        self,
+        accepted: list[Accepted],
+        base: dict[str, float],
+        replays: Replays,
+        refits: list[Refit],
+    ) -> tuple[dict[str, float], Replays, bool]:
+        """The model after the cold refits (:func:`~twin_cosim.gap.refresh.refresh`: FMU
+        parameters, replays), the refit that replaced its effect appended to ``refits``, and
+        whether its gain passed the evidence tests (a further round may find more)."""
+        refitted = refresh(self, accepted, base, replays)
+        if refitted is None:
+            return base, replays, False
+        base, replays, record = refitted
+        refits.append(record)
+        return base, replays, record.significant
 
     def _forward(
         self,
