@@ -131,6 +131,8 @@ class SerialPool:
         The recipe of the first worker (built now); None: the first ``imap`` gives it.
     """
 
+    ahead = 0  # the next task is made once the last result was consumed: none can wait
+
     def __init__(self, factory: WorkerFactory | None = None) -> None:
         self.folder = new_pool_folder()
         self.workers = 1
@@ -337,6 +339,11 @@ class ProcessPool:
         A picklable function each process calls as it starts (e.g. imports its tasks need).
     """
 
+    # Tasks given out beyond one per worker (a campaign with early stopping): a process finds its
+    # next task in the pool's queue, where the round trip of a result through the command (about
+    # 0.8 ms on 2 cores) would leave it idle
+    ahead = 1
+
     def __init__(
         self,
         factory: WorkerFactory | None = None,
@@ -457,9 +464,7 @@ class BoundPool:
         self.pool = pool
         self.factory = factory
         self.workers = pool.workers
-        # A process's next task waits in the pool's queue: the round trip of a result through
-        # the command (about 0.8 ms on 2 cores) would otherwise leave the worker idle
-        self.ahead = 1 if isinstance(pool, ProcessPool) else 0
+        self.ahead = pool.ahead
 
     def imap(self, tasks: Iterable[Any], in_flight: int | None = None) -> Iterator[tuple[int, Any]]:
         """Yield (task index, result) as :meth:`ProcessPool.imap` does."""

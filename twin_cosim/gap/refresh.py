@@ -81,11 +81,13 @@ def refresh(
         "refresh_fits", [SimulateTask(f.overrides, with_training=True) for f in fits]
     )
     before = selector.left(base, replays)
-    best, choice = float(np.linalg.norm(before)), None
+    left_before = float(np.linalg.norm(before))
+    best, choice = left_before, None
     for (effect, _), fit, trial in zip(tries, fits, trials, strict=True):
         after = selector.left(fit.overrides, trial)
-        if float(np.linalg.norm(after)) < best:
-            best, choice = float(np.linalg.norm(after)), (effect, fit, trial, after)
+        left = float(np.linalg.norm(after))
+        if left < best:
+            best, choice = left, (effect, fit, trial, after)
     if choice is None:
         return None
     effect, fit, trial, after = choice
@@ -93,7 +95,7 @@ def refresh(
         effect.name,
         effect.values,
         tuple(fit.values.values()),
-        float(np.linalg.norm(before)),
+        left_before,
         best,
         improvement_z(before, after, selector.judging.duration_s),
         critical_z(selector.settings.acceptance_level, len(tries)),

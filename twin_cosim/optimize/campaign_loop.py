@@ -5,13 +5,12 @@ inside the bounds. Resuming replays the optimizer from its seed, answering from 
 batch already evaluated, so a resumed campaign ends exactly where an uninterrupted one would.
 
 Early stopping (CE, on by default where exact, see :mod:`twin_cosim.optimize.early_stop`): a
-generation's candidates go out one at a time, on a local process pool one more at a time than
-there are workers (a worker that finishes finds its next candidate waiting; ``ahead`` of the
-evaluator), each with the cutoff known when it goes
-and its generation's key, by which the worker lowers that cutoff with its own complete
-evaluations of the generation; a stopped candidate's lower bound is reused from the log only
-within its own generation (elsewhere it is evaluated again). Without early stopping a
-generation goes out at once.
+generation's candidates go out one at a time, ``ahead`` of the evaluator more at a time than
+there are workers (on a local process pool one: a worker that finishes finds its next candidate
+waiting), each with the cutoff known when it goes and its generation's key, by which the worker
+lowers that cutoff with its own complete evaluations of the generation; a stopped candidate's
+lower bound is reused from the log only within its own generation (elsewhere it is evaluated
+again). Without early stopping a generation goes out at once.
 """
 
 from __future__ import annotations

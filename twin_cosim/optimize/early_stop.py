@@ -140,7 +140,7 @@ class OwnEvaluations:
             return evaluate(task, math.inf)
         if task.generation != self._generation:
             self._generation, self._values = task.generation, []
-        own = kth_best(self._values, task.elite) if task.generation else math.inf
+        own = kth_best(self._values, task.elite)  # none kept for a task without a generation
         result = evaluate(task.x, min(task.cutoff_um, own))
         if task.generation and result["status"] != "stopped":
             self._values.append(result["fitness"])
