@@ -46,6 +46,17 @@ RECORD_COLUMNS = (
     "speed_cmd",  # rad/s, speed command of the position loop (without reversal pulse)
     "current",  # A, mean current command over the following position period
 )
+RECORD_UNITS = {
+    "t": "s",
+    "x_ref": "m",
+    "v_ref": "m/s",
+    "x": "m",
+    "error": "m",
+    "motor_angle": "rad",
+    "motor_speed": "rad/s",
+    "speed_cmd": "rad/s",
+    "current": "A",
+}
 INPUT_NAMES = CONTRACT_INPUTS
 OUTPUT_NAMES = CONTRACT_OUTPUTS
 # Positions of the inputs and outputs in the vectors of fmi2SetReal and fmi2GetReal.
@@ -183,7 +194,7 @@ def run_reference_path(
             plant.call("fmi2DoStep", fmu.doStep, k * h, h)
             speed, position, angle = read_outputs()
         record[i, _CURRENT] = current_sum / ratio
-    return RunRecord(record, RECORD_COLUMNS)
+    return RunRecord(record, RECORD_COLUMNS, RECORD_UNITS)
 
 
 class FastCalls:
@@ -265,7 +276,7 @@ def run_fast_path(
         _raise_aborted(abort_error, step * settings.speed_period)
     if status != 0:
         raise_plant_error(plant, status, step, settings.speed_period)
-    return RunRecord(record, RECORD_COLUMNS)
+    return RunRecord(record, RECORD_COLUMNS, RECORD_UNITS)
 
 
 def run_scenario(
