@@ -14,7 +14,7 @@ from twin_cosim.cosim import run_fast_path, run_reference_path
 from twin_cosim.current_filters import LowPass, Notch
 from twin_cosim.reference import Dwell, Ramp, interpolate, sample_segments
 from twin_cosim.scenario import ScenarioError, load_scenario
-from twin_cosim.scenario.settings_section import filters_section
+from twin_cosim.scenario.controller_section import filters_section
 from twin_cosim.schema import Checker
 
 T = 62.5e-6  # s, speed-loop period

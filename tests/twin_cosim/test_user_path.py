@@ -15,7 +15,7 @@ from twin_cosim.commands.synth import EFFECTS_HELP
 from twin_cosim.optimize.comparison import load_comparison
 from twin_cosim.plant_model import model_names, plant_model
 from twin_cosim.scenario import ScenarioError, load_scenario
-from twin_cosim.scenario.shipped import packaged_scenarios_dir
+from twin_cosim.scenario.loader import packaged_scenarios_dir
 
 ROOT = Path(__file__).resolve().parents[2]
 SHORT = scenario_text(move=0.2, back=False)

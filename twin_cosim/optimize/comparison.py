@@ -50,7 +50,7 @@ from twin_cosim.optimize.worker_specs import AGGREGATES
 from twin_cosim.pool_runs import autotune_summary, prepare_campaign_worker
 from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table
 from twin_cosim.scenario import Scenario, ScenarioError, load_controller_set, resolve_scenario
-from twin_cosim.scenario.shipped import find_scenario
+from twin_cosim.scenario.loader import find_scenario
 from twin_cosim.schema import load_yaml
 from twin_cosim.workers import ProcessPool, SerialPool, make_pool
 

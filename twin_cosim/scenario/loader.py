@@ -1,4 +1,5 @@
-"""Loading a scenario file: every section read and checked once, resolved into a Scenario.
+"""Loading a scenario file: every section read and checked once, resolved into a Scenario; the
+scenarios shipped with the package, found by name (``reference1``) as well as by path.
 
 Layout (every section but ``reference`` is optional)::
 
@@ -36,8 +37,7 @@ from twin_cosim.scenario.plant_section import (
 )
 from twin_cosim.scenario.reference_section import reference_section
 from twin_cosim.scenario.resolved import Scenario
-from twin_cosim.scenario.shipped import find_scenario
-from twin_cosim.schema import Checker, load_yaml
+from twin_cosim.schema import Checker, ScenarioError, load_yaml
 
 TOP_KEYS = {
     "name",
@@ -51,6 +51,7 @@ TOP_KEYS = {
 }
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 MAX_SAMPLES = 2_400_000  # position-loop samples of a run: 10 min at 250 us
+_PACKAGE = Path(__file__).resolve().parents[1]
 
 
 def load_scenario(path: Path | str) -> Scenario:
@@ -143,3 +144,27 @@ def resolve_scenario(
         On a malformed plant parameter file, or one of another model than the plant's.
     """
     return with_plant_parameters(load_scenario(path), plant_parameters, fmu)
+
+
+def packaged_scenarios_dir() -> Path:
+    """The shipped scenarios: ``twin_cosim/scenarios`` of a wheel, else ``scenarios/``."""
+    packaged = _PACKAGE / "scenarios"
+    return packaged if packaged.is_dir() else _PACKAGE.parent / "scenarios"
+
+
+def find_scenario(spec: Path | str) -> Path:
+    """A scenario file from a path, or from the name of a shipped scenario (``reference1``).
+
+    Raises
+    ------
+    ScenarioError
+        When ``spec`` is neither an existing file nor the name of a shipped scenario.
+    """
+    path = Path(spec)
+    if path.is_file() or path.suffix or len(path.parts) > 1:
+        return path
+    shipped = packaged_scenarios_dir() / f"{path.name}.yaml"
+    if shipped.is_file():
+        return shipped
+    names = sorted(p.stem for p in packaged_scenarios_dir().glob("*.yaml"))
+    raise ScenarioError(f"{spec}: neither a scenario file nor a shipped scenario {names}")

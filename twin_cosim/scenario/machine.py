@@ -1,4 +1,31 @@
-"""A machine of several axes resolved once: the typed value of a scenario with ``axes:``.
+"""A machine of several axes: the ``axes:`` scenario file read and checked once into the typed
+:class:`MachineScenario`.
+
+Layout (``axes`` is required, every other section optional)::
+
+    name: xy_table
+    description: free text
+    axes:
+      X:
+        plant: {model: drive2mass, parameters: {}, parameters_file: x_plant.yaml}
+        controller: {parameters: ft, settings: {}}
+        limits: {velocity: 0.25, acceleration: 2.0, jerk: 40.0}    # m/s, m/s^2, m/s^3
+      Y: {...}
+      Z: {...}                          # optional
+    interpolation:
+      sample_period: 0.004              # s: the CNC's interpolation period
+    program: part.nc                    # a part program (G-code), relative to the file
+    run:
+      settle: 0.2                       # s of standstill recorded after the path's end
+      max_samples: 2400000              # position-loop samples a run may have at most
+    optimize: {...}                     # contour tuning (twin_cosim.contour.tuning)
+    diagnose: {...}                     # the diagnosis of each axis (twin_cosim.gap.settings)
+
+``X`` and ``Y`` are required, ``Z`` optional. Each axis' ``plant`` and ``controller`` read as the
+sections of a single-axis scenario (:mod:`~twin_cosim.scenario.plant_section`,
+:mod:`~twin_cosim.scenario.controller_section`), and all axes must share the CNC's rates
+(position- and speed-loop periods): the master steps them in lockstep. Every error names the file
+and the full key path (``axes.Y.plant.parameters.backlash``).
 
 Each axis is a plant (model or FMU file, its parameters) with its own controller set and the
 limits the interpolator must respect; :meth:`MachineScenario.axis_scenario` gives one axis as an
@@ -16,10 +43,25 @@ from typing import Any
 from fmu_build.build import build_fmu
 from twin_cosim.controller import ControllerSettings, TunedParameters
 from twin_cosim.plant_model import model_of
-from twin_cosim.reference import ReferenceGrid
+from twin_cosim.reference import ReferenceError, ReferenceGrid, check_periods
+from twin_cosim.scenario.controller_section import controller_section
+from twin_cosim.scenario.loader import MAX_SAMPLES, NAME_PATTERN, find_scenario
+from twin_cosim.scenario.plant_section import plant_section
 from twin_cosim.scenario.resolved import Scenario
+from twin_cosim.schema import Checker, load_yaml
 
 AXIS_NAMES = ("X", "Y", "Z")
+AXIS_KEYS = {"plant", "controller", "limits"}
+MACHINE_KEYS = {
+    "name",
+    "description",
+    "axes",
+    "interpolation",
+    "program",
+    "run",
+    "optimize",
+    "diagnose",
+}
 
 
 @dataclass(frozen=True)
@@ -172,3 +214,110 @@ class MachineScenario:
             model=axis.model,
             plant_parameters_file=axis.plant_parameters_file,
         )
+
+
+DEFAULT_LIMITS = AxisLimits(velocity=0.25, acceleration=2.0, jerk=40.0)
+
+
+def axes_section(check: Checker, data: Any) -> tuple[AxisSetup, ...]:
+    """The checked axes of ``axes:``, in the order X, Y, Z."""
+    axes = check.mapping(data, "axes", set(AXIS_NAMES))
+    for required in ("X", "Y"):
+        if required not in axes:
+            raise check.fail(f"axes.{required}", "a section for this axis (X and Y are required)")
+    found = tuple(
+        _axis(
+            check.within(f"axes.{name}"),
+            name,
+            check.mapping(axes[name], f"axes.{name}", AXIS_KEYS),
+        )
+        for name in AXIS_NAMES
+        if name in axes
+    )
+    first = found[0].settings
+    for axis in found[1:]:
+        for rate in ("position_period", "speed_period"):
+            if getattr(axis.settings, rate) != getattr(first, rate):
+                raise check.fail(
+                    f"axes.{axis.name}.controller.settings.{rate}",
+                    f"the {rate} of axis {found[0].name} ({getattr(first, rate):g} s): the "
+                    "master steps all axes in lockstep",
+                    getattr(axis.settings, rate),
+                )
+    return found
+
+
+def _axis(check: Checker, name: str, body: dict[str, Any]) -> AxisSetup:
+    plant = plant_section(check, body.get("plant"))
+    tuned, settings = controller_section(check, plant, body.get("controller"))
+    return AxisSetup(
+        name=name,
+        model=plant.model,
+        fmu=plant.fmu,
+        plant_parameters=dict(plant.parameters),
+        plant_parameters_file=plant.parameters_file,
+        tuned=tuned,
+        settings=settings,
+        limits=_limits(check, body.get("limits")),
+    )
+
+
+def _limits(check: Checker, data: Any) -> AxisLimits:
+    given = check.mapping(data, "limits", {"velocity", "acceleration", "jerk"})
+    values = {
+        key: check.number(
+            given.get(key, getattr(DEFAULT_LIMITS, key)), f"limits.{key}", positive=True
+        )
+        for key in ("velocity", "acceleration", "jerk")
+    }
+    return AxisLimits(**values)
+
+
+def is_machine_scenario(path: Path | str) -> bool:
+    """Whether a scenario file (or shipped name) describes a machine (has ``axes:``)."""
+    data = load_yaml(find_scenario(path))
+    return isinstance(data, dict) and "axes" in data
+
+
+def load_machine(path: Path | str) -> MachineScenario:
+    """Load and check a machine scenario (a path or the name of a shipped one).
+
+    Raises
+    ------
+    ScenarioError
+        On malformed YAML, unknown keys, wrong types, non-finite or out-of-range values; the
+        message names the file and the key path.
+    """
+    source = find_scenario(path)
+    check = Checker(source)
+    data = check.mapping(load_yaml(source), "(top level)", MACHINE_KEYS)
+    if "axes" not in data:
+        raise check.fail("axes", "an axes section (X, Y and optionally Z)")
+    name = str(data.get("name", source.stem))
+    if not NAME_PATTERN.fullmatch(name):
+        raise check.fail("name", "a plain file name (letters, digits, '.', '_', '-')", name)
+    axes = axes_section(check, data["axes"])
+    interpolation = check.mapping(data.get("interpolation"), "interpolation", {"sample_period"})
+    sample_period = check.number(
+        interpolation.get("sample_period", 0.004), "interpolation.sample_period", positive=True
+    )
+    try:
+        check_periods(sample_period, axes[0].settings.position_period)
+    except ReferenceError as exc:
+        raise check.fail("interpolation.sample_period", str(exc), sample_period) from None
+    run = check.mapping(data.get("run"), "run", {"settle", "max_samples"})
+    program = data.get("program")
+    return MachineScenario(
+        name=name,
+        description=str(data.get("description", "")),
+        source=source,
+        axes=axes,
+        sample_period=sample_period,
+        program=None if program is None else source.parent / check.text(program, "program"),
+        settle=check.number(run.get("settle", 0.2), "run.settle", minimum=0.0),
+        max_samples=int(
+            check.number(run.get("max_samples", MAX_SAMPLES), "run.max_samples", minimum=2)
+        ),
+        optimize=check.mapping(data.get("optimize"), "optimize"),
+        diagnose=check.mapping(data.get("diagnose"), "diagnose"),
+    )
