@@ -11,6 +11,8 @@ Facts that the table holds for the generator as well as for the C code:
 - the parameter ``sample_period`` (s): its start value is the DefaultExperiment step size.
 - families: variables named ``<base>_1 ... <base>_n`` form a family of n entries (e.g. the
   noise harmonics); the generator emits their count and offsets for the C code.
+- ``time`` is no variable of the table: it is the independent variable that FMI 3.0 declares,
+  with the first value reference after the table's.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ VARIABLE_KEYS = {
 }
 MODEL_KEYS = {"name", "description", "version"}
 STEP_PARAMETER = "sample_period"
+TIME = "time"  # FMI 3.0's independent variable, declared by the generator
 FAMILY_NAME = re.compile(r"^(?P<base>[A-Za-z_]\w*?)_(?P<index>[1-9]\d*)$")
 
 
@@ -89,6 +92,12 @@ class VariableTable:
     def default_step_size(self) -> float:
         """Default communication step (s): the start value of the ``sample_period`` parameter."""
         return float(self.by_name(STEP_PARAMETER).start)
+
+    @property
+    def time_value_reference(self) -> int:
+        """Value reference of the independent variable ``time`` of FMI 3.0: the first after the
+        table's (the C slave reads the model time for it)."""
+        return len(self.variables)
 
     def families(self) -> dict[str, list[Variable]]:
         """Variables named ``<base>_1 ... <base>_n`` by base name, in index order."""
@@ -246,6 +255,11 @@ def load_variable_table(path: Path, units_path: Path) -> VariableTable:
     for name in names:
         if not name.isidentifier():
             raise VariableTableError(f"{path}: variable name {name!r} must be a C identifier")
+    if TIME in names:
+        raise VariableTableError(
+            f"{path}: the name {TIME!r} is reserved for the independent variable of FMI 3.0, "
+            "which the generator declares"
+        )
     inputs = {p["name"] for p in parsed if p["causality"] == "input"}
     for p in parsed:
         unknown_inputs = sorted(set(p["depends_on"]) - inputs)

@@ -141,23 +141,23 @@ static inline int solver_segment(void *context, double command, double start, do
 /* Advances the model from t (s) by h (s) in substeps of at most h / substeps, `value` being the
  * command set at t: checks the substep against the model's rates, records the command behind
  * its dead time, then integrates the step segment by segment. Every failure is logged. */
-static inline fmi2Status solver_do_step(ModelInstance *inst, const SolverModel *model,
+static inline SlaveStatus solver_do_step(ModelInstance *inst, const SolverModel *model,
                                         CommandDelay *command, double t, double h, int substeps,
                                         double value) {
     SolverRun run = {inst, model};
     double substep = h / substeps;                              /* s */
     double tolerance = SOLVER_TIME_TOLERANCE * (h + fabs(t));   /* s */
-    if (!solver_substep_stable(inst, model, substep)) return fmi2Error;
+    if (!solver_substep_stable(inst, model, substep)) return SLAVE_ERROR;
     if (!command_delay_push(command, t, value, tolerance)) {
         slave_log_error(inst, "%s: more than %d communication steps within the dead time of "
                         "%g s (use longer steps or a shorter dead time)", model->name,
                         COMMAND_DELAY_CAPACITY, command->dead_time);
-        return fmi2Error;
+        return SLAVE_ERROR;
     }
     if (!command_delay_advance(command, t, h, substeps, tolerance, solver_segment, &run)) {
-        return fmi2Error;
+        return SLAVE_ERROR;
     }
-    return fmi2OK;
+    return SLAVE_OK;
 }
 
 #endif

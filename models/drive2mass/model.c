@@ -312,22 +312,22 @@ static const SolverModel kSolverModel = {
 };
 
 /* Checks the effect parameters against each other and against the dead-time buffer. */
-static fmi2Status check_effect_parameters(ModelInstance *inst) {
+static SlaveStatus check_effect_parameters(ModelInstance *inst) {
     const ModelVariables *v = &inst->v;
     double lowest_coulomb = v->coulomb_friction - fabs(v->coulomb_asymmetry);   /* N.m */
     if (lowest_coulomb < 0.0) {
         slave_log_error(inst, "drive2mass: coulomb_asymmetry = %g is invalid (expected "
                         "|coulomb_asymmetry| <= coulomb_friction = %g)", v->coulomb_asymmetry,
                         v->coulomb_friction);
-        return fmi2Error;
+        return SLAVE_ERROR;
     }
     if (v->lugre_stiffness > 0.0 && !(lowest_coulomb > 0.0)) {
         slave_log_error(inst, "drive2mass: lugre_stiffness = %g needs a positive Coulomb level in "
                         "both directions (coulomb_friction - |coulomb_asymmetry| = %g)",
                         v->lugre_stiffness, lowest_coulomb);
-        return fmi2Error;
+        return SLAVE_ERROR;
     }
-    return fmi2OK;
+    return SLAVE_OK;
 }
 
 /* Step-size limits of the effect-extended model: fastest natural frequency and decay rate. */
@@ -355,13 +355,13 @@ static void derive_transmission(const ModelVariables *v, ModelState *s) {
     s->pitch_error_start = pitch_harmonics(s, screw_angle(v, s->load_angle));
 }
 
-fmi2Status model_initialize(ModelInstance *inst) {
+SlaveStatus model_initialize(ModelInstance *inst) {
     const ModelVariables *v = &inst->v;
     ModelState *s = &inst->s;
     double omega_01 = 2.0 * PI * v->resonance_frequency;
     int k;
 
-    if (check_effect_parameters(inst) != fmi2OK) return fmi2Error;
+    if (check_effect_parameters(inst) != SLAVE_OK) return SLAVE_ERROR;
     s->stiffness = v->load_inertia * omega_01 * omega_01;
     s->damping = 2.0 * v->damping_ratio * omega_01 * v->load_inertia;
     s->travel_per_rad = travel_per_rad(v);
@@ -385,13 +385,13 @@ fmi2Status model_initialize(ModelInstance *inst) {
     if (!isfinite(s->load_angle) || !isfinite(s->half_gap) || !isfinite(s->stiffness) ||
         !isfinite(s->pitch_error_start)) {
         slave_log_error(inst, "drive2mass: parameters give a non-finite initial state");
-        return fmi2Error;
+        return SLAVE_ERROR;
     }
     solver_initialize(inst, &kSolverModel, &s->command, v->dead_time_steps * v->sample_period);
-    return fmi2OK;
+    return SLAVE_OK;
 }
 
-fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
+SlaveStatus model_do_step(ModelInstance *inst, double t, double h) {
     return solver_do_step(inst, &kSolverModel, &inst->s.command, t, h, inst->v.substeps,
                           inst->v.current_cmd);
 }

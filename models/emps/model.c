@@ -162,21 +162,21 @@ static const SolverModel kSolverModel = {
     .limits = step_limits,
 };
 
-fmi2Status model_initialize(ModelInstance *inst) {
+SlaveStatus model_initialize(ModelInstance *inst) {
     const ModelVariables *v = &inst->v;
     ModelState *s = &inst->s;
     double omega = 2.0 * PI * v->coupling_frequency;
     int i;
     if (v->second_mass >= v->mass) {
         slave_log_error(inst, "emps: second_mass %g kg must be below mass %g kg", v->second_mass, v->mass);
-        return fmi2Error;
+        return SLAVE_ERROR;
     }
     if (v->coulomb_friction - fabs(v->coulomb_asymmetry) < 0.0 ||
         v->viscous_friction - fabs(v->viscous_asymmetry) < 0.0) {
         slave_log_error(inst, "emps: the asymmetry makes a friction level negative (Fc %g N, a %g N; "
                         "Fv %g N.s/m, b %g N.s/m)", v->coulomb_friction, v->coulomb_asymmetry,
                         v->viscous_friction, v->viscous_asymmetry);
-        return fmi2Error;
+        return SLAVE_ERROR;
     }
     s->driven_mass = v->mass - v->second_mass;
     s->stiffness = v->second_mass * omega * omega;
@@ -191,7 +191,7 @@ fmi2Status model_initialize(ModelInstance *inst) {
     }
     s->estimate = 0.0;
     solver_initialize(inst, &kSolverModel, &s->command, v->dead_time_steps * v->sample_period);
-    return fmi2OK;
+    return SLAVE_OK;
 }
 
 /* Samples the encoder at time t (s) and updates the velocity estimate (q0 - q2) / (t0 - t2). */
@@ -208,13 +208,13 @@ static void sample_encoder(const ModelVariables *v, ModelState *s, double t) {
     s->estimate = (s->encoder[0] - s->encoder[2]) / (s->encoder_time[0] - s->encoder_time[2]);
 }
 
-fmi2Status model_do_step(ModelInstance *inst, double t, double h) {
+SlaveStatus model_do_step(ModelInstance *inst, double t, double h) {
     if (solver_do_step(inst, &kSolverModel, &inst->s.command, t, h, inst->v.substeps,
-                       inst->v.current_cmd) != fmi2OK) {
-        return fmi2Error;
+                       inst->v.current_cmd) != SLAVE_OK) {
+        return SLAVE_ERROR;
     }
     sample_encoder(&inst->v, &inst->s, t + h);
-    return fmi2OK;
+    return SLAVE_OK;
 }
 
 void model_update_outputs(ModelInstance *inst, double t) {

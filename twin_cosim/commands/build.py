@@ -6,7 +6,14 @@ import argparse
 import sys
 from pathlib import Path
 
-from fmu_build.build import CACHE_ENV, DEFAULT_MODEL, available_models, build_fmu
+from fmu_build.build import (
+    CACHE_ENV,
+    DEFAULT_FMI_VERSION,
+    DEFAULT_MODEL,
+    FMI_VERSIONS,
+    available_models,
+    build_fmu,
+)
 from twin_cosim.commands.options import command_parser
 
 
@@ -26,6 +33,13 @@ def add_arguments(subparsers) -> None:
         help=f"output folder (default: the per-user cache, ${CACHE_ENV} or "
         "$XDG_CACHE_HOME/twin-cosim, one folder per source version)",
     )
+    parser.add_argument(
+        "--fmi",
+        type=int,
+        choices=FMI_VERSIONS,
+        default=DEFAULT_FMI_VERSION,
+        help="FMI version of the co-simulation FMU: 2 (<MODEL>.fmu) or 3 (<MODEL>-fmi3.fmu)",
+    )
     parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
     parser.set_defaults(handler=run)
 
@@ -36,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
     they compile just in time, with the same results."""
     from twin_cosim.loops import ahead
 
-    print(build_fmu(args.model, Path(args.out) if args.out else None, force=args.force))
+    out_dir = Path(args.out) if args.out else None
+    print(build_fmu(args.model, out_dir, force=args.force, fmi_version=args.fmi))
     try:
         print(ahead.build(force=args.force))
     except ahead.LoopBuildError as error:
