@@ -1,5 +1,6 @@
-"""Building the FMUs: layout, rebuild rules, validators, other importers, recompilable sources,
-the generated model description (dependencies, log categories, default experiment)."""
+"""Building the FMUs of both FMI versions: layout, rebuild rules and the cache, validators,
+simulation in fmpy, recompilable sources, events through fmpy's logger (the generated model
+description: test_model_description.py)."""
 
 from __future__ import annotations
 
@@ -9,121 +10,77 @@ import subprocess
 import sys
 import zipfile
 from pathlib import Path
-from xml.etree import ElementTree
 
 import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from fmu_build import build, generate
-from fmu_build.variable_table import VariableTable, load_variable_table
+from fmu_build import build
 from twin_cosim.plant import Plant
 from twin_cosim.plant_model import plant_model
 
 
-def test_fmu_layout(model_fmu):
-    model, fmu_path = model_fmu
+def test_fmu_layout(any_fmu):
+    model, version, fmu_path = any_fmu
     names = set(zipfile.ZipFile(fmu_path).namelist())
     assert {
         "modelDescription.xml",
-        f"binaries/linux64/{model}.so",
+        build.binary_path(model, version),
         "documentation/index.html",
-        "sources/fmi2_slave.c",
+        f"sources/fmi{version}_slave.c",
+        "sources/slave.c",
         "sources/model.c",
         "sources/model_variables.h",
         "sources/model_variable_table.h",
     } <= names
-    assert not any(name.startswith("sources/fmi2") and name.endswith(".h") for name in names)
+    assert (
+        build.binary_path(model, version)
+        == {
+            2: f"binaries/linux64/{model}.so",
+            3: f"binaries/x86_64-linux/{model}.so",
+        }[version]
+    )
+    assert ("sources/buildDescription.xml" in names) == (version == 3)
+    others = [v for v in build.FMI_VERSIONS if v != version]
+    assert not any(f"sources/fmi{v}_slave.c" in names for v in others)  # one API per binary
+    assert not any(name.startswith("sources/fmi") and name.endswith(".h") for name in names)
 
 
-def test_fmpy_validate_reports_no_problem(model_fmu):
-    assert validate_fmu(str(model_fmu[1])) == []
+def test_fmpy_validate_reports_no_problem(any_fmu):
+    assert validate_fmu(str(any_fmu.path)) == []
 
 
-def test_fmutool_check_reports_no_problem(model_fmu):
-    fmu_path = model_fmu[1]
+def test_fmutool_check_reports_no_problem(any_fmu):
+    """fmu-manipulation-toolbox checks either version against its XML schema and the standard's
+    rules for causality, variability, initial and start values, units and model structure."""
     result = subprocess.run(
-        [str(Path(sys.executable).with_name("fmutool")), "-input", str(fmu_path), "-check"],
+        [str(Path(sys.executable).with_name("fmutool")), "-input", str(any_fmu.path), "-check"],
         capture_output=True,
         text=True,
     )
     output = result.stdout + result.stderr
     assert result.returncode == 0, output
-    assert "compliant with FMI-2.0" in output
+    assert f"compliant with FMI-{any_fmu.fmi_version}.0" in output
     assert "No semantic error" in output
     assert "ERROR" not in output.replace("logStatusError", "")
 
 
-def load_table(model: str) -> VariableTable:
-    return load_variable_table(
-        build.MODELS_DIR / model / "variables.yaml", build.COMMON_DIR / "units.yaml"
-    )
+# How fmpy's simulate_fmu runs each version: FMI 3.0 also through its event mode.
+SIMULATE = [(2, {}), (3, {}), (3, {"use_event_mode": True})]
+SIMULATE_IDS = ["fmi2", "fmi3", "fmi3-event-mode"]
 
 
-def test_model_description_follows_the_variable_table(model_fmu):
-    model, fmu_path = model_fmu
-    table = load_table(model)
-    description = read_model_description(str(fmu_path))
-    by_name = {v.name: v for v in description.modelVariables}
-    assert set(by_name) == {v.name for v in table.variables}
-    for v in table.variables:
-        xml = by_name[v.name]
-        assert (xml.valueReference, xml.causality, xml.type) == (
-            v.value_reference,
-            v.causality,
-            v.type,
-        )
-        if v.type == "Real":
-            assert (xml.unit or "1") == v.unit
-    outputs = [u.variable.name for u in description.outputs]
-    assert outputs == [v.name for v in table.variables if v.causality == "output"]
-    units = {u.name: u.baseUnit for u in description.unitDefinitions}
-    for name, unit in units.items():
-        for base in ("kg", "m", "s", "A", "rad"):
-            assert getattr(unit, base) == table.units[name].get(base, 0), (name, base)
-
-
-def test_outputs_declare_their_direct_inputs(model_fmu):
-    model, fmu_path = model_fmu
-    table = load_table(model)
-    description = read_model_description(str(fmu_path))
-    assert description.outputs, "no ModelStructure outputs"
-    for unknown in description.outputs:
-        declared = table.by_name(unknown.variable.name).depends_on
-        # fmpy reads dependencies="" as an empty list: the output depends on no input
-        assert unknown.dependencies is not None, unknown.variable.name
-        assert [d.name for d in unknown.dependencies] == list(declared)
-        assert all(d.causality == "input" for d in unknown.dependencies)
-    state_outputs = [u for u in description.outputs if not u.dependencies]
-    assert {"motor_angle", "motor_speed", "load_position", "load_speed"} <= {
-        u.variable.name for u in state_outputs
-    }
-
-
-def test_default_experiment_step_is_the_sample_period(model_fmu):
-    model, fmu_path = model_fmu
-    description = read_model_description(str(fmu_path))
-    sample_period = next(v for v in description.modelVariables if v.name == "sample_period")
-    assert float(description.defaultExperiment.stepSize) == float(sample_period.start)
-    assert float(sample_period.start) == {"drive2mass": 62.5e-6, "emps": 1e-3}[model]
-
-
-def test_log_categories_are_declared(model_fmu):
-    root = ElementTree.parse(zipfile.ZipFile(model_fmu[1]).open("modelDescription.xml")).getroot()
-    names = [c.get("name") for c in root.iter("Category")]
-    assert names == [name for name, _ in generate.LOG_CATEGORIES]
-    assert {"logEvents", "logStatusError"} <= set(names)
-
-
-def test_simulates_in_fmpy_simulate_fmu(fmu_path):
+@pytest.mark.parametrize(("fmi_version", "options"), SIMULATE, ids=SIMULATE_IDS)
+def test_simulates_in_fmpy_simulate_fmu(fmi_version, options):
     current = 2.0  # A: 1.48 N.m against 0.625 N.m of Coulomb friction
     result = simulate_fmu(
-        str(fmu_path),
+        str(build.build_fmu("drive2mass", fmi_version=fmi_version)),
         stop_time=0.5,
         step_size=62.5e-6,
         output_interval=0.01,
         start_values={"current_cmd": current},
+        **options,
     )
     travel = plant_model("drive2mass").drive_facts()["travel_per_rad"]
     speed = result["load_speed"] / travel
@@ -132,11 +89,15 @@ def test_simulates_in_fmpy_simulate_fmu(fmu_path):
     assert slope == pytest.approx((0.74 * current - 0.625) / (2.9e-4 + 4.2e-4), rel=0.01)
 
 
-def test_emps_simulates_in_fmpy_at_its_default_step():
+@pytest.mark.parametrize(("fmi_version", "options"), SIMULATE, ids=SIMULATE_IDS)
+def test_emps_simulates_in_fmpy_at_its_default_step(fmi_version, options):
     """simulate_fmu without a step size uses DefaultExperiment's (the 1 ms sample period); 3 V
     drives the axis to the speed where viscous friction takes the rest of the force."""
     result = simulate_fmu(
-        str(build.build_fmu("emps")), stop_time=4.0, start_values={"current_cmd": 3.0}
+        str(build.build_fmu("emps", fmi_version=fmi_version)),
+        stop_time=4.0,
+        start_values={"current_cmd": 3.0},
+        **options,
     )
     gain, coulomb, offset, viscous = 35.15065188, 20.3935, -3.1648, 203.5034  # N/V, N, N, N.s/m
     terminal = (gain * 3.0 - coulomb - offset) / viscous  # m/s
@@ -164,8 +125,8 @@ def test_two_instances_are_independent(fmu_path):
         assert interleaved_b[-1] < 0 < interleaved_a[-1]
 
 
-def test_sources_in_the_fmu_recompile(model_fmu, tmp_path):
-    with zipfile.ZipFile(model_fmu[1]) as archive:
+def test_sources_in_the_fmu_recompile(any_fmu, tmp_path):
+    with zipfile.ZipFile(any_fmu.path) as archive:
         archive.extractall(tmp_path)
     sources = sorted((tmp_path / "sources").glob("*.c"))
     subprocess.run(
@@ -173,7 +134,7 @@ def test_sources_in_the_fmu_recompile(model_fmu, tmp_path):
             "gcc",
             *build.CFLAGS,
             f"-I{tmp_path / 'sources'}",
-            f"-I{build.fmi_headers_dir()}",
+            f"-I{build.fmi_headers_dir(any_fmu.fmi_version)}",
             "-o",
             str(tmp_path / "again.so"),
             *map(str, sources),
@@ -216,13 +177,21 @@ def test_unknown_model_is_an_error():
         build.build_fmu("nope")
 
 
+def test_unknown_fmi_version_is_an_error():
+    with pytest.raises(build.BuildError, match=r"FMI version 4 is not supported: expected one of"):
+        build.build_fmu("emps", fmi_version=4)
+
+
 @pytest.mark.parametrize("debug_logging", [True, False])
-def test_events_reach_fmpys_logger_only_with_debug_logging(model_fmu, debug_logging):
+def test_events_reach_fmpys_logger_only_with_debug_logging(any_fmu, debug_logging):
     """fmpy instantiates with loggingOn = debug_logging and passes our logger callback; a push
     then a release of the axis logs its breakaway and its sticking only when logging is on."""
     messages = []
 
-    def logger(_environment, _instance, _status, category, message):
+    def logger(*arguments):
+        """FMI 2.0: (environment, instance, status, category, message); FMI 3.0 without the
+        instance."""
+        category, message = arguments[-2:]
         messages.append((category.decode(), message.decode()))
 
     signal = np.array(
@@ -230,7 +199,7 @@ def test_events_reach_fmpys_logger_only_with_debug_logging(model_fmu, debug_logg
         dtype=[("time", float), ("current_cmd", float)],
     )
     simulate_fmu(
-        str(model_fmu[1]),
+        str(any_fmu.path),
         stop_time=0.4,
         step_size=1e-4,
         input=signal,
@@ -255,6 +224,28 @@ def test_default_builds_go_to_a_cache_keyed_by_the_sources(model_copy, tmp_path,
     second = build.build_fmu("drive2mass")
     assert second != first and first.is_file() and second.is_file()
     assert not list((tmp_path / "cache").rglob(".*"))  # no temporary file left behind
+
+
+def test_both_versions_are_kept_side_by_side(tmp_path, monkeypatch):
+    """Keyed by fingerprint and version in the cache, by file name in an output folder; each
+    version's build is found up to date on its own."""
+    monkeypatch.setenv(build.CACHE_ENV, str(tmp_path / "cache"))
+    fmi2, fmi3 = (build.build_fmu("emps", fmi_version=v) for v in (2, 3))
+    assert (fmi2.name, fmi3.name) == ("emps.fmu", "emps-fmi3.fmu")
+    assert build.fingerprint("emps", 2) != build.fingerprint("emps", 3)
+    assert fmi3.parent.name == f"emps-{build.fingerprint('emps', 3)[:16]}" != fmi2.parent.name
+    out = tmp_path / "out"
+    built = [build.build_fmu("emps", out, fmi_version=v) for v in (2, 3)]
+    stamps = [p.stat().st_mtime_ns for p in built]
+    assert [p.name for p in sorted(out.iterdir())] == [
+        "emps-fmi3.fmu",
+        "emps-fmi3.fmu.sha256",
+        "emps.fmu",
+        "emps.fmu.sha256",
+    ]
+    again = [build.build_fmu("emps", out, fmi_version=v) for v in (2, 3)]
+    assert [p.stat().st_mtime_ns for p in again] == stamps
+    assert [read_model_description(str(p)).fmiVersion for p in built] == ["2.0", "3.0"]
 
 
 def test_cache_follows_xdg_when_no_override(monkeypatch, tmp_path):

@@ -1,6 +1,7 @@
-"""The sources/ folder of each FMU as an importer rebuilds it: with all warnings as errors at -O3,
-through fmpy's own build, and without the project's -fvisibility=hidden: the binary then still
-exports the fmi2 functions only, and two models loaded into one process stay apart."""
+"""The sources/ folder of each FMU of each FMI version as an importer rebuilds it: with all warnings
+as errors at -O3, through fmpy's own build, and without the project's -fvisibility=hidden: the
+binary then still exports the functions of its FMI version only, and two models loaded into one
+process stay apart."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from fmu_build import build
-from tests.fmu_build.conftest import MODELS
+from tests.fmu_build.conftest import MODELS, BuiltFmu
 
 STRICT_FLAGS = (
     "-std=c99",
@@ -29,19 +30,18 @@ STRICT_FLAGS = (
 )  # no -fvisibility=hidden: what a user's own build would use
 
 
-def rebuild_from_sources(fmu_path: Path, folder: Path) -> Path:
+def rebuild_from_sources(fmu: BuiltFmu, folder: Path) -> Path:
     """Extract the FMU into ``folder`` and compile ``sources/*.c`` with STRICT_FLAGS."""
-    with zipfile.ZipFile(fmu_path) as archive:
+    with zipfile.ZipFile(fmu.path) as archive:
         archive.extractall(folder)
-    model = fmu_path.stem
-    binary = folder / "binaries" / "linux64" / f"{model}.so"
+    binary = folder / build.binary_path(fmu.model, fmu.fmi_version)
     binary.unlink()
     result = subprocess.run(
         [
             "gcc",
             *STRICT_FLAGS,
             f"-I{folder / 'sources'}",
-            f"-I{build.fmi_headers_dir()}",
+            f"-I{build.fmi_headers_dir(fmu.fmi_version)}",
             "-o",
             str(binary),
             *map(str, sorted((folder / "sources").glob("*.c"))),
@@ -54,25 +54,30 @@ def rebuild_from_sources(fmu_path: Path, folder: Path) -> Path:
     return binary
 
 
-@pytest.fixture(scope="module")
-def rebuilt(tmp_path_factory) -> dict[str, Path]:
-    """Both FMUs extracted, their binaries rebuilt from sources/ with STRICT_FLAGS."""
-    folders = {}
+@pytest.fixture(scope="module", params=build.FMI_VERSIONS, ids=lambda v: f"fmi{v}")
+def rebuilt(request, tmp_path_factory) -> tuple[int, dict[str, Path]]:
+    """An FMI version and both models' FMUs of it extracted, their binaries rebuilt from
+    sources/ with STRICT_FLAGS."""
+    version, folders = request.param, {}
     for model in MODELS:
-        folder = tmp_path_factory.mktemp(model)
-        rebuild_from_sources(build.build_fmu(model), folder)
+        folder = tmp_path_factory.mktemp(f"{model}-fmi{version}")
+        fmu = BuiltFmu(model, version, build.build_fmu(model, fmi_version=version))
+        rebuild_from_sources(fmu, folder)
         folders[model] = folder
-    return folders
+    return version, folders
 
 
 def test_sources_build_with_warnings_as_errors_at_O3(rebuilt):
-    for model, folder in rebuilt.items():
-        assert (folder / "binaries" / "linux64" / f"{model}.so").stat().st_size > 0
+    version, folders = rebuilt
+    for model, folder in folders.items():
+        assert (folder / build.binary_path(model, version)).stat().st_size > 0
 
 
-def test_fmpy_compile_with_warnings_as_errors(model_fmu, tmp_path):
-    fmu = tmp_path / model_fmu[1].name
-    fmu.write_bytes(model_fmu[1].read_bytes())
+def test_fmpy_compile_with_warnings_as_errors(any_fmu, tmp_path):
+    """fmpy builds FMI 2.0 from SourceFiles of modelDescription.xml, FMI 3.0 from
+    sources/buildDescription.xml."""
+    fmu = tmp_path / any_fmu.path.name
+    fmu.write_bytes(any_fmu.path.read_bytes())
     venv_bin = Path(sys.executable).parent
     # fmpy runs "cmake", which the venv provides (a dependency of fmpy): put it first on PATH
     env = {**os.environ, "PATH": os.pathsep.join([str(venv_bin), os.environ.get("PATH", "")])}
@@ -84,18 +89,20 @@ def test_fmpy_compile_with_warnings_as_errors(model_fmu, tmp_path):
         env=env,
     )
     assert result.returncode == 0, (result.stdout + result.stderr)[-4000:]
-    assert f"binaries/linux64/{model_fmu[0]}.so" in zipfile.ZipFile(fmu).namelist()
+    binary = build.binary_path(any_fmu.model, any_fmu.fmi_version)
+    assert binary in zipfile.ZipFile(fmu).namelist()
 
 
-def test_only_fmi2_functions_are_exported(rebuilt):
-    for model, folder in rebuilt.items():
-        binary = folder / "binaries" / "linux64" / f"{model}.so"
+def test_only_the_functions_of_the_fmi_version_are_exported(rebuilt):
+    version, folders = rebuilt
+    for model, folder in folders.items():
+        binary = folder / build.binary_path(model, version)
         result = subprocess.run(
             ["nm", "-D", "--defined-only", str(binary)], capture_output=True, text=True, check=True
         )
         names = [line.split()[-1] for line in result.stdout.splitlines() if line.strip()]
-        assert "fmi2DoStep" in names
-        assert [n for n in names if not n.startswith("fmi2")] == [], model
+        assert f"fmi{version}DoStep" in names
+        assert [n for n in names if not n.startswith(f"fmi{version}")] == [], model
 
 
 STEP_BOTH = textwrap.dedent(
@@ -103,19 +110,23 @@ STEP_BOTH = textwrap.dedent(
     import ctypes, json, sys
     from fmpy import read_model_description
     from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi3 import FMU3Slave
 
-    folders = json.loads(sys.argv[1])
+    folders, version = json.loads(sys.argv[1]), int(sys.argv[4])
+    platform = {2: "linux64", 3: "x86_64-linux"}[version]
     slaves, refs = {}, {}
     for model, folder in folders.items():
         # RTLD_GLOBAL: every exported symbol of one model is visible to the other
-        ctypes.CDLL(f"{folder}/binaries/linux64/{model}.so", mode=ctypes.RTLD_GLOBAL)
+        ctypes.CDLL(f"{folder}/binaries/{platform}/{model}.so", mode=ctypes.RTLD_GLOBAL)
     for model, folder in folders.items():
         description = read_model_description(folder)
         by_name = {v.name: v.valueReference for v in description.modelVariables}
-        slave = FMU2Slave(guid=description.guid, unzipDirectory=folder,
-                          modelIdentifier=model, instanceName=model)
+        slave = (FMU2Slave if version == 2 else FMU3Slave)(
+            guid=description.guid, unzipDirectory=folder, modelIdentifier=model,
+            instanceName=model)
         slave.instantiate()
-        slave.setupExperiment(startTime=0.0)
+        if version == 2:
+            slave.setupExperiment(startTime=0.0)
         slave.enterInitializationMode()
         slave.exitInitializationMode()
         slaves[model] = slave
@@ -126,9 +137,9 @@ STEP_BOTH = textwrap.dedent(
         for model, slave in slaves.items():
             if sys.argv[3] != "both" and model != sys.argv[3]:
                 continue
-            slave.setReal([refs[model][0]], [3.0])
+            (slave.setReal if version == 2 else slave.setFloat64)([refs[model][0]], [3.0])
             slave.doStep(k * h, h)
-            out[model].append(slave.getReal(refs[model][1]))
+            out[model].append((slave.getReal if version == 2 else slave.getFloat64)(refs[model][1]))
     for slave in slaves.values():
         slave.terminate()
         slave.freeInstance()
@@ -138,15 +149,18 @@ STEP_BOTH = textwrap.dedent(
 
 
 def test_two_models_in_one_process_stay_apart(rebuilt):
+    version, folders = rebuilt
+
     def run(which: str) -> dict:
         result = subprocess.run(
             [
                 sys.executable,
                 "-c",
                 STEP_BOTH,
-                json.dumps({m: str(f) for m, f in rebuilt.items()}),
+                json.dumps({m: str(f) for m, f in folders.items()}),
                 "1e-4",
                 which,
+                str(version),
             ],
             capture_output=True,
             text=True,

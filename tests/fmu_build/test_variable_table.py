@@ -36,6 +36,7 @@ def test_value_references_are_dense_reals_first(tmp_path):
         ("n", 3),
     ]
     assert t.default_step_size == 1.0e-3
+    assert t.time_value_reference == 4  # FMI 3.0's time: the first reference after the table
 
 
 @pytest.mark.parametrize(
@@ -77,6 +78,10 @@ def test_value_references_are_dense_reals_first(tmp_path):
             "  - {name: a, causality: input, unit: A, start: 0.0, depends_on: [a],"
             " description: x}\n",
             "only an output takes depends_on",
+        ),
+        (
+            "  - {name: time, causality: input, unit: s, start: 0.0, description: x}\n",
+            "the name 'time' is reserved for the independent variable of FMI 3.0",
         ),
         (
             "  - {name: n_1, causality: parameter, unit: m, start: 0.0, description: x}\n"

@@ -37,7 +37,7 @@ def test_build_warns_when_the_loops_cannot_be_compiled_ahead(tmp_path, monkeypat
         raise ahead.LoopBuildError("compiling the loops ahead failed: Python.h: not found")
 
     monkeypatch.setattr(ahead, "build", fail)
-    args = argparse.Namespace(model="drive2mass", out=str(tmp_path), force=False)
+    args = argparse.Namespace(model="drive2mass", out=str(tmp_path), force=False, fmi=2)
     assert build.run(args) == 0
     captured = capsys.readouterr()
     assert captured.out.strip() == str(tmp_path / "drive2mass.fmu")

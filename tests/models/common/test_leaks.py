@@ -1,4 +1,5 @@
-"""1,000 instantiate / initialise / step / reset / free cycles under valgrind memcheck: no leak."""
+"""1,000 instantiate / initialise / step / reset / free cycles under valgrind memcheck, through
+either FMI version's API: no leak."""
 
 from __future__ import annotations
 
@@ -11,20 +12,21 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from fmu_build.build import build_fmu, fmi_headers_dir
+from fmu_build.build import FMI_VERSIONS, binary_path, build_fmu, fmi_headers_dir
 
 HERE = Path(__file__).parent
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("fmi_version", FMI_VERSIONS)
 @pytest.mark.parametrize("model", ["drive2mass", "emps"])
-def test_no_leak_over_1000_cycles(model, tmp_path):
+def test_no_leak_over_1000_cycles(model, fmi_version, tmp_path):
     if shutil.which("valgrind") is None:
         pytest.fail("valgrind is not installed (.ci/run installs it with apt-get)")
-    fmu_path = build_fmu(model)
+    fmu_path = build_fmu(model, fmi_version=fmi_version)
     with zipfile.ZipFile(fmu_path) as archive:
-        archive.extract(f"binaries/linux64/{model}.so", tmp_path)
-    binary = tmp_path / "binaries" / "linux64" / f"{model}.so"
+        archive.extract(binary_path(model, fmi_version), tmp_path)
+    binary = tmp_path / binary_path(model, fmi_version)
     driver = tmp_path / "leak_check"
     subprocess.run(
         [
@@ -32,7 +34,8 @@ def test_no_leak_over_1000_cycles(model, tmp_path):
             "-std=c99",
             "-Wall",
             "-Werror",
-            f"-I{fmi_headers_dir()}",
+            f"-DFMI_VERSION={fmi_version}",
+            f"-I{fmi_headers_dir(fmi_version)}",
             "-o",
             str(driver),
             str(HERE / "leak_check.c"),

@@ -77,17 +77,17 @@ def test_a_substep_too_long_for_a_rate_of_the_model_is_refused(model, parameters
         ), plant.messages
 
 
-def test_a_non_finite_state_is_refused_with_the_model_name(any_plant):
+def test_a_non_finite_state_is_refused_with_the_model_name(any_slave):
     """A command far beyond any drive overflows the state once its dead time (at most one 1 ms
     step by default) is over."""
-    any_plant.start_run({})
-    model = any_plant.description.coSimulation.modelIdentifier
-    vr_in = [any_plant.value_reference("current_cmd")]
+    any_slave.start_run({})
+    model = any_slave.description.coSimulation.modelIdentifier
+    vr_in = [any_slave.vr("current_cmd")]
     with pytest.raises(FMICallException):
         for k in range(3):
-            any_plant.fmu.setReal(vr_in, [1e308])
-            any_plant.fmu.doStep(k * 1e-3, 1e-3)
+            any_slave.set_reals(vr_in, [1e308])
+            any_slave.do_step(k * 1e-3, 1e-3)
     assert any(
         m.startswith("[logStatusError]") and f"{model}: state became non-finite" in m
-        for m in any_plant.messages
-    ), any_plant.messages
+        for m in any_slave.messages
+    ), any_slave.messages
