@@ -10,6 +10,10 @@
 #include "fmi2Functions.h"
 #include "slave.h"
 
+/* The shared slave's statuses are this version's: its functions return them cast. */
+typedef char slave_status_is_fmi2_status[
+    (int)SLAVE_OK == (int)fmi2OK && (int)SLAVE_ERROR == (int)fmi2Error ? 1 : -1];
+
 /* An instance: the shared slave's data, then the importer's callbacks. */
 typedef struct {
     ModelInstance model;               /* first: what slave.c works on */

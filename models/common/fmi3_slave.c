@@ -16,6 +16,10 @@
 #include "fmi3Functions.h"
 #include "slave.h"
 
+/* The shared slave's statuses are this version's: its functions return them cast. */
+typedef char slave_status_is_fmi3_status[
+    (int)SLAVE_OK == (int)fmi3OK && (int)SLAVE_ERROR == (int)fmi3Error ? 1 : -1];
+
 /* An instance: the shared slave's data, then what the importer gave at instantiation. */
 typedef struct {
     ModelInstance model;                    /* first: what slave.c works on */
