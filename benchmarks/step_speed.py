@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from fmu_build.build import fmi_headers_dir
-from twin_cosim.cosim import INPUT_NAMES, OUTPUT_NAMES, run_scenario
-from twin_cosim.plant import Plant
+from twin_cosim.cosim import run_scenario
+from twin_cosim.plant import CONTRACT_INPUTS, CONTRACT_OUTPUTS, Plant
 from twin_cosim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -110,7 +110,7 @@ def c_loop_wall(plant: Plant, scenario, record, tmp: Path, repeats: int) -> floa
         plant.description.guid,
         str(tmp / "currents.f64"),
         repr(scenario.settings.speed_period),
-        *(str(plant.value_reference(n)) for n in INPUT_NAMES + OUTPUT_NAMES),
+        *(str(plant.value_reference(n)) for n in CONTRACT_INPUTS + CONTRACT_OUTPUTS),
     ]
     return min(
         float(subprocess.run(command, capture_output=True, text=True, check=True).stdout)
