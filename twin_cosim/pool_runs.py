@@ -14,9 +14,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from twin_cosim.controller import TunedParameters
+    from twin_cosim.run_record import RunRecord
     from twin_cosim.scenario import Scenario
     from twin_cosim.workers import ProcessPool, SerialPool
 
@@ -25,8 +24,8 @@ RunTask = tuple["Scenario", "TunedParameters | None"]  # a scenario and a set (N
 
 def prepare_worker(modules: tuple[str, ...] = ()) -> None:
     """What a pool's process does as it starts, before its first task: import the co-simulation
-    (numpy, fmpy; pandas only where a task asks for a DataFrame), load the compiled loops and
-    import ``modules`` (those of its workers), while the parent prepares.
+    (numpy, fmpy), load the compiled master and import ``modules`` (those of its workers), while
+    the parent prepares.
 
     A pool of campaign or diagnosis workers takes :func:`prepare_campaign_worker` or
     :func:`prepare_replay_worker`.
@@ -70,7 +69,7 @@ class RecordRuns:
         self.plant = Plant(fmu)
         self.run = run_scenario
 
-    def __call__(self, task: RunTask) -> pd.DataFrame:
+    def __call__(self, task: RunTask) -> RunRecord:
         """The record of the scenario run with the set (None: the scenario's own)."""
         scenario, tuned = task
         return self.run(self.plant, scenario, tuned)
@@ -80,9 +79,7 @@ class RecordRuns:
         self.plant.close()
 
 
-def run_records(
-    pool: SerialPool | ProcessPool, fmu: Path, tasks: list[RunTask]
-) -> list[pd.DataFrame]:
+def run_records(pool: SerialPool | ProcessPool, fmu: Path, tasks: list[RunTask]) -> list[RunRecord]:
     """The records of ``tasks`` run on ``fmu`` by the pool's workers, in task order."""
     found = dict(pool.imap(tasks, RecordSpec(str(fmu))))
     return [found[i] for i in range(len(tasks))]
@@ -101,10 +98,10 @@ class AutotuneSpec:
 
 class AutotuneRuns:
     """A worker answering the auto-tuner's proposal for a scenario, from the twin's plant FRF
-    measured on its plant (:func:`twin_cosim.frequency.tuning.propose`)."""
+    measured on its plant (:func:`twin_cosim.frequency.autotune.propose`)."""
 
     def __init__(self, fmu: str) -> None:
-        from twin_cosim.frequency.tuning import propose  # in the workers only
+        from twin_cosim.frequency.autotune import propose  # in the workers only
         from twin_cosim.plant import Plant
 
         self.plant = Plant(fmu)
