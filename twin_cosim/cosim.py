@@ -177,9 +177,12 @@ class AxisRecord:
 
 @dataclass(frozen=True)
 class _Prologue:
-    """A run prepared for either path: rates, the controllers' vectors, the references and the
-    injections as rows (one per axis), the value references; the plants started."""
+    """A run prepared for either path: its axes, rates and band, the controllers' vectors, the
+    references and the injections as rows (one per axis), the value references, the records to
+    fill; the plants started."""
 
+    axes: Sequence[AxisRun]
+    abort_error: float  # m
     period: float  # s, position-loop period
     ratio: int  # speed-loop samples per position-loop sample
     samples: int  # position-loop samples
@@ -191,6 +194,8 @@ class _Prologue:
     injections: dict[str, np.ndarray]  # by Injections field: rows, or no columns when off
     vr_in: np.ndarray  # value references of the contract's inputs, one row per axis
     vr_out: np.ndarray  # of its outputs
+    record: np.ndarray  # (axis, position sample, RECORD_COLUMNS)
+    speed_record: np.ndarray  # (axis, speed sample, SPEED_LOOP_COLUMNS), or no samples
 
 
 def _rates(axes: Sequence[AxisRun]) -> tuple[float, int, int]:
@@ -267,11 +272,14 @@ def _value_references(plant: Plant, names: tuple[str, ...]) -> np.ndarray:
     return np.array([plant.value_reference(n) for n in names], dtype=np.uint32)
 
 
-def _prologue(axes: Sequence[AxisRun]) -> _Prologue:
+def _prologue(axes: Sequence[AxisRun], abort_error: float, speed_loop_record: bool) -> _Prologue:
     """Check the axes, prepare the run and start every axis' plant."""
     period, ratio, samples = _rates(axes)
     injections = _injections(axes, samples, ratio)
+    speed_samples = samples * ratio if speed_loop_record else 0
     prologue = _Prologue(
+        axes=axes,
+        abort_error=abort_error,
         period=period,
         ratio=ratio,
         samples=samples,
@@ -283,6 +291,8 @@ def _prologue(axes: Sequence[AxisRun]) -> _Prologue:
         injections=injections,
         vr_in=np.stack([_value_references(a.plant, CONTRACT_INPUTS) for a in axes]),
         vr_out=np.stack([_value_references(a.plant, CONTRACT_OUTPUTS) for a in axes]),
+        record=np.empty((len(axes), samples, len(RECORD_COLUMNS))),
+        speed_record=np.empty((len(axes), speed_samples, len(SPEED_LOOP_COLUMNS))),
     )
     for axis in axes:
         axis.plant.start_run(axis.plant_parameters)
@@ -314,14 +324,9 @@ def fast_calls(plant: Plant) -> FastCalls:
     return calls
 
 
-def _step_compiled(
-    axes: Sequence[AxisRun],
-    run: _Prologue,
-    abort_error: float,
-    record: np.ndarray,
-    speed_record: np.ndarray,
-) -> tuple[int, int, int]:
+def _step_compiled(run: _Prologue) -> tuple[int, int, int]:
     """The run in the compiled master; its (status, speed-loop step, axis) as it stopped."""
+    axes = run.axes
     calls = [fast_calls(a.plant) for a in axes]
     injected = run.injections
     status, step, at = compiled_loops().master(
@@ -343,23 +348,18 @@ def _step_compiled(
         injected["speed"],
         injected["position"],
         injected["speed_noise"],
-        abort_error,
-        record,
-        speed_record,
+        run.abort_error,
+        run.record,
+        run.speed_record,
     )
     return status, step, at
 
 
-def _step_reference(
-    axes: Sequence[AxisRun],
-    run: _Prologue,
-    abort_error: float,
-    record: np.ndarray,
-    speed_record: np.ndarray,
-) -> tuple[int, int, int]:
+def _step_reference(run: _Prologue) -> tuple[int, int, int]:
     """The run in plain Python through fmpy (the readable path, the same operations as the
     compiled master); its (status, speed-loop step, axis) as it stopped. A failing fmi2 call
     raises :class:`~twin_cosim.plant.PlantError` with the FMU's log."""
+    axes, record, speed_record = run.axes, run.record, run.speed_record
     h = run.period / run.ratio
     p, s = run.p, run.s
     injected = {name: rows if rows.shape[1] else None for name, rows in run.injections.items()}
@@ -396,7 +396,7 @@ def _step_reference(
                 outputs[a][_OUT_SPEED],
                 sa[controller.SPEED_CMD],
             )
-            if abs(setpoint - position) > abort_error:
+            if abs(setpoint - position) > run.abort_error:
                 return ABORTED, i * run.ratio, a
             current_sum = 0.0
             inputs = [0.0] * len(CONTRACT_INPUTS)
@@ -482,18 +482,14 @@ def run_axes(
     PlantError
         An fmi2 call failed (with the FMU's log).
     """
-    run = _prologue(axes)
-    record = np.empty((len(axes), run.samples, len(RECORD_COLUMNS)))
-    speed_samples = run.samples * run.ratio if speed_loop_record else 0
-    speed_record = np.empty((len(axes), speed_samples, len(SPEED_LOOP_COLUMNS)))
-    step_master = _step_compiled if fast else _step_reference
-    status, step, at = step_master(axes, run, abort_error, record, speed_record)
+    run = _prologue(axes, abort_error, speed_loop_record)
+    status, step, at = (_step_compiled if fast else _step_reference)(run)
     if status != 0:
         _raise_stopped(axes, status, step, at, abort_error)
     return {
         axis.name: AxisRecord(
-            RunRecord(record[a], RECORD_COLUMNS, RECORD_UNITS),
-            RunRecord(speed_record[a], SPEED_LOOP_COLUMNS, SPEED_LOOP_UNITS)
+            RunRecord(run.record[a], RECORD_COLUMNS, RECORD_UNITS),
+            RunRecord(run.speed_record[a], SPEED_LOOP_COLUMNS, SPEED_LOOP_UNITS)
             if speed_loop_record
             else None,
         )
