@@ -7,7 +7,9 @@ side compiles just in time). The benchmark script (a path inside the trees, each
 its own copy) runs ``--rounds`` times per tree, the two trees in turn (the first alternating, so
 that neither always runs first on a machine whose load drifts); every run prints its figures as
 one JSON object on its last line (the scripts' ``--json``). Printed: each figure's median per
-tree, the ratio this tree / base, and the load average before and after.
+tree and the ratio this tree / base of the medians; the least per tree and the ratio of the
+least; the median of the rounds' own ratios (each round's two runs ran one after the other, under
+much the same load); and the load average before and after.
 
     python benchmarks/paired.py --base REV [--rounds N] -- benchmarks/step_speed.py --json ...
 """
@@ -116,11 +118,16 @@ def main() -> None:
     ).stdout.strip()
     print(f"{' '.join(args.script)}: {args.rounds} runs per tree, this = {revision} (and any")
     print(f"changes not committed), base = {args.base}")
-    print(f"{'figure':<32}{'base':>14}{'this':>14}{'this / base':>13}")
+    print(f"{'figure':<34}{'statistic':<16}{'base':>13}{'this':>13}{'this / base':>13}")
     for figure in found["base"][0]:
-        medians = {name: statistics.median(run[figure] for run in found[name]) for name in found}
-        ratio = medians["this"] / medians["base"]
-        print(f"{figure:<32}{medians['base']:>14.6g}{medians['this']:>14.6g}{ratio:>13.4f}")
+        base = [run[figure] for run in found["base"]]
+        this = [run[figure] for run in found["this"]]
+        for statistic, pick in (("median", statistics.median), ("least", min)):
+            b, t = pick(base), pick(this)
+            print(f"{figure:<34}{statistic:<16}{b:>13.6g}{t:>13.6g}{t / b:>13.4f}")
+        rounds = statistics.median(t / b for t, b in zip(this, base, strict=True))
+        label = "rounds' ratios"
+        print(f"{figure:<34}{label:<16}{'':>26}{rounds:>13.4f} (median)")
     print(
         "load average (1, 5, 15 min): before "
         + ", ".join(f"{v:.2f}" for v in load_before)
