@@ -88,6 +88,8 @@ MAX_CROSSOVER = 0.2  # of the speed loop's Nyquist frequency
 LOW_HZ = 0.5  # lowest frequency of the design grid
 GRID_GUARD = 0.98  # the position gain stays this share below its limit read on the grid
 DESIGN_POINTS = 1500  # frequencies of the design grid, log-spaced up to the Nyquist frequency
+MOTOR_SPEED_RAD_S = 20.0  # rad/s: the operating point at which the tuner measures the plant
+EXCITATION_SHARE = 0.02  # of the current limit: the RMS of the tuner's multisine
 
 
 @dataclass(frozen=True)
@@ -332,10 +334,6 @@ def autotune(
         source=source,
         wall_s=time.perf_counter() - started,
     )
-
-
-MOTOR_SPEED_RAD_S = 20.0
-EXCITATION_SHARE = 0.02
 
 
 def twin_plant_frf(plant: Plant, scenario: Scenario) -> FrequencyResponse:

@@ -78,6 +78,24 @@ GAP_FACTOR = 4.0
 MIN_LINES = 8
 AGREEMENT_DB, AGREEMENT_DEG = 0.1, 1.0
 DEFAULT_COHERENCE_FLOOR = 0.8
+MAX_WEIGHT = 1.0e3  # the largest coherence weight, gamma^2 / (1 - gamma^2)
+DAMPING_STARTS = (0.05, 0.15, 0.4)
+DELAY_BOUNDS_MS = (-0.5, 20.0)
+LAG_BOUND_MS = 20.0
+FITTED = (
+    "motor_inertia",
+    "load_inertia",
+    "resonance_frequency",
+    "damping_ratio",
+    "viscous_friction",
+)
+FITTED_UNITS = {
+    "motor_inertia": "kg.m2",
+    "load_inertia": "kg.m2",
+    "resonance_frequency": "Hz",
+    "damping_ratio": "1",
+    "viscous_friction": "N.m.s/rad",
+}
 
 
 class FrfFileError(ValueError):
@@ -305,12 +323,6 @@ def describe_drops(drops: list[dict[str, float]], floor: float) -> str:
     return f"coherence below {floor:g} at {bands}"
 
 
-MAX_WEIGHT = 1.0e3  # the largest coherence weight, gamma^2 / (1 - gamma^2)
-DAMPING_STARTS = (0.05, 0.15, 0.4)
-DELAY_BOUNDS_MS = (-0.5, 20.0)
-LAG_BOUND_MS = 20.0
-
-
 @dataclass(frozen=True)
 class TwoMassFit:
     """The fitted two-mass plant and how well it fits.
@@ -437,22 +449,6 @@ def fit_two_mass(
         rms_deg=float(np.degrees(np.sqrt(np.average(error.imag**2, weights=weights)))),
         lines=len(f),
     )
-
-
-FITTED = (
-    "motor_inertia",
-    "load_inertia",
-    "resonance_frequency",
-    "damping_ratio",
-    "viscous_friction",
-)
-FITTED_UNITS = {
-    "motor_inertia": "kg.m2",
-    "load_inertia": "kg.m2",
-    "resonance_frequency": "Hz",
-    "damping_ratio": "1",
-    "viscous_friction": "N.m.s/rad",
-}
 
 
 @dataclass(frozen=True)

@@ -81,6 +81,10 @@ DESCRIPTIONS = {
     ("position", "open"): "position loop, open: position error -> scale reading",
     ("position", "closed"): "position loop, closed: position setpoint -> scale reading",
 }
+LINES_PER_DECADE = 100
+EXCITATION_SHARE = 0.05  # default excitation: a current of this share of the current limit (RMS)
+SETTLE_S = 0.25  # s at the operating point before the first realisation
+RAMP_ACCELERATION = 0.5  # m/s^2 up to the operating speed
 
 
 def check_loop(loop: str, kind: str) -> None:
@@ -148,9 +152,6 @@ class FrequencyResponse:
     def description(self) -> str:
         """What the response is, in words."""
         return DESCRIPTIONS[(self.loop, self.kind)]
-
-
-LINES_PER_DECADE = 100
 
 
 @dataclass(frozen=True)
@@ -261,11 +262,6 @@ def indirect_ratio(d: np.ndarray, y: np.ndarray, u: np.ndarray) -> tuple[np.ndar
     """
     estimate = np.sum(y * np.conj(d), axis=0) / np.sum(u * np.conj(d), axis=0)
     return estimate, np.minimum(coherence(d, y), coherence(d, u))
-
-
-EXCITATION_SHARE = 0.05  # default excitation: a current of this share of the current limit (RMS)
-SETTLE_S = 0.25  # s at the operating point before the first realisation
-RAMP_ACCELERATION = 0.5  # m/s^2 up to the operating speed
 
 
 @dataclass(frozen=True)
