@@ -22,7 +22,10 @@ torque, a current added to the controller's command, a speed or position setpoin
 on the measured speed), and a record per speed-loop sample beside the one per position-loop
 sample. What runs on the master: :func:`run_scenario` (one axis: a scenario's reference and its
 disturbances), a machine's axes (:mod:`twin_cosim.contour.machine_run`), the frequency-response
-measurement (:mod:`twin_cosim.frequency.measurement`).
+measurement (:mod:`twin_cosim.frequency.measurement`). An option is an array of the compiled
+master's one signature, empty when off (a branch that goes the same way through a whole run);
+another (a command read from an array in place of the controller's, for an open-loop plant; a
+record of the plant's outputs per speed-loop sample) joins the same way.
 """
 
 from __future__ import annotations
