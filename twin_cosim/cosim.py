@@ -539,8 +539,8 @@ def run_scenario(
         if signal is None:
             return None
         signal = np.asarray(signal, dtype=np.float64)
-        if signal.shape != (n,):
-            raise ValueError(f"{what} must be {n} values, one per position sample")
+        if signal.shape != (n,) or not np.all(np.isfinite(signal)):
+            raise ValueError(f"{what} must be {n} finite values, one per position sample")
         return np.repeat(signal, ratio)
 
     axis = AxisRun(
