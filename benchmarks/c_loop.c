@@ -1,7 +1,8 @@
 /* The limit for the co-simulation master: step an FMU binary through the same
- * fmi2SetReal (2 inputs) / fmi2DoStep / fmi2GetReal (3 outputs) sequence as the twin, with the
- * currents read from a file instead of computed by a controller.
- * Usage: c_loop BINARY.so GUID CURRENTS.f64 STEP_S VR_IN0 VR_IN1 VR_OUT0 VR_OUT1 VR_OUT2
+ * fmi2SetReal (2 inputs) / fmi2DoStep / fmi2GetReal (the contract's outputs) sequence as the
+ * twin, with the currents read from a file instead of computed by a controller.
+ * Usage: c_loop BINARY.so GUID CURRENTS.f64 STEP_S VR_IN0 VR_IN1 VR_OUT0 [VR_OUT1 ...] (at most
+ * MAX_OUTPUTS outputs)
  * Prints the wall time of the stepping loop in seconds. */
 #define _POSIX_C_SOURCE 199309L
 #include <dlfcn.h>
@@ -10,6 +11,8 @@
 #include <time.h>
 
 #include "fmi2Functions.h"
+
+#define MAX_OUTPUTS 8
 
 static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status,
                    fmi2String category, fmi2String message, ...) {
@@ -22,18 +25,18 @@ static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status sta
 
 int main(int argc, char *argv[]) {
     fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
-    fmi2ValueReference vr_in[2], vr_out[3];
-    fmi2Real inputs[2] = {0.0, 0.0}, outputs[3];
+    fmi2ValueReference vr_in[2], vr_out[MAX_OUTPUTS];
+    fmi2Real inputs[2] = {0.0, 0.0}, outputs[MAX_OUTPUTS];
     double h, *currents, elapsed;
-    long n, k;
+    long n, k, n_out = argc - 7;
     FILE *file;
     void *library;
     struct timespec start, stop;
-    if (argc != 10) return 1;
+    if (n_out < 1 || n_out > MAX_OUTPUTS) return 1;
     h = atof(argv[4]);
     vr_in[0] = (fmi2ValueReference)atoi(argv[5]);
     vr_in[1] = (fmi2ValueReference)atoi(argv[6]);
-    for (k = 0; k < 3; k++) vr_out[k] = (fmi2ValueReference)atoi(argv[7 + k]);
+    for (k = 0; k < n_out; k++) vr_out[k] = (fmi2ValueReference)atoi(argv[7 + k]);
     file = fopen(argv[3], "rb");
     if (!file) return 2;
     fseek(file, 0, SEEK_END);
@@ -63,7 +66,7 @@ int main(int argc, char *argv[]) {
             inputs[0] = currents[k];
             if (set_real(c, vr_in, 2, inputs) != fmi2OK) return 6;
             if (do_step(c, k * h, h, fmi2True) != fmi2OK) return 7;
-            if (get_real(c, vr_out, 3, outputs) != fmi2OK) return 8;
+            if (get_real(c, vr_out, (size_t)n_out, outputs) != fmi2OK) return 8;
         }
         clock_gettime(CLOCK_MONOTONIC, &stop);
         free_instance(c);

@@ -18,8 +18,8 @@ import json
 import tempfile
 from pathlib import Path
 
+from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec
 from twin_cosim.contour.circle_diagnosis import diagnose_circle, synthesize_circle
-from twin_cosim.contour.circle_test import MM_PER_MIN, CircleSpec
 from twin_cosim.contour.measured_circle import read_measured_circle
 from twin_cosim.gap.synth import parse_effect
 from twin_cosim.scenario import load_machine

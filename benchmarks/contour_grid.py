@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import argparse
 
-from twin_cosim.contour.circle_test import DIRECTIONS, MM_PER_MIN, CircleSpec, run_circle
+from twin_cosim.contour.circle import DIRECTIONS, MM_PER_MIN, CircleSpec, run_circle
 from twin_cosim.contour.machine_run import MachinePlants
 from twin_cosim.scenario import load_axes_parameters, load_machine
 

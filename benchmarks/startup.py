@@ -21,7 +21,7 @@ compiled (a first run writes it; compiled here too, for an environment with
    --seed 11``, 440 evaluations), a null ``twin diagnose`` (a run synthesized without effects)
    and ``twin compare`` over the five methods (``--compare-budget`` evaluations each), each
    beside the pure stepping time of the same work: the time inside the compiled loop
-   (``closed_loop`` of :mod:`twin_cosim.loops`) for every speed-loop step the command
+   (``master`` of :mod:`twin_cosim.loops`) for every speed-loop step the command
    simulates, spread evenly over its workers, each stepping at the speed measured with as
    many processes stepping at once (slower than one alone where cores share their resources).
    The ratio wall / stepping is the figure: these machines are shared and noisy, so the
@@ -97,9 +97,9 @@ def phases() -> dict[str, float]:
     mark[0] = time.perf_counter()
     plant = Plant(fmu)
     lap("FMU instantiation (extraction cached)")
-    cosim.run_scenario_record(plant, scenario)
+    cosim.run_scenario(plant, scenario)
     first = time.perf_counter() - mark[0]
-    record = cosim.run_scenario_record(plant, scenario)
+    record = cosim.run_scenario(plant, scenario)
     second = time.perf_counter() - mark[0] - first
     found["first run's extra (first run - second)"] = first - second
     found["stepping (a warm run)"] = second
@@ -211,7 +211,7 @@ def _loops_kind(loops: object) -> str:
 
 
 def _loop_time(work) -> float:
-    """Seconds spent inside the compiled ``closed_loop`` while ``work()`` runs in this process."""
+    """Seconds spent inside the compiled ``master`` while ``work()`` runs in this process."""
     from types import SimpleNamespace
 
     from twin_cosim import loops
@@ -222,11 +222,11 @@ def _loop_time(work) -> float:
     def timed(*args):
         start = time.perf_counter()
         try:
-            return compiled.closed_loop(*args)
+            return compiled.master(*args)
         finally:
             spent[0] += time.perf_counter() - start
 
-    loops._LOADED[:] = [SimpleNamespace(closed_loop=timed, __name__=compiled.__name__)]
+    loops._LOADED[:] = [SimpleNamespace(master=timed, __name__=compiled.__name__)]
     try:
         work()
     finally:

@@ -21,13 +21,12 @@ import math
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
-
 from twin_cosim.controller import TunedParameters
 from twin_cosim.cosim import run_scenario
 from twin_cosim.measured import check_against_reference, read_measured
 from twin_cosim.metrics import Metrics, compute_metrics
 from twin_cosim.plant import Plant
+from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario, load_scenario
 from twin_cosim.scenario.plant_file import check_values, read_plant_parameters
 from twin_cosim.schema import ScenarioError, load_yaml
@@ -84,7 +83,10 @@ def machine_metrics(
     if machine.suffix.lower() in MEASURED_SUFFIXES:
         run = read_measured(machine)
         check_against_reference(run, scenario.reference)
-        record = pd.DataFrame({"t": run.t, "error": run.x_ref - run.x, "current": run.current})
+        record = RunRecord.from_columns(
+            {"t": run.t, "error": run.x_ref - run.x, "current": run.current},
+            {"t": "s", "error": "m", "current": "A"},
+        )
         return compute_metrics(record, scenario.metrics_window), "measured run"
     judged = machine_scenario(scenario, machine)
     with Plant(judged.plant_fmu()) as plant:

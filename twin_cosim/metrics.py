@@ -21,8 +21,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from twin_cosim.run_record import RunRecord
 
 UM_PER_M = 1e6
@@ -82,9 +80,7 @@ def indices(t: np.ndarray, error: np.ndarray, current: np.ndarray) -> Metrics:
     )
 
 
-def compute_metrics(
-    record: pd.DataFrame | RunRecord, window: tuple[float, float | None] = (0.0, None)
-) -> Metrics:
+def compute_metrics(record: RunRecord, window: tuple[float, float | None] = (0.0, None)) -> Metrics:
     """Compute the indices of a record over ``window`` = (t0, tF) in s (tF None: to the end).
 
     Raises
@@ -104,7 +100,7 @@ def compute_metrics(
 
 
 def compare_with_measured(
-    record: pd.DataFrame | RunRecord, t: np.ndarray, x: np.ndarray, current: np.ndarray
+    record: RunRecord, t: np.ndarray, x: np.ndarray, current: np.ndarray
 ) -> dict[str, float]:
     """Replay against a measured run sampled at ``t`` (s): position x (m), current or command.
 

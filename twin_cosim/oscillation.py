@@ -17,14 +17,13 @@ holds still or moves at constant speed, after the transients of its last change 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 if TYPE_CHECKING:
-    import pandas as pd
+    from twin_cosim.run_record import RunRecord
 
 SETTLE_S = 0.1  # time after a change of the reference's acceleration before a phase counts
 STEADY_ACCELERATION = 1e-6  # m/s^2: below this the reference holds still or moves evenly
@@ -154,9 +153,7 @@ def oscillation_findings(
     return found
 
 
-def record_findings(
-    record: pd.DataFrame | Mapping[str, np.ndarray], current_limit: float
-) -> list[str]:
+def record_findings(record: RunRecord, current_limit: float) -> list[str]:
     """:func:`oscillation_findings` of a run's record (``t`` s, ``v_ref`` m/s, ``error`` m,
     ``current`` A) with its current limit (A)."""
     error = np.asarray(record["error"], dtype=float)

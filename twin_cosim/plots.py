@@ -15,8 +15,6 @@ from matplotlib.figure import Figure
 from twin_cosim.metrics import UM_PER_M, Metrics
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from twin_cosim.run_record import RunRecord
 
 # The close-up on a peak: the event starts tens of ms before it and settles within 0.2 s after
@@ -35,7 +33,7 @@ def warm_up() -> None:
 
 
 def _close_up(
-    ax, records: Mapping[str, pd.DataFrame | RunRecord], centre: float, column: str, scale: float
+    ax, records: Mapping[str, RunRecord], centre: float, column: str, scale: float
 ) -> None:
     for label, record in records.items():
         offset = record["t"] - centre
@@ -43,7 +41,7 @@ def _close_up(
         ax.plot(record["t"][near], record[column][near] * scale, label=label, lw=1)
 
 
-def plot_run(record: pd.DataFrame | RunRecord, metrics: Metrics, title: str, path: Path) -> Path:
+def plot_run(record: RunRecord, metrics: Metrics, title: str, path: Path) -> Path:
     """One run: reference and speed; position error with a close-up on its peak; current.
 
     Like the paper's Figs. 3, 4, 6 and 7. Returns the written path.
@@ -84,7 +82,7 @@ def plot_run(record: pd.DataFrame | RunRecord, metrics: Metrics, title: str, pat
 
 
 def plot_error_comparison(
-    records: Mapping[str, pd.DataFrame], centre: float, title: str, path: Path
+    records: Mapping[str, RunRecord], centre: float, title: str, path: Path
 ) -> Path:
     """Position errors of several parameter sets, whole run and close-up (paper Figs. 6-7, 11)."""
     fig = Figure(figsize=(10, 9))

@@ -2,7 +2,7 @@
 figures.
 
 Light to import: the parent of a pool builds the tasks and never runs the plant; the plant and
-the compiled loop are loaded in the workers (:class:`RecordRuns`), which start with
+the compiled master are loaded in the workers (:class:`PlantTasks`), which start with
 :func:`prepare_worker`.
 """
 
@@ -14,9 +14,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    import pandas as pd
+    from collections.abc import Callable
 
     from twin_cosim.controller import TunedParameters
+    from twin_cosim.plant import Plant
+    from twin_cosim.run_record import RunRecord
     from twin_cosim.scenario import Scenario
     from twin_cosim.workers import ProcessPool, SerialPool
 
@@ -25,8 +27,8 @@ RunTask = tuple["Scenario", "TunedParameters | None"]  # a scenario and a set (N
 
 def prepare_worker(modules: tuple[str, ...] = ()) -> None:
     """What a pool's process does as it starts, before its first task: import the co-simulation
-    (numpy, fmpy; pandas only where a task asks for a DataFrame), load the compiled loops and
-    import ``modules`` (those of its workers), while the parent prepares.
+    (numpy, fmpy), load the compiled master and import ``modules`` (those of its workers), while
+    the parent prepares.
 
     A pool of campaign or diagnosis workers takes :func:`prepare_campaign_worker` or
     :func:`prepare_replay_worker`.
@@ -49,80 +51,63 @@ def prepare_replay_worker() -> None:
 
 
 @dataclass(frozen=True)
-class RecordSpec:
-    """The recipe of a :class:`RecordRuns` worker: the FMU its plant loads."""
+class PlantTasksSpec:
+    """The recipe of a :class:`PlantTasks` worker: the FMU its plant loads, and what it answers
+    for a task (a module-level function of the plant and the task, sent by reference)."""
 
     fmu: str
+    answer: Callable[[Plant, Any], Any]
 
-    def build(self) -> RecordRuns:
+    def build(self) -> PlantTasks:
         """The worker, in the process that runs it."""
-        return RecordRuns(self.fmu)
+        return PlantTasks(self.fmu, self.answer)
 
 
-class RecordRuns:
-    """A worker running (scenario, parameter set) tasks on one plant; it answers their records
+class PlantTasks:
+    """A worker answering tasks on one plant of its own."""
+
+    def __init__(self, fmu: str, answer: Callable[[Plant, Any], Any]) -> None:
+        from twin_cosim.plant import Plant  # the run's modules: in the workers only
+
+        self.plant = Plant(fmu)
+        self.answer = answer
+
+    def __call__(self, task: Any) -> Any:
+        """What the worker answers for ``task``."""
+        return self.answer(self.plant, task)
+
+    def close(self) -> None:
+        """Free the plant."""
+        self.plant.close()
+
+
+def scenario_record(plant: Plant, task: RunTask) -> RunRecord:
+    """The record of a scenario run with a set (None: the scenario's own)
     (:func:`twin_cosim.cosim.run_scenario`)."""
+    from twin_cosim.cosim import run_scenario  # in the workers only
 
-    def __init__(self, fmu: str) -> None:
-        from twin_cosim.cosim import run_scenario  # the run's modules: in the workers only
-        from twin_cosim.plant import Plant
-
-        self.plant = Plant(fmu)
-        self.run = run_scenario
-
-    def __call__(self, task: RunTask) -> pd.DataFrame:
-        """The record of the scenario run with the set (None: the scenario's own)."""
-        scenario, tuned = task
-        return self.run(self.plant, scenario, tuned)
-
-    def close(self) -> None:
-        """Free the plant."""
-        self.plant.close()
+    scenario, tuned = task
+    return run_scenario(plant, scenario, tuned)
 
 
-def run_records(
-    pool: SerialPool | ProcessPool, fmu: Path, tasks: list[RunTask]
-) -> list[pd.DataFrame]:
+def autotune_proposal(plant: Plant, scenario: Scenario) -> dict[str, Any]:
+    """The auto-tuner's proposal for a scenario from the twin's plant FRF measured on ``plant``
+    (:func:`twin_cosim.frequency.autotune.propose`; ``twin autotune``'s layout)."""
+    from twin_cosim.frequency.autotune import propose  # in the workers only
+
+    proposal, _ = propose(plant, scenario)
+    return proposal.summary()
+
+
+def run_records(pool: SerialPool | ProcessPool, fmu: Path, tasks: list[RunTask]) -> list[RunRecord]:
     """The records of ``tasks`` run on ``fmu`` by the pool's workers, in task order."""
-    found = dict(pool.imap(tasks, RecordSpec(str(fmu))))
+    found = dict(pool.imap(tasks, PlantTasksSpec(str(fmu), scenario_record)))
     return [found[i] for i in range(len(tasks))]
-
-
-@dataclass(frozen=True)
-class AutotuneSpec:
-    """The recipe of an :class:`AutotuneRuns` worker: the FMU its plant loads."""
-
-    fmu: str
-
-    def build(self) -> AutotuneRuns:
-        """The worker, in the process that runs it."""
-        return AutotuneRuns(self.fmu)
-
-
-class AutotuneRuns:
-    """A worker answering the auto-tuner's proposal for a scenario, from the twin's plant FRF
-    measured on its plant (:func:`twin_cosim.frequency.tuning.propose`)."""
-
-    def __init__(self, fmu: str) -> None:
-        from twin_cosim.frequency.tuning import propose  # in the workers only
-        from twin_cosim.plant import Plant
-
-        self.plant = Plant(fmu)
-        self.propose = propose
-
-    def __call__(self, scenario: Scenario) -> dict[str, Any]:
-        """The proposal's summary (``twin autotune``'s layout)."""
-        proposal, _ = self.propose(self.plant, scenario)
-        return proposal.summary()
-
-    def close(self) -> None:
-        """Free the plant."""
-        self.plant.close()
 
 
 def autotune_summary(
     pool: SerialPool | ProcessPool, fmu: Path, scenario: Scenario
 ) -> dict[str, Any]:
     """The auto-tuner's proposal for ``scenario`` on ``fmu``, made by a worker of the pool."""
-    [(_, summary)] = pool.imap([scenario], AutotuneSpec(str(fmu)))
+    [(_, summary)] = pool.imap([scenario], PlantTasksSpec(str(fmu), autotune_proposal))
     return summary

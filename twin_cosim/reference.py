@@ -5,18 +5,28 @@ as samples read from a CSV file. Either way the CNC's interpolator sees samples 
 ``sample_period`` (4 ms) and interpolates them with a cubic spline onto the position-loop grid
 (250 us); the spline's first and second derivatives are the velocity and acceleration
 feedforward.
+
+An interpolated grid is kept in the per-user cache (``references/``) under a digest of
+everything it is made from: the reference samples and periods, the interpolating code (this
+file) and the versions of SciPy and numpy. A run of an unchanged reference reads it back (the
+same bits) instead of importing SciPy and fitting the spline again. Each file is written under a
+temporary name and renamed into place, so concurrent runs never read a partial one.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from twin_cosim.grid_cache import grid_key, load_grid, store_grid
+from fmu_build.build import cache_dir
+from twin_cosim.versions import installed_version
 
 
 class ReferenceError(ValueError):
@@ -270,8 +280,8 @@ def check_periods(sample_period: float, loop_period: float) -> int:
 def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -> ReferenceGrid:
     """Cubic-spline interpolation of 4-ms samples onto the position-loop grid.
 
-    A grid made before from the same inputs is read back from the per-user cache
-    (:mod:`twin_cosim.grid_cache`: the same numbers, without SciPy).
+    A grid made before from the same inputs is read back from the per-user cache (the same
+    numbers, without SciPy).
 
     Parameters
     ----------
@@ -283,8 +293,8 @@ def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -
         Position-loop period, s (250 us); must divide sample_period.
     """
     ratio = check_periods(sample_period, loop_period)
-    key = grid_key(samples, sample_period, loop_period, Path(__file__))
-    stored = load_grid(key)
+    key = _grid_key(samples, sample_period, loop_period, Path(__file__))
+    stored = _load_grid(key)
     if stored is not None:
         return ReferenceGrid(loop_period, *stored)
     from scipy.interpolate import CubicSpline  # heavy: only for a reference not seen before
@@ -292,5 +302,47 @@ def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -
     spline = CubicSpline(np.arange(len(samples)) * sample_period, samples, bc_type="clamped")
     t = np.arange((len(samples) - 1) * ratio + 1) * loop_period
     grid = ReferenceGrid(loop_period, spline(t), spline(t, 1), spline(t, 2))
-    store_grid(key, grid.position, grid.velocity, grid.acceleration)
+    _store_grid(key, grid.position, grid.velocity, grid.acceleration)
     return grid
+
+
+def _grid_key(samples: np.ndarray, sample_period: float, loop_period: float, code: Path) -> str:
+    """The digest of a grid's inputs: samples (m), periods (s), the source file ``code`` of the
+    interpolation and the versions of SciPy and numpy."""
+    digest = hashlib.sha256(np.ascontiguousarray(samples, dtype=np.float64).tobytes())
+    versions = (installed_version("scipy") or "", installed_version("numpy") or "")
+    for part in (repr(sample_period), repr(loop_period), *versions):
+        digest.update(part.encode())
+    digest.update(code.read_bytes())
+    return digest.hexdigest()[:32]
+
+
+def _grid_path(key: str) -> Path:
+    """Where the grid of ``key`` is kept in the per-user cache."""
+    return cache_dir() / "references" / f"{key}.npy"
+
+
+def _load_grid(key: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The stored position (m), velocity (m/s) and acceleration (m/s^2) of ``key``, or None."""
+    try:
+        stored = np.load(_grid_path(key))
+    except (OSError, ValueError):  # not stored yet, or unreadable: interpolate again
+        return None
+    position, velocity, acceleration = (np.array(row) for row in stored)
+    return position, velocity, acceleration
+
+
+def _store_grid(
+    key: str, position: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray
+) -> None:
+    """Store a grid under ``key`` (atomically)."""
+    path = _grid_path(key)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(handle, "wb") as file:
+            np.save(file, np.stack([position, velocity, acceleration]))
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise

@@ -14,6 +14,7 @@ from twin_cosim.scenario import with_controller_set
 
 if TYPE_CHECKING:
     from twin_cosim.controller_set import ControllerSet
+    from twin_cosim.run_record import RunRecord
     from twin_cosim.scenario import Scenario
     from twin_cosim.workers import ProcessPool, SerialPool
 
@@ -40,7 +41,7 @@ def evaluate_sets(
     fmu: Path,
     scenarios: Mapping[str, Scenario],
     sets: Mapping[str, ControllerSet],
-) -> tuple[pd.DataFrame, dict[tuple[str, str], pd.DataFrame]]:
+) -> tuple[pd.DataFrame, dict[tuple[str, str], RunRecord]]:
     """Run every controller set (the six and any settings it changes) on every scenario, on the
     pool's workers.
 

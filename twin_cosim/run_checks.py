@@ -10,14 +10,12 @@ from twin_cosim.oscillation import record_findings
 from twin_cosim.scenario import Scenario
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from twin_cosim.run_record import RunRecord
 
 SATURATED_SHARE = 0.1  # a current at its limit longer than this share of the run is a warning
 
 
-def loop_warnings(record: pd.DataFrame | RunRecord, scenario: Scenario) -> tuple[bool, list[str]]:
+def loop_warnings(record: RunRecord, scenario: Scenario) -> tuple[bool, list[str]]:
     """Whether a run is unusable (it diverged, or oscillates), and warnings about it.
 
     Parameters

@@ -9,10 +9,17 @@ import pytest
 
 from twin_cosim import controller as c
 from twin_cosim.controller import ControllerSettings, TunedParameters
-from twin_cosim.cosim import run_fast_path
+from twin_cosim.cosim import AxisRun, run_axes
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.paper import FINE_TUNE
 from twin_cosim.reference import Dwell, Ramp, ReferenceGrid, interpolate, sample_segments
+
+
+def run_axis(plant, grid, tuned, settings, plant_parameters=None, fast=True):
+    """One axis on the master, its record per position-loop sample."""
+    axis = AxisRun("X", plant, grid, tuned, settings, plant_parameters or {})
+    return run_axes([axis], fast)["X"].position_loop
+
 
 SETTINGS = ControllerSettings()
 TRAVEL = SETTINGS.travel_per_rad
@@ -111,7 +118,7 @@ REVERSALS = grid_of(
 
 
 def epk(plant, tuned=FINE_TUNE, grid=REVERSALS, plant_parameters=None, **settings):
-    record = run_fast_path(plant, grid, tuned, ControllerSettings(**settings), plant_parameters)
+    record = run_axis(plant, grid, tuned, ControllerSettings(**settings), plant_parameters)
     return compute_metrics(record).E_pk_um
 
 
@@ -128,12 +135,10 @@ def test_reversal_pulse_lowers_the_reversal_peak(plant):
 def test_velocity_feedforward_removes_the_following_error(plant):
     cruise = grid_of([Dwell(0.1), Ramp(0.02, 0.2, 0.6), Ramp(0.0, 0.2, 0.2), Dwell(0.1)])
     linear = {"backlash": 0.0, "coulomb_friction": 0.0}
-    without = run_fast_path(
+    without = run_axis(
         plant, cruise, FINE_TUNE, ControllerSettings(ff_velocity=0.0, friction_torque=0.0), linear
     )
-    with_ff = run_fast_path(
-        plant, cruise, FINE_TUNE, ControllerSettings(friction_torque=0.0), linear
-    )
+    with_ff = run_axis(plant, cruise, FINE_TUNE, ControllerSettings(friction_torque=0.0), linear)
     steady = (without["t"] > 0.4) & (without["t"] < 0.6)
     # Without feedforward a P position loop lags by v / Kp_pos.
     assert without["error"][steady].mean() == pytest.approx(0.02 / FINE_TUNE.Kp_pos, rel=0.02)
@@ -145,7 +150,7 @@ def test_fine_tune_gives_a_well_damped_position_step(plant):
     step = ReferenceGrid(
         250e-6, np.r_[np.zeros(200), np.full(n - 200, 1e-6)], np.zeros(n), np.zeros(n)
     )
-    record = run_fast_path(
+    record = run_axis(
         plant,
         step,
         FINE_TUNE,

@@ -10,12 +10,19 @@ import pytest
 from twin_cosim import controller as c
 from twin_cosim import current_filters as cf
 from twin_cosim.controller import ControllerSettings, TunedParameters
-from twin_cosim.cosim import run_fast_path, run_reference_path
+from twin_cosim.cosim import AxisRun, run_axes
 from twin_cosim.current_filters import LowPass, Notch
 from twin_cosim.reference import Dwell, Ramp, interpolate, sample_segments
 from twin_cosim.scenario import ScenarioError, load_scenario
 from twin_cosim.scenario.controller_section import filters_section
 from twin_cosim.schema import Checker
+
+
+def run_axis(plant, grid, tuned, settings, plant_parameters=None, fast=True):
+    """One axis on the master, its record per position-loop sample."""
+    axis = AxisRun("X", plant, grid, tuned, settings, plant_parameters or {})
+    return run_axes([axis], fast)["X"].position_loop
+
 
 T = 62.5e-6  # s, speed-loop period
 NOTCH = Notch(frequency_hz=110.0, bandwidth_hz=40.0, depth_db=-20.0)
@@ -84,11 +91,11 @@ def test_filtered_loop_runs_the_same_on_both_paths(plant):
     )
     tuned = TunedParameters(66.7, 0.4, 0.008, 0.7, 0.008, 0.13)
     settings = ControllerSettings(filters=(NOTCH, LOWPASS))
-    fast = run_fast_path(plant, grid, tuned, settings)
-    slow = run_reference_path(plant, grid, tuned, settings)
+    fast = run_axis(plant, grid, tuned, settings)
+    slow = run_axis(plant, grid, tuned, settings, fast=False)
     assert np.max(np.abs(fast["x"] - slow["x"])) < 1e-9
     assert np.max(np.abs(fast["current"] - slow["current"])) < 1e-9
-    unfiltered = run_fast_path(plant, grid, tuned, ControllerSettings())
+    unfiltered = run_axis(plant, grid, tuned, ControllerSettings())
     assert np.max(np.abs(fast["current"] - unfiltered["current"])) > 1e-4  # the chain acts
 
 

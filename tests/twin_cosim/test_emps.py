@@ -165,8 +165,8 @@ def twin_mat(tmp_path: Path, name: str, frequency: float, pulses: bool) -> Path:
         path,
         {
             **draft,
-            "qm": record["x"].to_numpy()[:, None],
-            "vir": record["current"].to_numpy()[:, None],
+            "qm": record["x"][:, None],
+            "vir": record["current"][:, None],
         },
     )
     return path

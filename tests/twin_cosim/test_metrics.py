@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from twin_cosim.metrics import compute_metrics, indices, sample_period
+from twin_cosim.run_record import RunRecord
 
 
-def record(error: np.ndarray, current: np.ndarray, dt: float = 250e-6) -> pd.DataFrame:
-    return pd.DataFrame({"t": np.arange(len(error)) * dt, "error": error, "current": current})
+def record(error: np.ndarray, current: np.ndarray, dt: float = 250e-6) -> RunRecord:
+    columns = {"t": np.arange(len(error)) * dt, "error": error, "current": current}
+    return RunRecord.from_columns(columns, {"t": "s", "error": "m", "current": "A"})
 
 
 def test_constant_error_and_current():

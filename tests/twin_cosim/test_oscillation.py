@@ -44,7 +44,7 @@ def test_kp_vel_30_chatters(plant, reference1):
     assert unusable
     assert [w for w in warnings if "chatters" in w] == warnings, warnings
     reversals = measure_oscillation(
-        *(record[c].to_numpy() for c in ("t", "v_ref", "error", "current"))
+        *(record[c] for c in ("t", "v_ref", "error", "current"))
     ).reversals_per_s
     assert reversals > 1000.0  # the current reverses at most samples (4000 per second)
 

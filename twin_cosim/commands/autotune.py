@@ -57,7 +57,7 @@ def add_arguments(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Tune, run the scenario with the set, write autotune.json (a controller set) and the plot."""
-    from twin_cosim.frequency.tuning import autotune_scenario, plot_design
+    from twin_cosim.frequency.autotune import autotune_scenario, plot_design
     from twin_cosim.scenario import resolve_scenario
     from twin_cosim.versions import versions
 

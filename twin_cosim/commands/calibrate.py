@@ -46,8 +46,8 @@ def add_arguments(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Read and check the FRF, fit, write plant.yaml, calibration.md, fit.png, calibration.json."""
-    from twin_cosim.frequency.calibration import calibrate, write_calibration_files
-    from twin_cosim.frequency.frf_file import read_frf
+    from twin_cosim.frequency.bode import plot_bode
+    from twin_cosim.frequency.calibration import calibrate, read_frf, write_calibration_files
     from twin_cosim.scenario import resolve_scenario
 
     scenario = resolve_scenario(args.scenario)
@@ -56,6 +56,8 @@ def run(args: argparse.Namespace) -> int:
     command = command_line("calibrate")
     calibration = calibrate(scenario, frf, command, Path(args.beside) if args.beside else None)
     files = write_calibration_files(calibration, out)
+    title = f"{frf.source}: the two-mass fit\n{command}"
+    files["plot"] = str(plot_bode(calibration.responses(), title, out / "fit.png"))
     notes = frf.notes(args.coherence_floor)
     summary = {**calibration.summary(), "notes": notes, "outputs": files}
     write_json(out / "calibration.json", summary)

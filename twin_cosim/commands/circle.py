@@ -63,7 +63,7 @@ def add_arguments(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the circle(s), write circle.json, circle.png and the records; print the result."""
-    from twin_cosim.contour.circle_report import circular_test
+    from twin_cosim.contour.circle import circular_test
 
     command = command_line("circle")
     default = Path("out") / f"{Path(args.scenario).stem}-circle"
@@ -109,12 +109,27 @@ def _print_circle(args: argparse.Namespace, summary: dict[str, Any], out: Path) 
 
 
 def _measured(args: argparse.Namespace, out: Path, command: str) -> int:
-    """Replay and diagnose a measured test; write circle.json and circle.png; print the verdict."""
-    from twin_cosim.contour.circle_report import measured_circular_test
+    """Replay and diagnose a measured test (the diagnosis of
+    :func:`twin_cosim.contour.circle_diagnosis.diagnose_circle`); write circle.json and
+    circle.png (machine and twin); print the verdict."""
+    from twin_cosim.contour.circle import plot_circle
+    from twin_cosim.contour.circle_diagnosis import diagnose_circle
+    from twin_cosim.contour.measured_circle import read_measured_circle
+    from twin_cosim.scenario import load_machine
 
-    found = measured_circular_test(
-        args.scenario, args.measured, out, command, fast=not args.reference_path
+    machine = load_machine(args.scenario)
+    test = read_measured_circle(args.measured)
+    out.mkdir(parents=True, exist_ok=True)
+    found = diagnose_circle(machine, test, not args.reference_path, workers=1)
+    paths = found.pop("paths")
+    plot_circle(
+        [("machine", paths["machine"]), ("twin", paths["twin"])],
+        test.radius * 1e3,
+        None,
+        command,
+        out / "circle.png",
     )
+    found["outputs"] = {"plot": str(out / "circle.png"), "folder": str(out)}
     write_json(out / "circle.json", found)
     if args.json:
         print(json.dumps(found))

@@ -1,4 +1,5 @@
-"""``twin simulate``: run a scenario in closed loop, judge the run, write its record and plot."""
+"""``twin simulate``: run a scenario in closed loop, judge the run, write its record and plot; a
+part program on a machine of several axes (``twin simulate MACHINE --program PART.nc``)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,12 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from twin_cosim.commands.console import warn_plant_mismatch, write_json, write_record_csv
+from twin_cosim.commands.console import (
+    command_line,
+    warn_plant_mismatch,
+    write_json,
+    write_record_csv,
+)
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
@@ -20,6 +26,8 @@ from twin_cosim.commands.options import (
     plant_parameters_option,
     plant_path,
 )
+
+_SINGLE_AXIS_OPTIONS = ("plant", "plant_parameters", "machine")  # not for a machine's program
 
 if TYPE_CHECKING:
     from twin_cosim.controller import TunedParameters
@@ -68,9 +76,7 @@ def run(args: argparse.Namespace) -> int:
     from twin_cosim.scenario import is_machine_scenario
 
     if args.program or is_machine_scenario(args.scenario):
-        from twin_cosim.commands.simulate_program import run_program_command
-
-        return run_program_command(args)
+        return _run_program(args)
     from twin_cosim.painter import Painter
 
     painter = None if args.no_plots else Painter.start()  # imports matplotlib meanwhile
@@ -129,12 +135,12 @@ def _simulate(
     tuple
         The record, and ``fmu`` (the FMU's path) and ``wall_s`` (the run's wall time, s).
     """
-    from twin_cosim.cosim import run_scenario_record
+    from twin_cosim.cosim import run_scenario
     from twin_cosim.plant import Plant
 
     with Plant(scenario.plant_fmu(fmu)) as plant:
         start = time.perf_counter()
-        record = run_scenario_record(plant, scenario, tuned, fast=fast)
+        record = run_scenario(plant, scenario, tuned, fast=fast)
         wall = time.perf_counter() - start
         return record, {"fmu": str(plant.fmu_path), "wall_s": wall}
 
@@ -221,3 +227,86 @@ def _print_text(name: str, metrics: Metrics, summary: dict[str, Any], machine: s
         from twin_cosim.machine import JUDGED, describe
 
         print(describe(machine, on_machine["kind"], {k: on_machine[k] for k in JUDGED}))
+
+
+def _run_program(args: argparse.Namespace) -> int:
+    """:func:`run` of a machine scenario or a part program: run the program, write the records
+    (``contour.csv``, the contour record; ``<axis>.csv``, each axis' record) and ``summary.json``
+    (``contour_error_max_um``, ``contour_error_rms_um`` and each axis' metrics under ``axes``),
+    print the summary, then plot ``contour.png`` (unless ``--no-plots``). Exit status 1 when an
+    axis' error left the band of ``optimize.abort_error_um`` (the loop diverged), as for one
+    axis."""
+    from twin_cosim.contour.gcode import read_program
+    from twin_cosim.contour.machine_run import (
+        MachinePlants,
+        axis_metrics,
+        contour_metrics,
+        run_program,
+    )
+    from twin_cosim.contour.tuning import contour_settings
+    from twin_cosim.scenario import load_axes_parameters, load_machine
+    from twin_cosim.versions import versions
+
+    for option in _SINGLE_AXIS_OPTIONS:
+        if getattr(args, option, None):
+            raise ValueError(
+                f"--{option.replace('_', '-')}: for a single-axis scenario; a machine's axes "
+                "name their plants and plant.yaml in the scenario (axes.<axis>.plant)"
+            )
+    machine = load_machine(args.scenario)
+    if args.params:
+        machine = machine.with_tuned(load_axes_parameters(args.params, machine.axis_names))
+    source = Path(args.program) if args.program else machine.program
+    if source is None:
+        raise ValueError(f"{machine.source}: no program: give --program PART.nc")
+    program = read_program(source, machine.axis_names)
+    out = out_folder(args.out, Path("out") / machine.name)
+    out.mkdir(parents=True, exist_ok=True)
+    with MachinePlants(machine) as plants:
+        start = time.perf_counter()
+        record, _ = run_program(machine, program, plants, not args.reference_path)
+        wall = time.perf_counter() - start
+    band_um = contour_settings(machine).config.abort_error_um
+    warnings = [
+        f"axis {name}: the loop diverged: |error| reached {peak:.4g} um, beyond the band of "
+        f"{band_um:g} um (optimize.abort_error_um)"
+        for name, axis in record.axes.items()
+        if not (peak := float(abs(axis["error"]).max()) * 1e6) <= band_um
+    ]
+    write_record_csv(out / "contour.csv", record.contour)
+    for name, axis in record.axes.items():
+        write_record_csv(out / f"{name}.csv", axis)
+    summary: dict[str, Any] = {
+        "scenario": str(machine.source),
+        "program": str(source),
+        **contour_metrics(record),
+        "axes": axis_metrics(record),
+        "params": {a.name: a.tuned.as_dict() for a in machine.axes},
+        "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
+        "wall_s": wall,
+        "outputs": {"contour": str(out / "contour.csv")}
+        | ({} if args.no_plots else {"plot": str(out / "contour.png")}),
+        "warnings": warnings,
+        "versions": versions(),
+    }
+    write_json(out / "summary.json", summary)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(
+            f"{machine.name} {source.name}: contour error max "
+            f"{summary['contour_error_max_um']:.2f} um, RMS {summary['contour_error_rms_um']:.2f}"
+            f" um; "
+            + ", ".join(f"{n} E_pk {m['E_pk_um']:.2f} um" for n, m in summary["axes"].items())
+            + f" ({wall:.2f} s wall)"
+        )
+        plot = "" if args.no_plots else ", contour.png"
+        print(f"wrote {out}/contour.csv{plot}, summary.json")
+    for warning in warnings:
+        print(f"twin simulate: warning: {warning}", file=sys.stderr)
+    if not args.no_plots:
+        from twin_cosim.contour.machine_run import plot_contour  # matplotlib: only to draw
+
+        title = f"{machine.name}: {source.name}"
+        plot_contour(record, title, command_line("simulate"), out / "contour.png")
+    return 1 if warnings else 0

@@ -16,9 +16,8 @@ from twin_cosim.commands.options import (
 )
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from twin_cosim.controller_set import ControllerSet
+    from twin_cosim.run_record import RunRecord
     from twin_cosim.scenario import Scenario
 
 
@@ -67,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
 def _plot_errors(
     scenarios: dict[str, Scenario],
     sets: dict[str, ControllerSet],
-    records: dict[tuple[str, str], pd.DataFrame],
+    records: dict[tuple[str, str], RunRecord],
     out: Path,
 ) -> None:
     """One plot per scenario: the error of every set, around the Fine-Tune set's peak.

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from twin_cosim.contour.circle_test import CircleSpec, circle_motion
+from twin_cosim.contour.circle import CircleSpec, circle_motion
 from twin_cosim.contour.machine_run import MachinePlants, axis_grids
 from twin_cosim.contour.measured_circle import MeasuredCircle, replay_circle
 from twin_cosim.gap.diagnosis import diagnose
@@ -59,7 +59,7 @@ def diagnose_circle(
         quadrant transition: axis, measured and twin spike, gap in um), ``axis_gap_rms_um``,
         ``axes`` (each diagnosed axis: verdict, accepted effects, held-out reduction),
         ``verdict`` (``axis``, ``effect``, ``transition_deg``, ``text``) and ``paths`` (the two
-        :class:`~twin_cosim.contour.iso230.CircleResult`, for plots; not JSON).
+        :class:`~twin_cosim.contour.circle.CircleResult`, for plots; not JSON).
     """
     with MachinePlants(machine) as plants:
         replay = replay_circle(machine, measured, plants, fast)

@@ -1,28 +1,32 @@
-"""A run of a machine: the planned motion on every axis in lockstep, and its contour.
+"""A run of a machine: the planned motion on every axis together, its contour and its figure.
 
 The per-axis references of a :class:`~twin_cosim.contour.interpolation.PlannedMotion` are
 interpolated onto the position-loop grid (:func:`twin_cosim.reference.interpolate`), every axis
-runs on its own plant instance (:mod:`twin_cosim.contour.lockstep`), and the contour record
-puts the programmed and the actual positions side by side with the contour error: the distance
-of the actual position to the programmed path.
+runs on its own plant instance in the master (:func:`twin_cosim.cosim.run_axes`), and the
+contour record puts the programmed and the actual positions side by side with the contour
+error: the distance of the actual position to the programmed path. :func:`plot_contour` draws a
+program's run.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from twin_cosim.contour.gcode import Program
 from twin_cosim.contour.interpolation import PlannedMotion, plan_program
-from twin_cosim.contour.lockstep import AxisRun, run_axes_fast, run_axes_reference
 from twin_cosim.contour.path import distance_to_path
+from twin_cosim.cosim import AxisRun, run_axes
 from twin_cosim.metrics import UM_PER_M, compute_metrics
 from twin_cosim.plant import Plant
 from twin_cosim.reference import ReferenceGrid, interpolate
+from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario.machine import MachineScenario
+
+MAGNIFICATION_SHARE = 0.05  # the drawn contour error at its largest: this share of the part's size
 
 
 class MachinePlants:
@@ -61,14 +65,14 @@ class MachineRecord:
     ----------
     axes : dict
         Axis name -> its record (columns of :data:`twin_cosim.cosim.RECORD_COLUMNS`).
-    contour : pandas.DataFrame
+    contour : RunRecord
         One row per position-loop sample: ``t`` (s), ``<axis>_ref`` and ``<axis>`` (m) of each
         axis (lower-case names), ``contour_error`` (m, distance of the actual position to the
         programmed path).
     """
 
-    axes: dict[str, pd.DataFrame]
-    contour: pd.DataFrame
+    axes: dict[str, RunRecord]
+    contour: RunRecord
 
 
 def axis_grids(machine: MachineScenario, motion: PlannedMotion) -> dict[str, ReferenceGrid]:
@@ -92,17 +96,18 @@ def axis_grids(machine: MachineScenario, motion: PlannedMotion) -> dict[str, Ref
     }
 
 
-def contour_frame(records: dict[str, pd.DataFrame], motion: PlannedMotion) -> pd.DataFrame:
+def contour_record(records: dict[str, RunRecord], motion: PlannedMotion) -> RunRecord:
     """The contour record of per-axis records (see :class:`MachineRecord`)."""
     first = next(iter(records.values()))
-    frame = {"t": first["t"].to_numpy()}
+    columns = {"t": first["t"]}
     actual = np.zeros((len(first), 3))
     for name, record in records.items():
-        frame[f"{name.lower()}_ref"] = record["x_ref"].to_numpy()
-        frame[name.lower()] = record["x"].to_numpy()
-        actual[:, "XYZ".index(name)] = record["x"].to_numpy()
-    frame["contour_error"] = distance_to_path(motion.elements, actual)
-    return pd.DataFrame(frame)
+        columns[f"{name.lower()}_ref"] = record["x_ref"]
+        columns[name.lower()] = record["x"]
+        actual[:, "XYZ".index(name)] = record["x"]
+    columns["contour_error"] = distance_to_path(motion.elements, actual)
+    units = {name: "s" if name == "t" else "m" for name in columns}
+    return RunRecord.from_columns(columns, units)
 
 
 def run_machine(
@@ -112,7 +117,7 @@ def run_machine(
     fast: bool = True,
     abort_error: float = math.inf,
 ) -> MachineRecord:
-    """Run a planned motion on every axis in lockstep.
+    """Run a planned motion on every axis together.
 
     Parameters
     ----------
@@ -142,13 +147,14 @@ def run_machine(
         )
         for axis in machine.axes
     ]
-    records = (run_axes_fast if fast else run_axes_reference)(runs, abort_error)
-    return MachineRecord(records, contour_frame(records, motion))
+    recorded = run_axes(runs, fast, abort_error)
+    records = {name: axis.position_loop for name, axis in recorded.items()}
+    return MachineRecord(records, contour_record(records, motion))
 
 
 def contour_metrics(record: MachineRecord) -> dict[str, float]:
     """Contour error over the run: ``contour_error_max_um`` and ``contour_error_rms_um`` (um)."""
-    error = record.contour["contour_error"].to_numpy() * UM_PER_M
+    error = record.contour["contour_error"] * UM_PER_M
     return {
         "contour_error_max_um": float(np.max(error)),
         "contour_error_rms_um": float(np.sqrt(np.mean(error**2))),
@@ -157,7 +163,7 @@ def contour_metrics(record: MachineRecord) -> dict[str, float]:
 
 def axis_metrics(record: MachineRecord) -> dict[str, dict[str, float]]:
     """The single-axis metrics of each axis (E_pk um, ITAE um.s^2, IAU A.s, ...) by name."""
-    return {name: compute_metrics(frame).as_dict() for name, frame in record.axes.items()}
+    return {name: compute_metrics(axis).as_dict() for name, axis in record.axes.items()}
 
 
 def run_program(
@@ -167,7 +173,7 @@ def run_program(
     fast: bool = True,
     abort_error: float = math.inf,
 ) -> tuple[MachineRecord, PlannedMotion]:
-    """Run a part program on the machine: its planned motion, then the lockstep run.
+    """Run a part program on the machine: its planned motion, then the run of every axis.
 
     The program starts at the machine's origin (every axis at 0 m); ``abort_error`` as for
     :func:`run_machine` (m).
@@ -175,3 +181,66 @@ def run_program(
     limits = {axis.name: axis.limits for axis in machine.axes}
     motion = plan_program(program, limits, machine.sample_period, machine.settle)
     return run_machine(machine, motion, plants, fast, abort_error), motion
+
+
+def plot_contour(record: MachineRecord, title: str, command: str, path: Path) -> Path:
+    """Programmed and actual path (the deviation magnified), contour error and axis errors.
+
+    Parameters
+    ----------
+    record
+        The machine run.
+    title
+        Figure title.
+    command
+        The command that made the figure (written under the title).
+    path
+        PNG file to write; returned.
+    """
+    import matplotlib  # only to draw
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    contour = record.contour
+    t = contour["t"]
+    ref = contour.select(["x_ref", "y_ref"]).to_numpy()
+    actual = contour.select(["x", "y"]).to_numpy()
+    error = contour["contour_error"]
+    size = float(np.ptp(ref, axis=0).max()) or 1e-3
+    gain = MAGNIFICATION_SHARE * size / max(float(error.max()), 1e-12)
+    fig = plt.figure(figsize=(11, 8.5))
+    grid = fig.add_gridspec(2, 2, width_ratios=(1, 1.3))
+    ax = fig.add_subplot(grid[:, 0])
+    ax.plot(ref[:, 0] * 1e3, ref[:, 1] * 1e3, color="k", lw=1, label="programmed")
+    drawn = ref + gain * (actual - ref)
+    ax.plot(
+        drawn[:, 0] * 1e3,
+        drawn[:, 1] * 1e3,
+        color="tab:red",
+        lw=1,
+        label=f"actual, deviation x{gain:.3g}",
+    )
+    ax.set_aspect("equal")
+    ax.set_xlabel("X [mm]")
+    ax.set_ylabel("Y [mm]")
+    ax.legend(loc="best", fontsize=8)
+    top = fig.add_subplot(grid[0, 1])
+    top.plot(t, error * UM_PER_M, lw=0.8, color="tab:red")
+    top.set_ylabel("contour error [um]")
+    top.set_title(
+        f"contour error max {error.max() * UM_PER_M:.2f} um, "
+        f"RMS {np.sqrt(np.mean(error**2)) * UM_PER_M:.2f} um",
+        fontsize=9,
+    )
+    bottom = fig.add_subplot(grid[1, 1], sharex=top)
+    for name, axis in record.axes.items():
+        bottom.plot(axis["t"], axis["error"] * UM_PER_M, lw=0.8, label=f"{name}: x_ref - x")
+    bottom.set_ylabel("axis position error [um]")
+    bottom.set_xlabel("t [s]")
+    bottom.legend(fontsize=8)
+    fig.suptitle(f"{title}\n{command}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -6,7 +6,7 @@ references), ``x``, ``y`` [m] (the measured positions: scales or a grid encoder)
 origin: the test's nominal centre and radius are those of the least-squares circle of the
 references.
 
-The twin replays the references on every axis in lockstep; the test is evaluated (ISO 230-4) on
+The twin replays the references on every axis together; the test is evaluated (ISO 230-4) on
 the measured and on the twin's path; the gap at each quadrant transition is the difference of
 the two reversal spikes. Each axis is then diagnosed with :func:`twin_cosim.gap.diagnosis.diagnose`
 as a single-axis run (its reference, its measured position and current): the axis whose
@@ -23,8 +23,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from twin_cosim.contour.interpolation import PlannedMotion
-from twin_cosim.contour.iso230 import (
+from twin_cosim.contour.circle import (
     HYSTERESIS_STEP_DEG,
     SPIKE_LEAD_DEG,
     SPIKE_WINDOW_DEG,
@@ -33,9 +32,11 @@ from twin_cosim.contour.iso230 import (
     least_squares_circle,
     on_grid,
 )
+from twin_cosim.contour.interpolation import PlannedMotion
 from twin_cosim.contour.machine_run import MachinePlants, MachineRecord, axis_grids, run_machine
 from twin_cosim.contour.path import Arc
 from twin_cosim.measured import MeasuredDataError, MeasuredRun, check_time
+from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario.machine import MachineScenario
 
 COLUMNS = {"X": ("x_ref", "x", "current_x"), "Y": ("y_ref", "y", "current_y")}
@@ -173,15 +174,16 @@ def _motion(machine: MachineScenario, measured: MeasuredCircle) -> PlannedMotion
     )
 
 
-def _on_data(frame: pd.DataFrame, rows: np.ndarray, t: np.ndarray) -> pd.DataFrame:
+def _on_data(contour: RunRecord, rows: np.ndarray, t: np.ndarray) -> RunRecord:
     """The contour record's samples at the measured data circle's times."""
     times = t[rows]
-    return pd.DataFrame(
+    return RunRecord.from_columns(
         {
             "t": times,
-            "x": np.interp(times, frame["t"], frame["x"]),
-            "y": np.interp(times, frame["t"], frame["y"]),
-        }
+            "x": np.interp(times, contour["t"], contour["x"]),
+            "y": np.interp(times, contour["t"], contour["y"]),
+        },
+        contour.units,
     )
 
 
@@ -231,8 +233,8 @@ class CircleReplay:
     def axis_gaps(self) -> dict[str, float]:
         """RMS of measured minus twin position per axis, um."""
         gaps = {}
-        for name, frame in self.record.axes.items():
-            twin = np.interp(self.measured.t, frame["t"], frame["x"])
+        for name, axis in self.record.axes.items():
+            twin = np.interp(self.measured.t, axis["t"], axis["x"])
             gaps[name] = float(np.sqrt(np.mean((self.measured.actual[name] - twin) ** 2)) * 1e6)
         return gaps
 
@@ -253,8 +255,9 @@ def replay_circle(
             )[rows]
         )
     )
-    machine_data = pd.DataFrame(
-        {"t": measured.t[rows], "x": measured.actual["X"][rows], "y": measured.actual["Y"][rows]}
+    machine_data = RunRecord.from_columns(
+        {"t": measured.t[rows], "x": measured.actual["X"][rows], "y": measured.actual["Y"][rows]},
+        {"t": "s", "x": "m", "y": "m"},
     )
     on_machine = evaluate_circle(machine_data, measured.radius, measured.direction, speed)
     twin_data = _on_data(record.contour, rows, measured.t)

@@ -15,7 +15,7 @@
 - ``resources/<axis>.ssv``: each axis' parameter set as a stand-alone parameter-value file.
 
 An independent master (OSP libcosim, through libcosimpy) loads it; :func:`open_loop` runs the
-same plant in the project's master (every axis its own instance, stepped in lockstep through
+same plant in the project's own stepping (every axis its own instance, stepped in turn through
 fmpy) with given current commands, for the comparison.
 """
 
@@ -163,7 +163,7 @@ def open_loop(
     currents: Mapping[str, np.ndarray],
     start: Mapping[str, float] | None = None,
 ) -> dict[str, np.ndarray]:
-    """The machine's plant in the project's master, open loop, every axis in lockstep.
+    """The machine's plant stepped by the project through fmpy, open loop, every axis in turn.
 
     Parameters
     ----------

@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from twin_cosim.contour.circle_test import MM_PER_MIN, CircleSpec, run_circle
+from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec, run_circle
 from twin_cosim.contour.gcode import Program
 from twin_cosim.contour.machine_run import (
     MachinePlants,

@@ -2,8 +2,8 @@
 
 From the plant's FRF (a file, or measured on the twin at an operating speed with a small
 excitation, so that friction slides and backlash stays closed) the two-mass model is fitted
-(:mod:`twin_cosim.frequency.fit`); the design model is that plant, its delay in whole
-speed-loop periods, held at the speed-loop period (:mod:`twin_cosim.frequency.loops`). Then:
+(:mod:`twin_cosim.frequency.calibration`); the design model is that plant, its delay in whole
+speed-loop periods, held at the speed-loop period (:mod:`twin_cosim.frequency.linear`). Then:
 
 1. **speed loop**: the rigid-body rule Kp_vel = (J_M + J_L) w_c / K_t for a crossover w_c and an
    integral time T_n = alpha / w_c (Ki_vel = Kp_vel T / T_n per sample, T the speed-loop
@@ -30,6 +30,12 @@ PP2, PP3 and f_H, the reversal compensation, stay the scenario's: no frequency r
 measures them. The set's margins are read from the design loops' responses on a dense grid up to
 the Nyquist frequency (as :func:`~twin_cosim.frequency.margins.margins_of_data` reads them,
 which agrees with python-control; tested); its metrics come from a run of the scenario.
+
+On a scenario (:func:`autotune_scenario`), the plant FRF is a file or measured on the twin as a
+tuner takes it on a machine with friction and backlash: at an operating motor speed of
+:data:`MOTOR_SPEED_RAD_S` (friction slides in one direction, the backlash stays closed) with a
+multisine of :data:`EXCITATION_SHARE` of the current limit (small enough not to open the
+backlash), the nonlinearities on; the proposed set runs on the scenario beside the scenario's own.
 """
 
 from __future__ import annotations
@@ -38,6 +44,7 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -45,11 +52,26 @@ import numpy as np
 from twin_cosim import current_filters
 from twin_cosim.controller import ControllerSettings, TunedParameters
 from twin_cosim.controller_set import ControllerSet
+from twin_cosim.cosim import run_scenario
 from twin_cosim.current_filters import Notch
-from twin_cosim.frequency.fit import TwoMassFit, fit_two_mass
-from twin_cosim.frequency.loops import Discrete, LinearLoops, hold_discretised
+from twin_cosim.frequency.bode import plot_bode
+from twin_cosim.frequency.calibration import (
+    DEFAULT_COHERENCE_FLOOR,
+    TwoMassFit,
+    fit_two_mass,
+    read_frf,
+)
+from twin_cosim.frequency.linear import Discrete, LinearLoops, TwoMass, hold_discretised
 from twin_cosim.frequency.margins import Margins, dense_grid, margins_of_data
-from twin_cosim.frequency.two_mass import TwoMass
+from twin_cosim.frequency.measurement import (
+    PLANT_BAND,
+    FrequencyResponse,
+    MeasurementSettings,
+    measure,
+)
+from twin_cosim.metrics import compute_metrics
+from twin_cosim.plant import Plant
+from twin_cosim.scenario import Scenario, with_controller_set
 
 PHASE_MARGIN_DEG = 50.0  # default target of the speed loop
 GAIN_MARGIN_DB = 10.0
@@ -66,6 +88,8 @@ MAX_CROSSOVER = 0.2  # of the speed loop's Nyquist frequency
 LOW_HZ = 0.5  # lowest frequency of the design grid
 GRID_GUARD = 0.98  # the position gain stays this share below its limit read on the grid
 DESIGN_POINTS = 1500  # frequencies of the design grid, log-spaced up to the Nyquist frequency
+MOTOR_SPEED_RAD_S = 20.0  # rad/s: the operating point at which the tuner measures the plant
+EXCITATION_SHARE = 0.02  # of the current limit: the RMS of the tuner's multisine
 
 
 @dataclass(frozen=True)
@@ -310,3 +334,95 @@ def autotune(
         source=source,
         wall_s=time.perf_counter() - started,
     )
+
+
+def twin_plant_frf(plant: Plant, scenario: Scenario) -> FrequencyResponse:
+    """The plant FRF measured on the twin as the tuner measures it (nonlinearities on)."""
+    settings = scenario.settings
+    how = MeasurementSettings(
+        "plant",
+        speed=MOTOR_SPEED_RAD_S * settings.travel_per_rad,
+        amplitude=EXCITATION_SHARE * settings.current_limit,
+    )
+    start = float(scenario.reference.position[0])
+    measured = measure(plant, scenario.tuned, settings, scenario.plant_parameters, how, start)
+    return measured.below(PLANT_BAND * 0.5 / settings.speed_period)
+
+
+def propose(
+    plant: Plant,
+    scenario: Scenario,
+    frf: Path | None = None,
+    phase_margin: float = PHASE_MARGIN_DEG,
+    coherence_floor: float = DEFAULT_COHERENCE_FLOOR,
+) -> tuple[Autotuned, list[str]]:
+    """The tuner's proposal for ``scenario`` from ``frf`` (or the twin's measured plant FRF on
+    ``plant``), and the FRF file's masked bands in words."""
+    started = time.perf_counter()
+    if frf is None:
+        measured = twin_plant_frf(plant, scenario)
+        lines = (measured.frequency_hz, measured.response, measured.coherence)
+        settings = scenario.settings
+        source = (
+            f"twin bode {scenario.name} --loop plant --speed "
+            f"{MOTOR_SPEED_RAD_S * settings.travel_per_rad:.4g} --amplitude "
+            f"{EXCITATION_SHARE * settings.current_limit:.4g} (the twin, measured)"
+        )
+        notes: list[str] = []
+    else:
+        data = read_frf(frf, coherence_floor)
+        coherence = None if data.coherence is None else data.coherence[data.used]
+        lines = (data.frequency_hz[data.used], data.response[data.used], coherence)
+        source, notes = str(frf), data.notes(coherence_floor)
+    proposal = autotune(
+        *lines, scenario.tuned, scenario.settings, source, phase_margin, started=started
+    )
+    return proposal, notes
+
+
+def autotune_scenario(
+    scenario: Scenario,
+    frf: Path | None,
+    fmu: Path | None,
+    phase_margin: float,
+    coherence_floor: float,
+) -> tuple[Autotuned, dict[str, Any]]:
+    """Tune the scenario's controller from ``frf`` (or the twin's measured plant FRF).
+
+    Returns
+    -------
+    tuple
+        The proposal, and the metrics of a run of the scenario with it (``metrics``) and with
+        the scenario's own set (``scenario_metrics``), plus the FRF's masked bands (``notes``)
+        and the whole wall time (``wall_s``, s).
+    """
+    started = time.perf_counter()
+    with Plant(scenario.plant_fmu(fmu)) as plant:
+        proposal, notes = propose(plant, scenario, frf, phase_margin, coherence_floor)
+        tuned_scenario = with_controller_set(scenario, proposal.controller_set)
+        window = scenario.metrics_window
+        metrics = compute_metrics(run_scenario(plant, tuned_scenario), window).as_dict()
+        own = compute_metrics(run_scenario(plant, scenario), window).as_dict()
+    return proposal, {
+        "metrics": metrics,
+        "scenario_metrics": own,
+        "notes": notes,
+        "wall_s": time.perf_counter() - started,
+    }
+
+
+def plot_design(proposal: Autotuned, scenario: Scenario, path: Path, command: str) -> Path:
+    """The speed loop of the proposed set and of the scenario's own, on the fitted plant (the
+    design model), the proposal's margins marked; ``command`` made it."""
+    plant = design_plant(proposal.fit, scenario.settings)
+    grid = dense_grid(LOW_HZ, 0.5 / scenario.settings.speed_period, DESIGN_POINTS)
+    settings = proposal.controller_set.settings_for(scenario.settings)
+    responses = {}
+    for label, tuned, chosen in (
+        ("twin autotune", proposal.controller_set.tuned, settings),
+        ("the scenario's set", scenario.tuned, scenario.settings),
+    ):
+        loop = LinearLoops(plant, tuned, chosen).speed_open().siso(grid)
+        responses[label] = FrequencyResponse("speed", "open", grid, loop)
+    title = f"{scenario.name}: speed loop, open, on the fitted plant\n{command}"
+    return plot_bode(responses, title, path, proposal.speed_margins)

@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from twin_cosim.frequency.loops import Discrete
+from twin_cosim.frequency.linear import Discrete
 
 DENSE_POINTS = 4000
 

@@ -1,8 +1,21 @@
-"""A frequency-response measurement on the twin, in closed loop, as a drive makes it.
+"""A frequency response measured on the twin, in closed loop, as a drive measures it: the
+multisine excitation, the measurement, the H1 estimate and the response it gives.
 
-The axis holds an operating point (standstill, or a constant carriage speed reached on a ramp
-with the feedforwards on), the controller runs as in every run, and a multisine
-(:mod:`twin_cosim.frequency.excitation`) is added at one point at that loop's sample rate:
+The loops a drive measures and what each response is:
+
+- ``plant``: the mechanics as the drive sees them, motor speed over the torque setpoint
+  (rad/s per N.m, eq. (3)), measured open through the closed loops (indirect method); the
+  zero-order hold of the drive's sample period is taken out, so that it compares with the
+  continuous eq. (3), up to :data:`PLANT_BAND` of the Nyquist frequency (1 kHz at 62.5 us),
+  below which what the hold aliases stays under 0.1 dB;
+- ``speed``: the speed loop, open L_v (speed error -> motor speed) or closed T_v (speed
+  setpoint -> motor speed), 1;
+- ``position``: the position loop, open L_x (position error -> scale reading) or closed T_x
+  (position setpoint -> scale reading), 1.
+
+The measurement: the axis holds an operating point (standstill, or a constant carriage speed
+reached on a ramp with the feedforwards on), the controller runs as in every run, and a
+multisine is added at one point at that loop's sample rate:
 
 - ``plant``: to the current (torque) command, after the speed controller; u is the current the
   plant receives, y the motor speed: P = G_dy / G_du (indirect method), over the torque constant
@@ -13,9 +26,35 @@ with the feedforwards on), the controller runs as in every run, and a multisine
   y the scale reading's deviation from the reference: L_x = G_dy / G_de, T_x = G_dy / G_dd.
 
 Each realisation of the multisine runs two periods: the first lets the loop settle into its
-periodic steady state, the second is recorded. Estimates: :mod:`twin_cosim.frequency.estimate`.
-The compiled loop (:func:`twin_cosim.loops.kernels.measurement_loop`) calls the controller's own
-functions (those of every run) and the FMU's fmi2 functions, as every run does.
+periodic steady state, the second is recorded. The measurement is a run of the master
+(:func:`twin_cosim.cosim.run_axes`, compiled) with the excitation injected at its loop, the
+noise on the measured speed, and the speed-loop record: the controller's own functions (those of
+every run) and the FMU's fmi2 functions, as every run.
+
+The multisine: a period of N samples at the period T excites the lines k / (N T) Hz of a set of
+bins k, so that a whole period in the window leaks nothing. The bins are log-spaced from the
+lowest frequency up to the Nyquist frequency (bin N / 2, excited with a random sign), at most
+``lines_per_decade`` per decade and never twice the same. A loop that injects at the speed-loop
+rate while the position loop samples every R speed samples folds each line f onto the images
+m / (R T) +- f. Two excited lines whose bins agree modulo N / R, or add up to a multiple of it,
+would respond to each other; the bins are chosen so that none do (``fold``), and a linear twin
+then gives coherence 1 at every line. Each realisation draws new phases (uniform), so that
+averaging over realisations turns the response to what is not linear into noise, which the
+coherence shows.
+
+The estimate: with the excitation d, a measured output y and, for the indirect (closed-loop)
+method, the signal u at the input of what is measured, each recorded over one steady-state
+period per realisation m, at an excited line::
+
+    G_dy = sum_m Y_m conj(D_m),   G_dd = sum_m |D_m|^2,   G_yy = sum_m |Y_m|^2
+    H1   = G_dy / G_dd                          (y over d)
+    H    = G_dy / G_du                          (y over u, indirect: both from the same d)
+    gamma^2 = |G_dy|^2 / (G_dd G_yy)            (coherence of y with d)
+
+The indirect estimate measures what lies between u and y without the bias feedback gives a
+direct estimate: d is the only signal both share. Its coherence is the smaller of those of y
+and of u with d. In a linear, noise-free loop at steady state it is 1; noise, and the
+response to what is not linear (which changes with every realisation), lower it.
 """
 
 from __future__ import annotations
@@ -26,19 +65,203 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from twin_cosim import controller
 from twin_cosim.controller import ControllerSettings, TunedParameters
-from twin_cosim.cosim import fast_calls, raise_plant_error
-from twin_cosim.frequency import estimate
-from twin_cosim.frequency.excitation import Multisine, multisine
-from twin_cosim.frequency.loops import hold_factor
-from twin_cosim.frequency.response import FrequencyResponse, check_loop
-from twin_cosim.loops import compiled_loops
+from twin_cosim.cosim import AxisRecord, AxisRun, Injections, run_axes
+from twin_cosim.frequency.linear import hold_factor
 from twin_cosim.plant import Plant
+from twin_cosim.reference import ReferenceGrid
 
+LOOPS = ("plant", "speed", "position")
+PLANT_BAND = 1 / 8  # of the Nyquist frequency: the continuous plant response is given below
+UNITS = {"plant": "rad/s per N.m", "speed": "1", "position": "1"}
+DESCRIPTIONS = {
+    ("plant", "open"): "motor speed over torque setpoint (eq. (3))",
+    ("speed", "open"): "speed loop, open: speed error -> motor speed",
+    ("speed", "closed"): "speed loop, closed: speed setpoint -> motor speed",
+    ("position", "open"): "position loop, open: position error -> scale reading",
+    ("position", "closed"): "position loop, closed: position setpoint -> scale reading",
+}
+LINES_PER_DECADE = 100
 EXCITATION_SHARE = 0.05  # default excitation: a current of this share of the current limit (RMS)
 SETTLE_S = 0.25  # s at the operating point before the first realisation
 RAMP_ACCELERATION = 0.5  # m/s^2 up to the operating speed
+
+
+def check_loop(loop: str, kind: str) -> None:
+    """ValueError unless (loop, kind) is a response a drive measures."""
+    if loop not in LOOPS:
+        raise ValueError(f"loop {loop!r}: expected one of {list(LOOPS)}")
+    if (loop, kind) not in DESCRIPTIONS:
+        raise ValueError(
+            f"--loop {loop} --{kind}: the plant is measured open (the mechanics, through the "
+            "closed loops); --closed applies to the speed and position loops"
+        )
+
+
+@dataclass(frozen=True)
+class FrequencyResponse:
+    """Complex response values at increasing frequencies.
+
+    Attributes
+    ----------
+    loop : str
+        plant, speed or position (:data:`LOOPS`).
+    kind : str
+        open or closed.
+    frequency_hz : numpy.ndarray
+        Frequencies, Hz.
+    response : numpy.ndarray
+        Complex values, unit :data:`UNITS` of the loop.
+    coherence : numpy.ndarray or None
+        gamma^2 per frequency (None for a computed response).
+    """
+
+    loop: str
+    kind: str
+    frequency_hz: np.ndarray
+    response: np.ndarray
+    coherence: np.ndarray | None = None
+
+    def below(self, frequency_hz: float) -> FrequencyResponse:
+        """The response at the lines up to ``frequency_hz`` (Hz)."""
+        keep = self.frequency_hz <= frequency_hz
+        return FrequencyResponse(
+            self.loop,
+            self.kind,
+            self.frequency_hz[keep],
+            self.response[keep],
+            None if self.coherence is None else self.coherence[keep],
+        )
+
+    @property
+    def magnitude_db(self) -> np.ndarray:
+        """20 log10 |H|, dB (re 1 of the loop's unit)."""
+        return 20 * np.log10(np.abs(self.response))
+
+    @property
+    def phase_deg(self) -> np.ndarray:
+        """The phase, degrees in (-180, 180]."""
+        return np.degrees(np.angle(self.response))
+
+    @property
+    def unit(self) -> str:
+        """The unit of the response values."""
+        return UNITS[self.loop]
+
+    @property
+    def description(self) -> str:
+        """What the response is, in words."""
+        return DESCRIPTIONS[(self.loop, self.kind)]
+
+
+@dataclass(frozen=True)
+class Multisine:
+    """The lines and amplitude of a multisine.
+
+    Attributes
+    ----------
+    samples : int
+        Samples per period N.
+    period : float
+        Sample period T, s.
+    bins : numpy.ndarray
+        Excited DFT bins k (frequencies k / (N T)), increasing.
+    amplitude : float
+        Amplitude of every line, in the unit of the injected signal.
+    """
+
+    samples: int
+    period: float
+    bins: np.ndarray
+    amplitude: float
+
+    @property
+    def frequency_hz(self) -> np.ndarray:
+        """The excited frequencies, Hz."""
+        return self.bins / (self.samples * self.period)
+
+    def realisation(self, rng: np.random.Generator) -> np.ndarray:
+        """One period with random phases (uniform; a random sign at the Nyquist bin)."""
+        spectrum = np.zeros(self.samples // 2 + 1, dtype=np.complex128)
+        phases = rng.uniform(0.0, 2 * math.pi, len(self.bins))
+        # irfft: a bin k < N/2 of value N/2 exp(j phi) is cos(2 pi k n / N + phi); bin N/2 of
+        # value N is (-1)^n
+        spectrum[self.bins] = self.samples / 2 * np.exp(1j * phases)
+        if self.bins[-1] == self.samples // 2:
+            spectrum[-1] = self.samples * (1.0 if math.cos(phases[-1]) >= 0 else -1.0)
+        return self.amplitude * np.fft.irfft(spectrum, self.samples)
+
+
+def choose_bins(
+    samples: int, low_bin: int, fold: int, lines_per_decade: int = LINES_PER_DECADE
+) -> np.ndarray:
+    """Log-spaced bins from ``low_bin`` to the Nyquist bin, none the image of another.
+
+    ``fold`` is the period of the images in bins (N / R, or N when nothing folds): no two bins
+    agree modulo it, nor add up to a multiple of it.
+    """
+    nyquist = samples // 2
+    count = round(lines_per_decade * math.log10(nyquist / low_bin)) + 1
+    targets = np.unique(np.round(np.geomspace(low_bin, nyquist, max(count, 2))).astype(int))
+    residues: set[int] = set()
+    chosen = []
+    for target in targets:
+        reach = max(1, int(0.01 * target))  # look this far either side of the target
+        for k in sorted(range(target - reach, target + reach + 1), key=lambda b: abs(b - target)):
+            own = {k % fold, -k % fold}
+            if low_bin <= k <= nyquist and k not in chosen and not own & residues:
+                residues |= own
+                chosen.append(k)
+                break
+    return np.array(sorted(chosen))
+
+
+def multisine(
+    samples: int,
+    period: float,
+    low_hz: float,
+    rms: float,
+    fold: int,
+    lines_per_decade: int = LINES_PER_DECADE,
+) -> Multisine:
+    """A multisine of ``samples`` per period at ``period`` (s) from ``low_hz`` (Hz) up.
+
+    ``rms`` is the RMS value of the whole signal (unit of the injected signal); ``fold`` as
+    :func:`choose_bins`.
+    """
+    low_bin = max(1, math.ceil(low_hz * samples * period - 1e-9))
+    bins = choose_bins(samples, low_bin, fold, lines_per_decade)
+    nyquist = int(bins[-1] == samples // 2)  # a line of mean square a^2, the others a^2 / 2
+    return Multisine(samples, period, bins, rms / math.sqrt((len(bins) - nyquist) / 2 + nyquist))
+
+
+def line_spectra(periods: np.ndarray, bins: np.ndarray) -> np.ndarray:
+    """DFT of each recorded period at the excited bins, shape (realisations, lines)."""
+    return np.fft.rfft(periods, axis=-1)[:, bins]
+
+
+def coherence(d: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """gamma^2 of y with d at each line, from line spectra (realisations, lines)."""
+    cross = np.abs(np.sum(y * np.conj(d), axis=0)) ** 2
+    power = np.sum(np.abs(d) ** 2, axis=0) * np.sum(np.abs(y) ** 2, axis=0)
+    return np.divide(cross, power, out=np.zeros_like(cross), where=power > 0)
+
+
+def indirect_ratio(d: np.ndarray, y: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """y over u estimated through d (H1 of each over d), and its coherence, per line.
+
+    Parameters
+    ----------
+    d, y, u
+        Line spectra (realisations, lines) of the excitation, the output and the input.
+
+    Returns
+    -------
+    tuple
+        The complex estimate and the coherence (the smaller of y's and u's with d).
+    """
+    estimate = np.sum(y * np.conj(d), axis=0) / np.sum(u * np.conj(d), axis=0)
+    return estimate, np.minimum(coherence(d, y), coherence(d, u))
 
 
 @dataclass(frozen=True)
@@ -183,66 +406,49 @@ def measure(
         signal = excitation.realisation(rng)
         first = layout.start + 2 * m * samples
         injected[first : first + 2 * samples] = np.tile(signal, 2)
-    zeros_speed, zeros_position = np.zeros(n_speed), np.zeros(n_position)
-    noise = rng.normal(0.0, how.speed_noise, n_speed) if how.speed_noise else zeros_speed
-    speeds = np.zeros((n_speed, 3))  # setpoint with injection, measured speed, current
-    positions = np.zeros((n_position, 2))  # position error, deviation of the reading
-    calls = fast_calls(plant)
-    p = controller.parameter_vector(tuned, settings)
-    s = controller.initial_state(len(settings.filters))
-    plant.start_run(plant_parameters)
-    status, step = compiled_loops().measurement_loop(
-        calls.set_real,
-        calls.do_step,
-        calls.get_real,
-        plant.fmu.component,
-        calls.vr_in,
-        calls.vr_out,
-        p,
-        s,
-        settings.position_period,
-        ratio,
-        x_ref,
-        v_ref,
-        a_ref,
-        injected if how.loop == "plant" else zeros_speed,
-        injected if how.loop == "speed" else zeros_speed,
-        injected if how.loop == "position" else zeros_position,
-        noise,
-        speeds,
-        positions,
+    at = {"plant": "current", "speed": "speed", "position": "position"}[how.loop]
+    noise = rng.normal(0.0, how.speed_noise, n_speed) if how.speed_noise else None
+    axis = AxisRun(
+        "",
+        plant,
+        ReferenceGrid(settings.position_period, x_ref, v_ref, a_ref),
+        tuned,
+        settings,
+        plant_parameters,
+        Injections(speed_noise=noise, **{at: injected}),
     )
-    if status != 0:
-        raise_plant_error(plant, status, step, settings.speed_period)
-    return _estimate(how, layout, injected, speeds, positions, settings)
+    recorded = run_axes([axis], speed_loop_record=True)[axis.name]
+    return _estimate(how, layout, injected, recorded, settings)
 
 
 def _estimate(
     how: MeasurementSettings,
     layout: _Layout,
     injected: np.ndarray,
-    speeds: np.ndarray,
-    positions: np.ndarray,
+    recorded: AxisRecord,
     settings: ControllerSettings,
 ) -> FrequencyResponse:
-    """The response at the excited lines from the recorded periods."""
+    """The response at the excited lines from the recorded periods (of the speed-loop record,
+    or the position-loop record for the position loop)."""
     bins = layout.excitation.bins
 
     def spectra(signal: np.ndarray) -> np.ndarray:
         periods = np.stack([signal[layout.recorded(m)] for m in range(how.averages)])
-        return estimate.line_spectra(periods, bins)
+        return line_spectra(periods, bins)
 
     d = spectra(injected)
     f = layout.excitation.frequency_hz
+    speeds, positions = recorded.speed_loop, recorded.position_loop
     if how.loop == "plant":
-        value, gamma = estimate.ratio(d, spectra(speeds[:, 1]), spectra(speeds[:, 2]))
+        value, gamma = indirect_ratio(d, spectra(speeds["speed"]), spectra(speeds["current"]))
         value = value / settings.torque_constant / hold_factor(f, settings.speed_period)
     elif how.loop == "speed":
-        y = spectra(speeds[:, 1])
-        u = spectra(speeds[:, 0] - speeds[:, 1]) if how.kind == "open" else spectra(speeds[:, 0])
-        value, gamma = estimate.ratio(d, y, u)
-    else:
-        y = spectra(positions[:, 1])
-        u = spectra(positions[:, 0]) if how.kind == "open" else d
-        value, gamma = estimate.ratio(d, y, u)
+        setpoint = speeds["speed_setpoint"]
+        y = spectra(speeds["speed"])
+        u = spectra(setpoint - speeds["speed"]) if how.kind == "open" else spectra(setpoint)
+        value, gamma = indirect_ratio(d, y, u)
+    else:  # e: the position setpoint - x; y: the reading's deviation from the reference
+        y = spectra(positions["x"] - positions["x_ref"])
+        u = spectra(positions["error"]) if how.kind == "open" else d
+        value, gamma = indirect_ratio(d, y, u)
     return FrequencyResponse(how.loop, how.kind, f, value, gamma)

@@ -345,7 +345,7 @@ def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float
     with Plant(context.fmu) as plant:
 
         def replay(scenarios: list[Scenario], parameters: dict[str, float]):
-            return [run_scenario(plant, s, plant_overrides=parameters) for s in scenarios]
+            return [run_scenario(plant, s, plant_overrides=parameters).frame() for s in scenarios]
 
         first = replay(context.training_scenarios, context.nominal)
         noise = identify_noise(
@@ -361,7 +361,7 @@ def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float
             for s in context.judging_scenarios
         ]
         judging = [
-            r if r is not None else run_scenario(plant, s, plant_overrides=nominal)
+            r if r is not None else run_scenario(plant, s, plant_overrides=nominal).frame()
             for r, s in zip(judging, context.judging_scenarios, strict=True)
         ]
     return noise, nominal, Replays(first, judging)

@@ -258,7 +258,7 @@ class Replayer:
     def replay(self, scenario: Scenario, overrides: dict[str, float]) -> pd.DataFrame:
         """One scenario replayed with nominal plus ``overrides`` (clipped into their ranges)."""
         parameters = clipped({**self.spec.nominal, **overrides}, self.spec.ranges)
-        return run_scenario(self.plant, scenario, plant_overrides=parameters)
+        return run_scenario(self.plant, scenario, plant_overrides=parameters).frame()
 
     def simulate(self, task: SimulateTask) -> Replays:
         """The judging scenarios' replays (and the training scenario's when asked)."""

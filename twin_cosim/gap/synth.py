@@ -139,7 +139,7 @@ def synthesize(
         fmu_parameters = set(plant.parameter_names())
         for effect in effects:
             parameters |= effect_overrides(effect, parameters, fmu_parameters, model)
-        record = run_scenario(plant, scenario, plant_overrides=parameters)
+        record = run_scenario(plant, scenario, plant_overrides=parameters).frame()
     n = len(record)
     x = record["x"].to_numpy() + rng.normal(0.0, noise_position, n)
     resolution = parameters.get("position_resolution", 0.0)

@@ -1,9 +1,9 @@
-"""The compiled loops that step plant FMUs, and how a process gets them.
+"""The compiled master that steps plant FMUs, and how a process gets it.
 
-:func:`compiled_loops` returns the functions ``closed_loop``, ``lockstep_loop`` and
-``measurement_loop`` (:mod:`twin_cosim.loops.kernels`): from the library compiled ahead for these
-sources (:mod:`twin_cosim.loops.ahead`, no numba at run time) when it is built, else compiled just
-in time by numba (its on-disk cache).
+:func:`compiled_loops` returns the module whose function ``master``
+(:func:`twin_cosim.loops.kernels.master`) steps N axes with the options of a run: the library
+compiled ahead for these sources (:mod:`twin_cosim.loops.ahead`, no numba at run time) when it
+is built, else compiled just in time by numba (its on-disk cache).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ _LOADED: list[ModuleType] = []
 
 
 def compiled_loops() -> ModuleType:
-    """The compiled loops of this process: the library built ahead when there is one for these
+    """The compiled master of this process: the library built ahead when there is one for these
     sources, else :mod:`twin_cosim.loops.kernels` (numba, just in time); chosen once."""
     if not _LOADED:
         from twin_cosim.loops import ahead

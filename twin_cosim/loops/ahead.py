@@ -33,25 +33,19 @@ _PACKAGE = Path(__file__).resolve().parents[1]
 # (the positions of inputs and outputs), and this file's signatures.
 SOURCES = (
     _PACKAGE / "loops" / "kernels.py",
-    _PACKAGE / "loops" / "fmi_calls.py",
     _PACKAGE / "loops" / "ahead.py",
     _PACKAGE / "controller.py",
     _PACKAGE / "plant.py",
 )
-_ONE = "f8[::1]"
-_TWO = "f8[:, ::1]"
+# The one signature of the master (:func:`twin_cosim.loops.kernels.master`): per-axis integers
+# and rows, every option an array that is empty when off.
+_INTEGERS = "i8[::1]"
+_ROWS = "f8[:, ::1]"
 SIGNATURES = {
-    "closed_loop": (
-        f"UniTuple(i8, 2)(i8, i8, i8, i8, u4[::1], u4[::1], {_ONE}, {_ONE}, f8, i8, "
-        f"{_ONE}, {_ONE}, {_ONE}, {_ONE}, {_ONE}, f8, {_TWO})"
-    ),
-    "lockstep_loop": (
-        f"UniTuple(i8, 3)(i8[::1], i8[::1], i8[::1], i8[::1], u4[:, ::1], u4[:, ::1], {_TWO}, "
-        f"{_TWO}, f8, i8, {_TWO}, {_TWO}, {_TWO}, f8, f8[:, :, ::1])"
-    ),
-    "measurement_loop": (
-        f"UniTuple(i8, 2)(i8, i8, i8, i8, u4[::1], u4[::1], {_ONE}, {_ONE}, f8, i8, "
-        f"{_ONE}, {_ONE}, {_ONE}, {_ONE}, {_ONE}, {_ONE}, {_ONE}, {_TWO}, {_TWO})"
+    "master": (
+        f"UniTuple(i8, 3)({_INTEGERS}, {_INTEGERS}, {_INTEGERS}, {_INTEGERS}, u4[:, ::1], "
+        f"u4[:, ::1], {_ROWS}, {_ROWS}, f8, i8, {_ROWS}, {_ROWS}, {_ROWS}, {_ROWS}, {_ROWS}, "
+        f"{_ROWS}, {_ROWS}, {_ROWS}, f8, f8[:, :, ::1], f8[:, :, ::1])"
     ),
 }
 

@@ -1,14 +1,17 @@
-"""The compiled loops: the P-PI cascade stepping plant FMUs through their fmi2 C functions.
+"""The compiled master: the P-PI cascade stepping the plant FMUs of N axes through their fmi2 C
+functions.
 
-Plain Python functions over numbers and arrays, compiled by numba: just in time here (each with
-numba's on-disk cache), or ahead of time into one shared library by :mod:`twin_cosim.loops.ahead`
-(the same functions, the same machine code semantics, loaded without numba). Callers reach them
-through :func:`twin_cosim.loops.compiled_loops`, which picks the shared library when it is built
-for these sources.
+One plain Python function over numbers and arrays (:func:`master`), compiled by numba: just in
+time here (with numba's on-disk cache), or ahead of time into a shared library by
+:mod:`twin_cosim.loops.ahead` (the same function, the same machine-code semantics, loaded
+without numba). Callers reach it through :func:`twin_cosim.loops.compiled_loops`, which picks the
+shared library when it is built for these sources; :mod:`twin_cosim.cosim` prepares its
+arguments.
 
-Every loop returns an fmi2 status (0 when the run finished, :data:`ABORTED` when the position
-error left its band) and where it stopped (the speed-loop step, -1 before the first; the lockstep
-loop also the axis).
+The fmi2 functions are called by address (:func:`real_call`, :func:`do_step`): the addresses of
+``fmi2SetReal``, ``fmi2DoStep`` and ``fmi2GetReal`` and the instance handle are plain integers, so
+that the signature holds only numbers and arrays and compiles ahead as well as just in time.
+Each call returns the fmi2Status as an integer; the master checks it.
 """
 
 from __future__ import annotations
@@ -17,10 +20,12 @@ from pathlib import Path
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
 
 from twin_cosim import controller
-from twin_cosim.loops import ABORTED, FMI2_OK_OR_WARNING, fmi_calls
-from twin_cosim.loops.fmi_calls import do_step, real_call
+from twin_cosim.loops import ABORTED, FMI2_OK_OR_WARNING
 from twin_cosim.plant import CONTRACT_INPUTS, CONTRACT_OUTPUTS
 
 IN_CURRENT, IN_DISTURBANCE = (
@@ -29,99 +34,82 @@ IN_CURRENT, IN_DISTURBANCE = (
 OUT_ANGLE, OUT_SPEED, OUT_POSITION = (
     CONTRACT_OUTPUTS.index(n) for n in ("motor_angle", "motor_speed", "load_position")
 )
+SPEED_CMD = controller.SPEED_CMD
 
-# The controller's functions compiled; the loops that call them inline them.
+_STATUS = ir.IntType(32)  # fmi2Status, an enum
+_POINTER = ir.IntType(8).as_pointer()
+_REAL_CALL = ir.FunctionType(_STATUS, [_POINTER, _POINTER, ir.IntType(64), _POINTER])
+_DO_STEP = ir.FunctionType(_STATUS, [_POINTER, ir.DoubleType(), ir.DoubleType(), _STATUS])
+
+
+@intrinsic
+def real_call(typingctx, address, component, references, count, values):  # type: ignore[no-untyped-def]
+    """``fmi2SetReal`` or ``fmi2GetReal`` at ``address``: (instance, value references (uint32
+    pointer), count, values (float64 pointer)) -> fmi2Status; every argument an integer."""
+    signature = types.int64(types.intp, types.intp, types.intp, types.intp, types.intp)
+
+    def codegen(context, builder, sig, args):  # type: ignore[no-untyped-def]
+        function = builder.inttoptr(args[0], _REAL_CALL.as_pointer())
+        component_, references_, count_, values_ = args[1:]
+        status = builder.call(
+            function,
+            [
+                builder.inttoptr(component_, _POINTER),
+                builder.inttoptr(references_, _POINTER),
+                count_,
+                builder.inttoptr(values_, _POINTER),
+            ],
+        )
+        return builder.sext(status, ir.IntType(64))
+
+    return signature, codegen
+
+
+@intrinsic
+def do_step(typingctx, address, component, time, step, no_prior_state):  # type: ignore[no-untyped-def]
+    """``fmi2DoStep`` at ``address``: (instance, communication point (s), step size (s),
+    noSetFMUStatePriorToCurrentPoint) -> fmi2Status."""
+    signature = types.int64(types.intp, types.intp, types.float64, types.float64, types.intp)
+
+    def codegen(context, builder, sig, args):  # type: ignore[no-untyped-def]
+        function = builder.inttoptr(args[0], _DO_STEP.as_pointer())
+        status = builder.call(
+            function,
+            [
+                builder.inttoptr(args[1], _POINTER),
+                args[2],
+                args[3],
+                builder.trunc(args[4], _STATUS),
+            ],
+        )
+        return builder.sext(status, ir.IntType(64))
+
+    return signature, codegen
+
+
+# The controller's functions compiled; the master inlines them.
 position_loop = numba.njit(cache=True)(controller.position_loop)
 speed_loop = numba.njit(cache=True)(controller.speed_loop)
 
 
 @numba.njit(cache=True)
-def read_outputs(get_real, component, vr_out, outputs):  # pragma: no cover - compiled
-    """fmi2GetReal of the outputs into ``outputs``; the fmi2 status."""
-    return real_call(get_real, component, vr_out.ctypes.data, vr_out.shape[0], outputs.ctypes.data)
-
-
-@numba.njit(cache=True)
 def exchange(
-    set_real, step, get_real, component, vr_in, inputs, vr_out, outputs, t, h
+    set_real, step, get_real, component, vr_in, inputs, n_in, vr_out, outputs, n_out, t, h
 ):  # pragma: no cover - compiled
-    """Set the inputs, doStep(t, h) (s), read the outputs; the first failing fmi2 status, or the
-    last one."""
-    status = real_call(set_real, component, vr_in.ctypes.data, vr_in.shape[0], inputs.ctypes.data)
+    """Set the ``n_in`` inputs, doStep(t, h) (s), read the ``n_out`` outputs (value references
+    and values at the addresses ``vr_in``, ``inputs``, ``vr_out``, ``outputs``); the first
+    failing fmi2 status, or the last one."""
+    status = real_call(set_real, component, vr_in, n_in, inputs)
     if status > FMI2_OK_OR_WARNING:
         return status
     status = do_step(step, component, t, h, 1)
     if status > FMI2_OK_OR_WARNING:
         return status
-    return read_outputs(get_real, component, vr_out, outputs)
+    return real_call(get_real, component, vr_out, n_out, outputs)
 
 
 @numba.njit(cache=True)
-def record_position_sample(record, t, x_ref, v_ref, outputs, speed_cmd):  # pragma: no cover
-    """The first eight columns of a record row (``cosim.RECORD_COLUMNS``) at time ``t`` (s)."""
-    position = outputs[OUT_POSITION]
-    record[0] = t
-    record[1] = x_ref
-    record[2] = v_ref
-    record[3] = position
-    record[4] = x_ref - position
-    record[5] = outputs[OUT_ANGLE]
-    record[6] = outputs[OUT_SPEED]
-    record[7] = speed_cmd
-
-
-@numba.njit(cache=True)
-def closed_loop(
-    set_real,
-    step,
-    get_real,
-    component,
-    vr_in,
-    vr_out,
-    p,
-    s,
-    period,
-    ratio,
-    x_ref,
-    v_ref,
-    a_ref,
-    disturbance,
-    command_offset,
-    abort_error,
-    record,
-):  # pragma: no cover - compiled
-    """One axis in closed loop (:func:`twin_cosim.cosim.run_fast_path`); fills ``record``."""
-    inputs = np.zeros(vr_in.shape[0])
-    outputs = np.zeros(vr_out.shape[0])
-    h = period / ratio
-    status = read_outputs(get_real, component, vr_out, outputs)
-    if status > FMI2_OK_OR_WARNING:
-        return status, -1
-    for i in range(x_ref.shape[0]):
-        t = i * period
-        position_loop(p, s, t, x_ref[i], v_ref[i], a_ref[i], outputs[OUT_POSITION])
-        record_position_sample(record[i], t, x_ref[i], v_ref[i], outputs, s[0])
-        if abs(record[i, 4]) > abort_error:
-            return ABORTED, i * ratio
-        current_sum = 0.0
-        inputs[IN_DISTURBANCE] = disturbance[i]  # both held over the position period
-        offset = command_offset[i]
-        for j in range(ratio):
-            k = i * ratio + j
-            current = speed_loop(p, s, k * h, outputs[OUT_SPEED])
-            inputs[IN_CURRENT] = current + offset
-            current_sum += current
-            status = exchange(
-                set_real, step, get_real, component, vr_in, inputs, vr_out, outputs, k * h, h
-            )
-            if status > FMI2_OK_OR_WARNING:
-                return status, k
-        record[i, 8] = current_sum / ratio
-    return 0, -1
-
-
-@numba.njit(cache=True)
-def lockstep_loop(
+def master(
     set_reals,
     steps,
     get_reals,
@@ -135,125 +123,174 @@ def lockstep_loop(
     x_ref,
     v_ref,
     a_ref,
+    load_torque,
+    at_current,
+    at_speed,
+    at_position,
+    speed_noise,
     abort_error,
     record,
+    speed_record,
 ):  # pragma: no cover - compiled
-    """Several axes in lockstep (:func:`twin_cosim.contour.lockstep.run_axes_fast`); one row of
-    the address, instance, reference and state arrays per axis; fills ``record[axis]``."""
+    """Step N axes together, each its own plant instance, with the options of a run.
+
+    Per position-loop sample i (t = i * period), axis by axis: the position loop on the axis'
+    latest measured position, its record row, then its speed-loop samples k = i * ratio + j
+    (h = period / ratio): the speed loop, set the inputs, doStep(k h, h), read the outputs. The
+    axes do not act on each other, so each axis' trajectory is that of a lockstep run; the run
+    stops at the first axis (in order) whose error leaves the band at a position sample.
+
+    Parameters
+    ----------
+    set_reals, steps, get_reals, components
+        Per axis: the addresses of fmi2SetReal, fmi2DoStep, fmi2GetReal and the instance.
+    vr_in, vr_out
+        Per axis: the value references of the contract's inputs and outputs.
+    p, s
+        Per axis: the controller's parameter and state vectors (``s`` is updated).
+    period, ratio
+        Position-loop period (s), speed-loop samples per position-loop sample.
+    x_ref, v_ref, a_ref
+        Per axis and position sample: reference position (m), speed (m/s), acceleration (m/s^2).
+    load_torque
+        Per axis and speed sample: the disturbance torque input (N.m); none (no columns): the
+        input stays 0.
+    at_current
+        Per axis and speed sample: added to the controller's current command before the plant
+        (A); none: the command as it is.
+    at_speed
+        Per axis and speed sample: added to the speed loop's setpoint (rad/s); none: nothing.
+    at_position
+        Per axis and position sample: added to the position loop's setpoint (m); the record's
+        ``error`` is then the setpoint minus the position; none: nothing.
+    speed_noise
+        Per axis and speed sample: added to the motor speed the speed loop reads (rad/s); none:
+        the speed as measured.
+    abort_error
+        Stop (status :data:`ABORTED`) once an axis' |setpoint - position| exceeds this (m).
+    record
+        Filled: per axis and position sample the columns of ``cosim.RECORD_COLUMNS``.
+    speed_record
+        Filled when it has rows: per axis and speed sample the speed setpoint (rad/s, injection
+        included), the speed the loop read (rad/s) and the current command the plant received
+        (A); none (no rows): not recorded.
+
+    Returns
+    -------
+    tuple
+        fmi2 status (0 when the run finished, :data:`ABORTED`), where it stopped (the speed-loop
+        step, -1 before the first and when it finished) and the axis (-1 when it finished).
+    """
     n_axes = components.shape[0]
-    inputs = np.zeros((n_axes, vr_in.shape[1]))
-    outputs = np.zeros((n_axes, vr_out.shape[1]))
-    current_sum = np.zeros(n_axes)
+    n_in, n_out = vr_in.shape[1], vr_out.shape[1]
+    inputs = np.zeros((n_axes, n_in))
+    outputs = np.zeros((n_axes, n_out))
     h = period / ratio
+    # The options: off when their arrays are empty; each test below is the same for the whole
+    # run. Without any at the speed loop, a speed-loop sample takes the plain branch, one test.
+    torque_on = load_torque.shape[1] > 0
+    current_on = at_current.shape[1] > 0
+    speed_on = at_speed.shape[1] > 0
+    position_on = at_position.shape[1] > 0
+    noise_on = speed_noise.shape[1] > 0
+    recording = speed_record.shape[1] > 0
+    plain = not (torque_on or current_on or speed_on or noise_on or recording)
     for a in range(n_axes):
-        status = read_outputs(get_reals[a], components[a], vr_out[a], outputs[a])
+        status = real_call(
+            get_reals[a],
+            components[a],
+            vr_out.ctypes.data + a * vr_out.strides[0],
+            n_out,
+            outputs.ctypes.data + a * outputs.strides[0],
+        )
         if status > FMI2_OK_OR_WARNING:
             return status, -1, a
+    # The axis' controller rows: one axis keeps its views for the whole run (a view made per
+    # position sample costs about 3 % of a step).
+    pa, sa = p[0], s[0]
     for i in range(x_ref.shape[1]):
         t = i * period
         for a in range(n_axes):
-            position_loop(
-                p[a], s[a], t, x_ref[a, i], v_ref[a, i], a_ref[a, i], outputs[a, OUT_POSITION]
-            )
-            record_position_sample(record[a, i], t, x_ref[a, i], v_ref[a, i], outputs[a], s[a, 0])
-            if abs(record[a, i, 4]) > abort_error:
+            if n_axes > 1:
+                pa, sa = p[a], s[a]
+            position = outputs[a, OUT_POSITION]
+            setpoint = x_ref[a, i]
+            if position_on:
+                setpoint = setpoint + at_position[a, i]
+            position_loop(pa, sa, t, setpoint, v_ref[a, i], a_ref[a, i], position)
+            record[a, i, 0] = t
+            record[a, i, 1] = x_ref[a, i]
+            record[a, i, 2] = v_ref[a, i]
+            record[a, i, 3] = position
+            record[a, i, 4] = setpoint - position
+            record[a, i, 5] = outputs[a, OUT_ANGLE]
+            record[a, i, 6] = outputs[a, OUT_SPEED]
+            record[a, i, 7] = sa[SPEED_CMD]
+            if abs(setpoint - position) > abort_error:
                 return ABORTED, i * ratio, a
-            current_sum[a] = 0.0
-        for j in range(ratio):
-            k = i * ratio + j
-            for a in range(n_axes):
-                current = speed_loop(p[a], s[a], k * h, outputs[a, OUT_SPEED])
+            set_real, step, get_real = set_reals[a], steps[a], get_reals[a]
+            component = components[a]
+            axis_vr_in = vr_in.ctypes.data + a * vr_in.strides[0]
+            axis_inputs = inputs.ctypes.data + a * inputs.strides[0]
+            axis_vr_out = vr_out.ctypes.data + a * vr_out.strides[0]
+            axis_outputs = outputs.ctypes.data + a * outputs.strides[0]
+            current_sum = 0.0
+            for j in range(ratio):
+                k = i * ratio + j
+                if plain:
+                    current = speed_loop(pa, sa, k * h, outputs[a, OUT_SPEED])
+                    current_sum += current
+                else:
+                    speed = outputs[a, OUT_SPEED]
+                    if noise_on:
+                        speed = speed + speed_noise[a, k]
+                    command = sa[SPEED_CMD]
+                    if speed_on:
+                        sa[SPEED_CMD] = command + at_speed[a, k]
+                    if recording:
+                        speed_record[a, k, 0] = sa[SPEED_CMD]
+                    current = speed_loop(pa, sa, k * h, speed)
+                    if speed_on:
+                        sa[SPEED_CMD] = command
+                    current_sum += current
+                    if current_on:
+                        current = current + at_current[a, k]
+                    if recording:
+                        speed_record[a, k, 1] = speed
+                        speed_record[a, k, 2] = current
+                    if torque_on:
+                        inputs[a, IN_DISTURBANCE] = load_torque[a, k]
                 inputs[a, IN_CURRENT] = current
-                current_sum[a] += current
                 status = exchange(
-                    set_reals[a],
-                    steps[a],
-                    get_reals[a],
-                    components[a],
-                    vr_in[a],
-                    inputs[a],
-                    vr_out[a],
-                    outputs[a],
+                    set_real,
+                    step,
+                    get_real,
+                    component,
+                    axis_vr_in,
+                    axis_inputs,
+                    n_in,
+                    axis_vr_out,
+                    axis_outputs,
+                    n_out,
                     k * h,
                     h,
                 )
                 if status > FMI2_OK_OR_WARNING:
                     return status, k, a
-        for a in range(n_axes):
-            record[a, i, 8] = current_sum[a] / ratio
+            record[a, i, 8] = current_sum / ratio
     return 0, -1, -1
-
-
-@numba.njit(cache=True)
-def measurement_loop(
-    set_real,
-    step,
-    get_real,
-    component,
-    vr_in,
-    vr_out,
-    p,
-    s,
-    period,
-    ratio,
-    x_ref,
-    v_ref,
-    a_ref,
-    at_current,
-    at_speed,
-    at_position,
-    speed_noise,
-    speeds,
-    positions,
-):  # pragma: no cover - compiled
-    """One axis with signals injected into its loops
-    (:func:`twin_cosim.frequency.measurement.measure_response`); fills ``speeds`` (speed setpoint
-    with injection, measured speed, current per speed-loop sample) and ``positions`` (position
-    error, deviation of the reading per position sample)."""
-    inputs = np.zeros(vr_in.shape[0])
-    outputs = np.zeros(vr_out.shape[0])
-    h = period / ratio
-    status = read_outputs(get_real, component, vr_out, outputs)
-    if status > FMI2_OK_OR_WARNING:
-        return status, -1
-    for i in range(x_ref.shape[0]):
-        x = outputs[OUT_POSITION]
-        setpoint = x_ref[i] + at_position[i]
-        position_loop(p, s, i * period, setpoint, v_ref[i], a_ref[i], x)
-        positions[i, 0] = setpoint - x
-        positions[i, 1] = x - x_ref[i]
-        for j in range(ratio):
-            k = i * ratio + j
-            w = outputs[OUT_SPEED] + speed_noise[k]
-            command = s[controller.SPEED_CMD]
-            s[controller.SPEED_CMD] = command + at_speed[k]
-            speeds[k, 0] = s[controller.SPEED_CMD]
-            current = speed_loop(p, s, k * h, w) + at_current[k]
-            s[controller.SPEED_CMD] = command
-            speeds[k, 1] = w
-            speeds[k, 2] = current
-            inputs[IN_CURRENT] = current
-            status = exchange(
-                set_real, step, get_real, component, vr_in, inputs, vr_out, outputs, k * h, h
-            )
-            if status > FMI2_OK_OR_WARNING:
-                return status, k
-    return 0, -1
-
-
-LOOPS = (closed_loop, lockstep_loop, measurement_loop)
-HELPERS = (position_loop, speed_loop, read_outputs, exchange, record_position_sample)
 
 
 def drop_stale_compiled() -> None:
     """Delete numba's cached machine code of these functions when a source they inline
-    (controller.py, fmi_calls.py) is newer.
+    (controller.py) is newer.
 
-    numba's cache checks only the source file of the cached function itself; a loop inlines the
-    controller's functions, so an edited controller would otherwise keep running its old form.
+    numba's cache checks only the source file of the cached function itself; the master inlines
+    the controller's functions, so an edited controller would otherwise keep running its old
+    form.
     """
-    changed = max(Path(module.__file__).stat().st_mtime for module in (controller, fmi_calls))
-    for function in LOOPS + HELPERS:
+    changed = Path(controller.__file__).stat().st_mtime
+    for function in (master, position_loop, speed_loop, exchange):
         cache_dir = Path(function._cache._cache_path)
         code = function.py_func.__code__
         name = f"{Path(code.co_filename).stem}.{function.py_func.__qualname__}"

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from twin_cosim.controller import ControllerSettings
-from twin_cosim.cosim import RunAborted, run_scenario_record
+from twin_cosim.cosim import RunAborted, run_scenario
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.config import OptimizeConfig, load_config
 from twin_cosim.optimize.early_stop import OwnEvaluations, lower_bound_above, window_spans_run
@@ -117,7 +117,7 @@ class Objective:
             (``E_pk_um`` um, ``ITAE`` um.s^2, ``IAU`` A.s, ...).
         """
         case = self.cases[index]
-        record = run_scenario_record(self.plant, case.scenario, plant_overrides=case.overrides)
+        record = run_scenario(self.plant, case.scenario, plant_overrides=case.overrides)
         return {"case": case.label, **compute_metrics(record, case.window).as_dict()}
 
     def __call__(self, task: np.ndarray | EvaluationTask) -> dict[str, Any]:
@@ -154,7 +154,7 @@ class Objective:
             abort_um = min(self.config.abort_error_um, max(allowed, 0.0) / case.scale)
             tuned, settings = candidates[i]
             try:
-                record = run_scenario_record(
+                record = run_scenario(
                     self.plant,
                     _with_settings(case.scenario, settings),
                     tuned,

@@ -185,8 +185,8 @@ def plot_best_run(own: OwnSetRun, best: Scenario, label: str, title: str, path: 
 
 def _run_record(fmu: str, scenario: Scenario) -> RunRecord:
     """The run of ``scenario`` on a plant of ``fmu``."""
-    from twin_cosim.cosim import run_scenario_record  # where figures are drawn only
+    from twin_cosim.cosim import run_scenario  # where figures are drawn only
     from twin_cosim.plant import Plant
 
     with Plant(fmu) as plant:
-        return run_scenario_record(plant, scenario)
+        return run_scenario(plant, scenario)

@@ -6,8 +6,8 @@ import json
 
 import pytest
 
+from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec
 from twin_cosim.contour.circle_diagnosis import diagnose_circle, synthesize_circle
-from twin_cosim.contour.circle_test import MM_PER_MIN, CircleSpec
 from twin_cosim.contour.machine_run import MachinePlants
 from twin_cosim.contour.measured_circle import read_measured_circle, replay_circle
 from twin_cosim.gap.synth import parse_effect

@@ -15,9 +15,8 @@ from twin_cosim.frequency.autotune import (
     autotune,
     position_gain_limit,
 )
-from twin_cosim.frequency.loops import LinearLoops
+from twin_cosim.frequency.linear import LinearLoops, TwoMass
 from twin_cosim.frequency.margins import dense_grid, margins_of_data, margins_of_system
-from twin_cosim.frequency.two_mass import TwoMass
 from twin_cosim.paper import FINE_TUNE
 
 SETTINGS = ControllerSettings()

@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 import yaml
 
-from twin_cosim.frequency.fit import fit_two_mass
-from twin_cosim.frequency.frf_file import FrfFileError, read_frf
-from twin_cosim.frequency.two_mass import TwoMass
+from twin_cosim.frequency.calibration import FrfFileError, fit_two_mass, read_frf
+from twin_cosim.frequency.linear import TwoMass
 
 F = np.geomspace(2.0, 1000.0, 200)
 TABLE1 = TwoMass.from_paper(2.9e-4, 4.2e-4, 70.0, 0.15)

@@ -1,5 +1,6 @@
-"""The loops compiled ahead: the same trajectories as the loops compiled just in time and the
-fmpy reference path, loaded without numba, rebuilt when a source changes, a broken file named."""
+"""The master compiled ahead: the same trajectories as the master compiled just in time and the
+fmpy reference path (one axis, several, the measurement's injections), loaded without numba,
+rebuilt when a source changes, a broken file named."""
 
 from __future__ import annotations
 
@@ -11,8 +12,7 @@ import numpy as np
 import pytest
 
 from twin_cosim import loops
-from twin_cosim.contour.lockstep import AxisRun, run_axes_fast, run_axes_reference
-from twin_cosim.cosim import run_scenario
+from twin_cosim.cosim import AxisRun, run_axes, run_scenario
 from twin_cosim.frequency.measurement import MeasurementSettings, measure
 from twin_cosim.loops import ahead, kernels
 from twin_cosim.paper import TABLE3
@@ -56,7 +56,7 @@ def test_a_run_is_the_same_ahead_just_in_time_and_on_the_reference_path(cache, u
     assert np.array_equal(records["ahead"], reference)
 
 
-def test_lockstep_and_measurement_loops_are_the_same_ahead(cache, use, fmu_path):
+def test_several_axes_and_a_measurement_are_the_same_ahead(cache, use, fmu_path):
     scenario = load_scenario("reference1")
     library = ahead.load()
     grid = scenario.reference
@@ -73,14 +73,15 @@ def test_lockstep_and_measurement_loops_are_the_same_ahead(cache, use, fmu_path)
         for name, chosen in (("ahead", library), ("jit", kernels)):
             use(chosen)
             found[name] = (
-                run_axes_fast(axes),
+                run_axes(axes),
                 measure(px, scenario.tuned, scenario.settings, scenario.plant_parameters, how),
             )
-        reference = run_axes_reference(axes)
+        reference = run_axes(axes, fast=False)
     (axes_ahead, response_ahead), (axes_jit, response_jit) = found["ahead"], found["jit"]
     for axis in ("X", "Y"):
-        assert np.array_equal(axes_ahead[axis].to_numpy(), axes_jit[axis].to_numpy())
-        assert np.max(np.abs(axes_ahead[axis].to_numpy() - reference[axis].to_numpy())) < 1e-12
+        ahead_record = axes_ahead[axis].position_loop.to_numpy()
+        assert np.array_equal(ahead_record, axes_jit[axis].position_loop.to_numpy())
+        assert np.max(np.abs(ahead_record - reference[axis].position_loop.to_numpy())) < 1e-12
     assert np.array_equal(response_ahead.response, response_jit.response)
 
 
@@ -102,8 +103,9 @@ def test_a_command_with_the_library_built_runs_without_numba(cache, tmp_path):
 def test_a_changed_source_needs_a_new_library(cache, monkeypatch, tmp_path):
     built = ahead.library_path()
     copy = tmp_path / "controller.py"
-    copy.write_bytes(ahead.SOURCES[3].read_bytes() + b"\n# edited\n")
-    monkeypatch.setattr(ahead, "SOURCES", (*ahead.SOURCES[:3], copy, *ahead.SOURCES[4:]))
+    at = [source.name for source in ahead.SOURCES].index("controller.py")
+    copy.write_bytes(ahead.SOURCES[at].read_bytes() + b"\n# edited\n")
+    monkeypatch.setattr(ahead, "SOURCES", (*ahead.SOURCES[:at], copy, *ahead.SOURCES[at + 1 :]))
     assert ahead.library_path() != built
     assert ahead.load() is None  # not built for these sources: the loops compile just in time
 
