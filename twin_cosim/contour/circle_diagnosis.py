@@ -18,7 +18,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from twin_cosim.contour.circle_test import CircleSpec, circle_motion
 from twin_cosim.contour.machine_run import MachinePlants, axis_grids
@@ -27,6 +26,7 @@ from twin_cosim.gap.diagnosis import diagnose
 from twin_cosim.gap.settings import settings_from
 from twin_cosim.gap.synth import EffectSpec, synthesize
 from twin_cosim.reference import interpolate
+from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario.machine import MachineScenario
 
 
@@ -139,8 +139,9 @@ def synthesize_circle(
     noise_position: float = 20e-9,
     noise_current: float = 5e-3,
     decimate: int = 4,
-) -> pd.DataFrame:
-    """A measured circular test of a virtual machine (columns of a measured test's CSV).
+) -> RunRecord:
+    """A measured circular test of a virtual machine (the columns of a measured test's CSV,
+    :mod:`twin_cosim.contour.measured_circle`).
 
     Parameters
     ----------
@@ -173,9 +174,11 @@ def synthesize_circle(
             noise_current=noise_current,
         ).run
         lower = name.lower()
-        columns["t"] = run["t"].to_numpy()
-        columns[f"{lower}_ref"] = run["x_ref"].to_numpy()
-        columns[lower] = run["x"].to_numpy()
-        columns[f"current_{lower}"] = run["current"].to_numpy()
-    table = pd.DataFrame(columns)[["t", "x_ref", "y_ref", "x", "y", "current_x", "current_y"]]
-    return table.iloc[::decimate].reset_index(drop=True)
+        columns["t"] = run["t"]
+        columns[f"{lower}_ref"] = run["x_ref"]
+        columns[lower] = run["x"]
+        columns[f"current_{lower}"] = run["current"]
+    order = ("t", "x_ref", "y_ref", "x", "y", "current_x", "current_y")
+    units = {name: "A" if name.startswith("current") else "m" for name in order} | {"t": "s"}
+    table = RunRecord.from_columns({name: columns[name] for name in order}, units)
+    return table.rows(slice(None, None, decimate))

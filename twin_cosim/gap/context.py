@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from twin_cosim.gap.coverage import check_coverage
 from twin_cosim.gap.effects import library_for
@@ -22,6 +21,7 @@ from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.measured import MeasuredRun, check_against_reference, current_warnings
 from twin_cosim.plant import Plant
 from twin_cosim.plant_model import plant_model
+from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario, for_measured_run
 
 # Parameters every scenario sets for its own run (twin_cosim.scenario.for_measured_run); the
@@ -192,7 +192,7 @@ def build_context(
     )
 
 
-def training_residuals(context: DiagnosisContext, records: list[pd.DataFrame]) -> Residuals:
+def training_residuals(context: DiagnosisContext, records: list[RunRecord]) -> Residuals:
     """Training residuals, each run against the replay of the scenario it follows."""
     k = context.train_scenario_of_run
     return residuals_of(

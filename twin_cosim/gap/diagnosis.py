@@ -26,9 +26,8 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
-from twin_cosim.cosim import run_scenario
+from twin_cosim.cosim import run_scenario_record
 from twin_cosim.gap.context import DiagnosisContext, build_context, training_residuals
 from twin_cosim.gap.effects import estimate_resolution
 from twin_cosim.gap.floors import (
@@ -116,8 +115,6 @@ class Diagnosis:
     held_out_runs: list[HeldOutRun]
     plant_parameters: dict[str, float]
     validation: dict[str, float]
-    nominal_record: pd.DataFrame
-    final_record: pd.DataFrame
     train_before: Residuals
     holdout_before: Residuals
     holdout_after: Residuals
@@ -345,7 +342,7 @@ def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float
     with Plant(context.fmu) as plant:
 
         def replay(scenarios: list[Scenario], parameters: dict[str, float]):
-            return [run_scenario(plant, s, plant_overrides=parameters) for s in scenarios]
+            return [run_scenario_record(plant, s, plant_overrides=parameters) for s in scenarios]
 
         first = replay(context.training_scenarios, context.nominal)
         noise = identify_noise(
@@ -361,7 +358,7 @@ def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float
             for s in context.judging_scenarios
         ]
         judging = [
-            r if r is not None else run_scenario(plant, s, plant_overrides=nominal)
+            r if r is not None else run_scenario_record(plant, s, plant_overrides=nominal)
             for r, s in zip(judging, context.judging_scenarios, strict=True)
         ]
     return noise, nominal, Replays(first, judging)
@@ -482,8 +479,6 @@ def _diagnose(
         _held_out_runs(judging, context.judging_scenarios, start, final),
         selection.plant_parameters,
         validation_figures(joined([train0, hold0])),
-        start.training[0],
-        final.training[0],
         train0,
         hold0,
         hold_final,

@@ -25,13 +25,13 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import pandas as pd
 
 from twin_cosim.gap import noise as noise_model
 from twin_cosim.gap import regimes as regime_model
 from twin_cosim.gap.residuals import Residuals, run_metrics, sim_at
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.measured import MeasuredRun
+from twin_cosim.run_record import RunRecord
 
 SECOND_DIFFERENCE_GAIN = math.sqrt(6.0)  # spread of x[k+1] - 2 x[k] + x[k-1] for white x
 QUANTISATION_GAIN = 1.0 / math.sqrt(12.0)  # spread of the rounding error of a grid of step 1
@@ -200,7 +200,7 @@ class MetricComparison:
 
 def compare_metrics(
     run: MeasuredRun,
-    record: pd.DataFrame,
+    record: RunRecord,
     floors: Floors,
     settings: DiagnosisSettings,
     seed: int = 0,

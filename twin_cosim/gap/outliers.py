@@ -10,8 +10,6 @@ reported; a run with more than the allowed share of them is refused.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 from scipy.ndimage import median_filter
 
@@ -60,4 +58,4 @@ def screen_outliers(run: MeasuredRun, largest_share: float) -> tuple[MeasuredRun
             f"{run.source}: {len(found)} outlier(s) in column {column!r} replaced by the median "
             f"of their neighbours before fitting: {shown}"
         )
-    return (dataclasses.replace(run, **replaced) if replaced else run), warnings
+    return (run.with_signals(replaced) if replaced else run), warnings

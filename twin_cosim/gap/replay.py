@@ -30,16 +30,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 from scipy.optimize import differential_evolution, least_squares
 
-from twin_cosim.cosim import RunAborted, run_scenario
+from twin_cosim.cosim import RunAborted, run_scenario_record
 from twin_cosim.gap.effects import library_for
 from twin_cosim.gap.evidence import EFFECTIVE_SAMPLE_SPACING_S
 from twin_cosim.gap.timing import Timed
 from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
+from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario
 
 FIT_EVALUATIONS = 10  # residual evaluations per least_squares polish (plus its Jacobians)
@@ -127,13 +127,12 @@ def cut(scenario: Scenario, end: float) -> Scenario:
     )
 
 
-def normalised_residual(records: list[pd.DataFrame], data: TrainingData) -> np.ndarray:
+def normalised_residual(records: list[RunRecord], data: TrainingData) -> np.ndarray:
     """Position and current residuals of every run over its samples, normalised by the floors;
     each run against the record of the training scenario it follows."""
     parts = []
     for t, x, current, k in zip(data.t, data.x, data.current, data.scenario_of_run, strict=True):
-        t_sim = records[k]["t"].to_numpy()
-        x_sim, i_sim = records[k]["x"].to_numpy(), records[k]["current"].to_numpy()
+        t_sim, x_sim, i_sim = records[k]["t"], records[k]["x"], records[k]["current"]
         parts.append((x - np.interp(t, t_sim, x_sim)) / data.sigma_x)
         parts.append((current - np.interp(t, t_sim, i_sim)) / data.sigma_i)
     return np.concatenate(parts)
@@ -145,8 +144,8 @@ class Replays:
     scenario's, in the order of :attr:`ReplaySpec.training_scenarios` and
     :attr:`ReplaySpec.judging`."""
 
-    training: list[pd.DataFrame] | None
-    judging: list[pd.DataFrame]
+    training: list[RunRecord] | None
+    judging: list[RunRecord]
 
 
 @dataclass(frozen=True)
@@ -255,10 +254,10 @@ class Replayer:
         self.failure_residual = FAILURE_FLOOR
         self.training_cut = [cut(s, spec.training.end) for s in spec.training_scenarios]
 
-    def replay(self, scenario: Scenario, overrides: dict[str, float]) -> pd.DataFrame:
+    def replay(self, scenario: Scenario, overrides: dict[str, float]) -> RunRecord:
         """One scenario replayed with nominal plus ``overrides`` (clipped into their ranges)."""
         parameters = clipped({**self.spec.nominal, **overrides}, self.spec.ranges)
-        return run_scenario(self.plant, scenario, plant_overrides=parameters)
+        return run_scenario_record(self.plant, scenario, plant_overrides=parameters)
 
     def simulate(self, task: SimulateTask) -> Replays:
         """The judging scenarios' replays (and the training scenario's when asked)."""

@@ -13,13 +13,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
 from twin_cosim.gap import regimes as regime_model
 from twin_cosim.gap.spectra import dominant_peak, mean_amplitude_spectrum
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.metrics import UM_PER_M, indices
 from twin_cosim.reference import ReferenceGrid
+from twin_cosim.run_record import RunRecord
 
 FIELDS = ("t", "position", "current", "regimes", "motor_angle", "x", "direction")
 
@@ -87,12 +87,12 @@ def joined(parts: list[Residuals]) -> Residuals:
     return Residuals(*(np.concatenate([getattr(p, f) for p in parts]) for f in FIELDS))
 
 
-def sim_at(record: pd.DataFrame, column: str, t: np.ndarray) -> np.ndarray:
+def sim_at(record: RunRecord, column: str, t: np.ndarray) -> np.ndarray:
     """A replay's column interpolated at the times ``t`` (s)."""
-    return np.interp(t, record["t"].to_numpy(), record[column].to_numpy())
+    return np.interp(t, record["t"], record[column])
 
 
-def run_residuals(run: MeasuredRun, record: pd.DataFrame, grid: ReferenceGrid) -> Residuals:
+def run_residuals(run: MeasuredRun, record: RunRecord, grid: ReferenceGrid) -> Residuals:
     """Residuals of one run against the replay ``record`` of the scenario it follows."""
     v_ref = np.interp(run.t, grid.time, grid.velocity)
     a_ref = np.interp(run.t, grid.time, grid.acceleration)
@@ -108,7 +108,7 @@ def run_residuals(run: MeasuredRun, record: pd.DataFrame, grid: ReferenceGrid) -
 
 
 def residuals_of(
-    runs: list[MeasuredRun], records: list[pd.DataFrame], grids: list[ReferenceGrid]
+    runs: list[MeasuredRun], records: list[RunRecord], grids: list[ReferenceGrid]
 ) -> Residuals:
     """Residuals of runs, each against its own replay and reference grid."""
     return joined(
@@ -151,7 +151,7 @@ PULSE_WINDOW = 0.2  # s after each edge of a disturbance signal
 
 
 def pulse_response(
-    run: MeasuredRun, record: pd.DataFrame, signal: np.ndarray, grid: ReferenceGrid
+    run: MeasuredRun, record: RunRecord, signal: np.ndarray, grid: ReferenceGrid
 ) -> dict[str, float] | None:
     """How the acceleration residual concentrates after the edges of a disturbance signal.
 
@@ -192,7 +192,7 @@ def pulse_response(
     }
 
 
-def relative_errors(run: MeasuredRun, record: pd.DataFrame) -> dict[str, float]:
+def relative_errors(run: MeasuredRun, record: RunRecord) -> dict[str, float]:
     """The benchmark's figures of merit 100 ||y - y_sim|| / ||y|| (%) of a run.
 
     Keys ``position`` (measured position), ``velocity`` and ``acceleration`` (both from the

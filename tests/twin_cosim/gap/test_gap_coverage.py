@@ -21,7 +21,7 @@ def _run(tmp_path: Path, text: str, name: str):
     path.write_text(text)
     scenario = load_scenario(path)
     run = tmp_path / f"{name}.csv"
-    synthesize(scenario, [], seed=3).run.to_csv(run, index=False)
+    synthesize(scenario, [], seed=3).run.frame().to_csv(run, index=False)
     return scenario, read_measured_csv(run)
 
 

@@ -37,7 +37,7 @@ def blind(
         scenario, [parse_effect(e) for e in effects], perturb=perturb, seed=seed, fmu=fmu
     )
     path = tmp_path / "run.csv"
-    synthesis.run.to_csv(path, index=False)
+    synthesis.run.frame().to_csv(path, index=False)
     return diagnose(
         scenario, [read_measured_csv(path)], settings=DiagnosisSettings(max_effects=max_effects)
     ).summary()
@@ -211,7 +211,7 @@ def test_a_tight_spot_is_no_library_effect_and_is_located(twin_cli, tmp_path):
     fmu = build_tight_spot_fmu(1.0, 0.025, 0.5e-3, tmp_path / "spot")
     run = tmp_path / "run.csv"
     scenario = load_scenario(SWEEP)
-    synthesize(scenario, [], perturb=0.02, seed=7, fmu=fmu).run.to_csv(run, index=False)
+    synthesize(scenario, [], perturb=0.02, seed=7, fmu=fmu).run.frame().to_csv(run, index=False)
     result = twin_cli("diagnose", str(SWEEP), "--measured", str(run), "--out", str(tmp_path / "r"))
     assert result.returncode == 0, result.stderr
     assert "diagnose:" in result.stderr  # the progress bar, on stderr
@@ -234,9 +234,9 @@ def test_an_outlier_is_reported_not_a_crash(twin_cli, tmp_path):
     """One absurd sample (current[1234] = 1e12) is repaired before fitting and reported."""
     run = tmp_path / "run.csv"
     scenario = load_scenario(SCENARIO)
-    frame = synthesize(scenario, [parse_effect("coulomb_change:delta_coulomb=0.2")], seed=2).run
-    frame.loc[1234, "current"] = 1e12
-    frame.to_csv(run, index=False)
+    record = synthesize(scenario, [parse_effect("coulomb_change:delta_coulomb=0.2")], seed=2).run
+    record["current"][1234] = 1e12
+    record.frame().to_csv(run, index=False)
     result = twin_cli(
         "diagnose",
         str(SCENARIO),

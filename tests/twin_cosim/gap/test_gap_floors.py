@@ -4,7 +4,6 @@ noise alone is not a gap."""
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from twin_cosim.gap import floors as floors_module
@@ -20,6 +19,7 @@ from twin_cosim.gap.regimes import CONSTANT_VELOCITY, STANDSTILL
 from twin_cosim.gap.residuals import Residuals
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.measured import MeasuredRun
+from twin_cosim.run_record import RunRecord
 
 DT = 250e-6
 
@@ -103,20 +103,22 @@ def test_an_encoder_grid_bounds_the_position_floor_from_below():
     assert "quantisation" in floors.position_source
 
 
-def _twin_and_run(extra_error: float, seed: int) -> tuple[MeasuredRun, pd.DataFrame]:
+def _twin_and_run(extra_error: float, seed: int) -> tuple[MeasuredRun, RunRecord]:
     """A replay and a 'measured' run = replay + white noise (+ a scaled tracking error)."""
     rng = np.random.default_rng(seed)
     t = np.arange(20000) * DT
     x_ref = 0.01 * np.sin(2 * np.pi * 0.5 * t)
     error = 2e-7 * np.sin(2 * np.pi * 1.0 * t) ** 3
     current = 0.3 * np.cos(2 * np.pi * 0.5 * t) ** 3
-    record = pd.DataFrame({"t": t, "x": x_ref - error, "current": current})
-    run = MeasuredRun(
+    record = RunRecord.from_columns({"t": t, "x": x_ref - error, "current": current})
+    run = MeasuredRun.from_signals(
         "run.csv",
-        t,
-        x_ref,
-        x_ref - error * (1 + extra_error) + rng.normal(0, 3e-8, t.size),
-        current + rng.normal(0, 5e-3, t.size),
+        {
+            "t": t,
+            "x_ref": x_ref,
+            "x": x_ref - error * (1 + extra_error) + rng.normal(0, 3e-8, t.size),
+            "current": current + rng.normal(0, 5e-3, t.size),
+        },
     )
     return run, record
 
@@ -131,9 +133,7 @@ def test_noise_alone_is_not_a_metric_gap():
         assert comparison.off == [], comparison
         naive = abs(
             floors_module.run_metrics(run.t, run.x_ref - run.x, run.current)["ITAE"]
-            / floors_module.run_metrics(run.t, run.x_ref - record["x"].to_numpy(), run.current)[
-                "ITAE"
-            ]
+            / floors_module.run_metrics(run.t, run.x_ref - record["x"], run.current)["ITAE"]
             - 1
         )
         assert naive > settings.significance_metric  # what a comparison without noise says

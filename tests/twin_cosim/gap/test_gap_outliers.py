@@ -12,7 +12,7 @@ from twin_cosim.measured import MeasuredDataError, MeasuredRun
 def run_with(current: np.ndarray) -> MeasuredRun:
     t = np.arange(len(current)) * 250e-6
     x = 0.01 * np.sin(2 * np.pi * 0.5 * t)
-    return MeasuredRun("run.csv", t, x, x, current)
+    return MeasuredRun.from_signals("run.csv", {"t": t, "x_ref": x, "x": x, "current": current})
 
 
 def smooth_current(n: int = 20000) -> np.ndarray:

@@ -58,7 +58,7 @@ def diagnosed(tmp_path_factory) -> Output:
     scenario = load_scenario(scenario_path)
     synthesis = synthesize(scenario, [parse_effect(e) for e in HIDDEN], perturb=0.02, seed=4)
     run = folder / "run.csv"
-    synthesis.run.to_csv(run, index=False)
+    synthesis.run.frame().to_csv(run, index=False)
 
     def two_hypotheses(*args, **kwargs):  # the whole library would take minutes
         settings = original(*args, **kwargs)

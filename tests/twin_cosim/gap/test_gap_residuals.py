@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from twin_cosim.gap.residuals import pulse_response, relative_errors
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.reference import ReferenceGrid
+from twin_cosim.run_record import RunRecord
 
 DT = 1e-3
 
@@ -23,8 +23,10 @@ def run_and_record(ringing: bool):
             after = t >= edge
             tau = t[after] - edge
             x[after] += 2e-6 * np.exp(-tau / 0.03) * np.sin(2 * np.pi * 30.0 * tau)
-    run = MeasuredRun("run.mat", t, x_sim, x, np.sin(t))
-    record = pd.DataFrame({"t": t, "x": x_sim, "current": np.sin(t)})
+    run = MeasuredRun.from_signals(
+        "run.mat", {"t": t, "x_ref": x_sim, "x": x, "current": np.sin(t)}
+    )
+    record = RunRecord.from_columns({"t": t, "x": x_sim, "current": np.sin(t)})
     grid = ReferenceGrid(DT, x_sim, np.gradient(x_sim, DT), np.zeros_like(t))
     return run, record, pulses, grid
 

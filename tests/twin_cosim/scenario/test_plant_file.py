@@ -44,7 +44,7 @@ def diagnosis_dir(excitation, tmp_path_factory) -> Path:
     scenario = load_scenario(excitation)
     synthesis = synthesize(scenario, [parse_effect(e) for e in HIDDEN], seed=1)
     run = tmp_path_factory.mktemp("run") / "run.csv"
-    synthesis.run.to_csv(run, index=False)
+    synthesis.run.frame().to_csv(run, index=False)
     out = tmp_path_factory.mktemp("diagnosis")
 
     def two_hypotheses(*args, **kwargs):  # the whole library would take minutes
