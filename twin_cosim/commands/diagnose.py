@@ -84,9 +84,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     """The diagnosis, its files and its figures, with ``pool`` running the replays."""
-    from twin_cosim.gap.calibrated_plant import write_calibration
     from twin_cosim.gap.diagnosis import diagnose
-    from twin_cosim.gap.report import write_report
+    from twin_cosim.gap.report.calibrated_plant import write_calibration
+    from twin_cosim.gap.report.pages import write_report
     from twin_cosim.gap.settings import settings_from
     from twin_cosim.measured import read_measured
     from twin_cosim.scenario import resolve_scenario
@@ -117,7 +117,7 @@ def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     else:
         _print_text(summary, result.context.model)
     if not args.no_plots:
-        from twin_cosim.gap.figures import write_figures
+        from twin_cosim.gap.report.figures import write_figures
 
         write_figures(result, out)
     if not args.json:
@@ -168,8 +168,8 @@ class _ProgressBars:
 
 def _print_text(summary: dict[str, Any], model: str) -> None:
     """The verdict and each accepted effect's held-out gaps, numbers for people."""
-    from twin_cosim.gap.numbers import names, number, parameters
-    from twin_cosim.gap.report import hypothesis_units
+    from twin_cosim.gap.report.pages import hypothesis_units
+    from twin_cosim.gap.report.verdict import names, number, parameters
 
     units = hypothesis_units(model)
     print(summary["gap"]["verdict"])

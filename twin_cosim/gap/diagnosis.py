@@ -4,17 +4,18 @@ shrinks, and what is left.
 Stages, each a typed result (serialised to JSON in one place, :meth:`Diagnosis.summary`):
 
 1. **Context** (:func:`build_context`): the scenario, the plant model and its variable ranges,
-   the measured runs checked (outliers repaired and reported, :mod:`twin_cosim.gap.outliers`),
+   the measured runs checked (outliers repaired and reported, :mod:`twin_cosim.gap.data.context`),
    and the split: ``--holdout`` runs judge (each following its own reference and disturbance
    when the scenario's reference comes from a measured file, e.g. the EMPS validation run), or
    every measured run is split in time at ``split``. The fit never sees a held-out sample.
-2. **Replay and noise** (:mod:`twin_cosim.gap.floors`): the twin replays the scenario; the
+2. **Replay and noise** (:mod:`twin_cosim.gap.floors.noise`): the twin replays the scenario; the
    measured noise at standstill becomes plant parameters; the noise floors normalise all
    residuals, with their source.
-3. **Where** (:mod:`twin_cosim.gap.location`): regimes, along the axis, orders and frequencies.
-4. **Which** (:mod:`twin_cosim.gap.selection`): rounds of fits, each looking again at the
+3. **Where** (:mod:`twin_cosim.gap.where.location`): regimes, along the axis, orders and
+   frequencies.
+4. **Which** (:mod:`twin_cosim.gap.which.selector`): rounds of fits, each looking again at the
    residual left, judged on held-out data against the noise and calibration floors.
-5. **Verdict and what is left** (:mod:`twin_cosim.gap.verdict`), per held-out run the figures
+5. **Verdict and what is left** (:mod:`twin_cosim.gap.report.verdict`), per held-out run the figures
    before and after (RMS gaps, the benchmark's relative errors).
 """
 
@@ -28,20 +29,14 @@ from typing import Any
 import numpy as np
 
 from twin_cosim.cosim import run_scenario_record
-from twin_cosim.gap.context import DiagnosisContext, build_context, training_residuals
-from twin_cosim.gap.effects import estimate_resolution
-from twin_cosim.gap.floors import (
-    Floors,
-    MetricComparison,
-    NoiseModel,
-    identify_noise,
-    noise_floors,
+from twin_cosim.gap.data.context import (
+    DiagnosisContext,
+    build_context,
+    estimate_resolution,
+    training_residuals,
 )
-from twin_cosim.gap.judging import Judging
-from twin_cosim.gap.location import Location, locate
-from twin_cosim.gap.regimes import REGIMES
-from twin_cosim.gap.replay import Replays, ReplaySpec, TrainingData
-from twin_cosim.gap.residuals import (
+from twin_cosim.gap.data.regimes import REGIMES
+from twin_cosim.gap.data.residuals import (
     Residuals,
     joined,
     pulse_response,
@@ -49,10 +44,20 @@ from twin_cosim.gap.residuals import (
     residuals_of,
     validation_figures,
 )
-from twin_cosim.gap.rounds import Candidate, Marginal, Pair, Refit, Round, Selection, Swap
-from twin_cosim.gap.selection import Selector
+from twin_cosim.gap.floors.noise import (
+    Floors,
+    MetricComparison,
+    NoiseModel,
+    identify_noise,
+    noise_floors,
+)
+from twin_cosim.gap.report.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.gap.settings import DiagnosisSettings
-from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
+from twin_cosim.gap.where.location import Location, locate
+from twin_cosim.gap.which.acceptance import Judging
+from twin_cosim.gap.which.replay import Replays, ReplaySpec, TrainingData
+from twin_cosim.gap.which.rounds import Candidate, Marginal, Pair, Refit, Round, Selection, Swap
+from twin_cosim.gap.which.selector import Selector
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
 from twin_cosim.pool_runs import prepare_replay_worker

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from twin_cosim.cosim import run_scenario_record
-from twin_cosim.gap.effects import DEFAULT_CONTEXT, library_for
+from twin_cosim.gap.data.context import DEFAULT_CONTEXT, library_for
 from twin_cosim.plant import Plant
 from twin_cosim.plant_model import model_names, plant_model
 from twin_cosim.run_record import RunRecord

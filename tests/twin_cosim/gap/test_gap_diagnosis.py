@@ -10,8 +10,8 @@ import json
 from pathlib import Path
 
 import pytest
+from tight_spot import build_tight_spot_fmu
 
-from twin_cosim.gap.defects import build_tight_spot_fmu
 from twin_cosim.gap.diagnosis import diagnose
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.synth import parse_effect, synthesize
@@ -256,7 +256,7 @@ def test_an_outlier_is_reported_not_a_crash(twin_cli, tmp_path):
 
 
 def test_a_plant_model_without_a_library_is_refused(plant):
-    from twin_cosim.gap.effects import UnknownModelError, library_for
+    from twin_cosim.gap.data.context import UnknownModelError, library_for
 
     with pytest.raises(UnknownModelError, match="no hypothesis library for plant model 'other'"):
         library_for("other")

@@ -13,7 +13,7 @@ from scenario_texts import scenario_text
 
 from twin_cosim import cli
 from twin_cosim.gap import settings as diagnosis_settings
-from twin_cosim.gap.calibrated_plant import calibrated_scenario, from_diagnosis
+from twin_cosim.gap.report.calibrated_plant import calibrated_scenario, from_diagnosis
 from twin_cosim.gap.synth import parse_effect, synthesize
 from twin_cosim.scenario import ScenarioError, load_scenario, with_plant_parameters
 from twin_cosim.scenario.plant_file import (
