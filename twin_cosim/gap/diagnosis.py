@@ -33,6 +33,7 @@ from twin_cosim.gap.data.context import (
     DiagnosisContext,
     build_context,
     estimate_resolution,
+    library_for,
     training_residuals,
 )
 from twin_cosim.gap.data.regimes import REGIMES
@@ -54,12 +55,13 @@ from twin_cosim.gap.floors.noise import (
 from twin_cosim.gap.report.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.where.location import Location, locate
-from twin_cosim.gap.which.acceptance import Judging
+from twin_cosim.gap.which.acceptance import Candidate, Judgement, Judging, Marginal, Pair
 from twin_cosim.gap.which.replay import Replays, ReplaySpec, TrainingData
-from twin_cosim.gap.which.rounds import Candidate, Marginal, Pair, Refit, Round, Selection, Swap
-from twin_cosim.gap.which.selector import Selector
+from twin_cosim.gap.which.replay_pool import ReplayPool
+from twin_cosim.gap.which.selector import Refit, Round, Selection, Selector, Swap
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
+from twin_cosim.plant_model import plant_model
 from twin_cosim.pool_runs import prepare_replay_worker
 from twin_cosim.scenario import Scenario
 from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, make_pool
@@ -162,7 +164,7 @@ class Diagnosis:
                 "marginal": [asdict(m) for m in self.marginal],
                 "dropped": self.dropped,
                 "swaps": [_swap_row(w) for w in self.swaps],
-                "refits": [{**asdict(r), "significant": r.significant} for r in self.refits],
+                "refits": [_refit_row(r) for r in self.refits],
                 "steps": steps,
                 "effects": [_row(c, first) for c in first.candidates] if first else [],
                 "last_round": [_row(c, last) for c in last.candidates] if last else [],
@@ -219,21 +221,21 @@ def _metrics(c: MetricComparison) -> dict[str, Any]:
     }
 
 
-def _acceptance_tests(c: Candidate) -> dict[str, Any]:
+def _acceptance_tests(j: Judgement) -> dict[str, Any]:
     """What a candidate's acceptance tests measured (a round's candidates and a swap's rival)."""
     return {
-        "holdout_reduction": c.reduction,
-        "reduction_beyond_calibration": c.reduction_beyond_calibration,
-        "evidence_z": c.evidence_z,
-        "critical_z": c.critical_z,
-        "excess_share": c.excess_share,
-        "fair_share": c.fair_share,
-        "size_above_tolerance": c.size_above_tolerance,
+        "holdout_reduction": j.reduction,
+        "reduction_beyond_calibration": j.reduction_beyond_calibration,
+        "evidence_z": j.gain.evidence_z,
+        "critical_z": j.gain.critical_z,
+        "excess_share": j.gain.excess_share,
+        "fair_share": j.gain.fair_share,
+        "size_above_tolerance": j.size_above_tolerance,
     }
 
 
-def _row(c, round_: Round) -> dict[str, Any]:
-    fit = c.fit
+def _row(c: Candidate, round_: Round) -> dict[str, Any]:
+    fit, judged = c.fit, c.judgement
     return {
         "name": fit.hypothesis,
         "params": fit.values,
@@ -241,13 +243,13 @@ def _row(c, round_: Round) -> dict[str, Any]:
         "bic": c.bic,
         "replays": fit.replays,
         "holdout_gap_before_um": round_.position_rms_um,
-        "holdout_gap_after_um": c.position_rms_um,
+        "holdout_gap_after_um": judged.position_rms_um,
         "holdout_current_before_A": round_.current_rms,
-        "holdout_current_after_A": c.current_rms,
-        **_acceptance_tests(c),
-        "explained_normalised_rms": c.explained,
+        "holdout_current_after_A": judged.current_rms,
+        **_acceptance_tests(judged),
+        "explained_normalised_rms": judged.explained,
         "calibration_floor_normalised_rms": round_.calibration.explained,
-        "consistent": c.consistent,
+        "consistent": judged.consistent,
         "passes": c.passes,
     }
 
@@ -255,6 +257,7 @@ def _row(c, round_: Round) -> dict[str, Any]:
 def _step(r: Round, dropped: list[str], swapped_out: list[str]) -> dict[str, Any]:
     best = r.best
     assert best is not None
+    judged = best.judgement
     return {
         "round": r.index,
         "effect": best.name if r.pair else (r.accepted if len(r.accepted) > 1 else r.accepted[0]),
@@ -264,16 +267,16 @@ def _step(r: Round, dropped: list[str], swapped_out: list[str]) -> dict[str, Any
         "plant_parameters": best.fit.overrides,
         "context": r.context,
         "holdout_gap_before_um": r.position_rms_um,
-        "holdout_gap_after_um": best.position_rms_um,
+        "holdout_gap_after_um": judged.position_rms_um,
         "holdout_current_before_A": r.current_rms,
-        "holdout_current_after_A": best.current_rms,
+        "holdout_current_after_A": judged.current_rms,
         "holdout_normalised_rms_before": r.holdout_rms,
-        "holdout_normalised_rms_after": best.holdout_rms,
-        "reduction": best.reduction,
-        "reduction_beyond_calibration": best.reduction_beyond_calibration,
-        "evidence_z": best.evidence_z,
-        "critical_z": best.critical_z,
-        "excess_share": best.excess_share,
+        "holdout_normalised_rms_after": judged.holdout_rms,
+        "reduction": judged.reduction,
+        "reduction_beyond_calibration": judged.reduction_beyond_calibration,
+        "evidence_z": judged.gain.evidence_z,
+        "critical_z": judged.gain.critical_z,
+        "excess_share": judged.gain.excess_share,
         "dropped_in_backward_pass": best.name in dropped,
         "swapped_out": best.name in swapped_out,
         "ranking": [_row(c, r) for c in r.candidates],
@@ -284,6 +287,7 @@ def _swap_row(w: Swap) -> dict[str, Any]:
     """A swap tried: the effect taken out, the rival put in with its fit and its acceptance
     tests against the model as it was, and whether the swap was made."""
     c = w.candidate
+    judged = c.judgement
     return {
         "removed": w.removed,
         "name": c.name,
@@ -291,13 +295,29 @@ def _swap_row(w: Swap) -> dict[str, Any]:
         "train_cost": c.fit.train_cost,
         "bic": c.bic,
         "replays": c.fit.replays,
-        "holdout_normalised_rms_after": c.holdout_rms,
-        "holdout_gap_after_um": c.position_rms_um,
-        "holdout_current_after_A": c.current_rms,
-        **_acceptance_tests(c),
-        "consistent": c.consistent,
+        "holdout_normalised_rms_after": judged.holdout_rms,
+        "holdout_gap_after_um": judged.position_rms_um,
+        "holdout_current_after_A": judged.current_rms,
+        **_acceptance_tests(judged),
+        "consistent": judged.consistent,
         "passes": c.passes,
         "kept": w.kept,
+    }
+
+
+def _refit_row(r: Refit) -> dict[str, Any]:
+    """A cold refit that replaced its effect, and its gain against the rule."""
+    return {
+        "effect": r.effect,
+        "values_before": r.values_before,
+        "values_after": r.values_after,
+        "left_before": r.left_before,
+        "left_after": r.left_after,
+        "evidence_z": r.gain.evidence_z,
+        "critical_z": r.gain.critical_z,
+        "excess_share": r.gain.excess_share,
+        "fair_share": r.gain.fair_share,
+        "significant": r.significant,
     }
 
 
@@ -441,18 +461,25 @@ def _diagnose(
         settings,
     )
     selector = Selector(
-        BoundPool(pool, _replay_spec(context, nominal, floors)),
-        context,
-        nominal,
+        ReplayPool(
+            BoundPool(pool, _replay_spec(context, nominal, floors)),
+            nominal,
+            [n for n in plant_model(context.model).calibrated if n in nominal],
+            judging,
+            settings.calibration_tolerance,
+        ),
+        {h.name: h for h in library_for(context.model)},
         judging,
         settings,
+        sum(float(r.t[-1] - r.t[0]) for r in context.train),
+        context,
         {
             "position_resolution": resolution,
             "dead_time_steps": nominal.get("dead_time_steps", 0.0),
         },
     )
     if progress:
-        selector.progress = progress(selector.expected_tasks(), "diagnose")
+        selector.pool.progress = progress(selector.expected_tasks(), "diagnose")
     selection = selector.run(start)
     final = selection.replays
     hold_final = judging.residuals(final)
@@ -553,7 +580,7 @@ def _verdict_stage(
     below = [
         c.name
         for c in (first.candidates if not first.accepted else [])
-        if c.reduction >= EXPLAINS_SHARE and c.consistent and not c.passes
+        if c.judgement.reduction >= EXPLAINS_SHARE and c.judgement.consistent and not c.passes
     ]
     groups = selection.accepted
     return remaining, where, verdict_text(first.significant, groups, below, remaining)

@@ -131,8 +131,8 @@ def plot_ranking(d: Diagnosis, path: Path) -> Path:
     rows = d.rounds[0].candidates
     fig, ax = plt.subplots(figsize=(9, 4))
     if rows:
-        ax.barh([c.name for c in rows], [max(c.evidence_z, 0.0) for c in rows])
-        ax.axvline(rows[0].critical_z, color="r", ls="--", label="acceptance")
+        ax.barh([c.name for c in rows], [max(c.judgement.gain.evidence_z, 0.0) for c in rows])
+        ax.axvline(rows[0].judgement.gain.critical_z, color="r", ls="--", label="acceptance")
         ax.set_xscale("symlog", linthresh=1.0)
         ax.invert_yaxis()
         ax.legend()

@@ -28,7 +28,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from twin_cosim.gap.floors.calibration import CalibrationFloor
+from twin_cosim.gap.floors.evidence import CalibrationFloor
 from twin_cosim.gap.where.location import AxisSpan, Location
 
 DIGITS = 3

@@ -9,7 +9,7 @@ A :class:`ReplaySpec` (the scenarios, numbers and the training data: it pickles)
   scan of discrete values) on top of already accepted effects;
 - :class:`JointFitTask`: refit accepted effects together with the calibrated parameters.
 
-Each result comes back with the CPU time the task took (:class:`~twin_cosim.gap.timing.Timed`).
+Each result comes back with the CPU time the task took (:class:`Timed`).
 
 The fit minimises the normalised training residual: position residual / sigma_x and current
 residual / sigma_i (sigma: noise floors measured at standstill), over the training samples only;
@@ -28,16 +28,16 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.optimize import differential_evolution, least_squares
 
 from twin_cosim.cosim import RunAborted, run_scenario_record
-from twin_cosim.gap.data.context import library_for
 from twin_cosim.gap.floors.evidence import EFFECTIVE_SAMPLE_SPACING_S
-from twin_cosim.gap.which.replay_pool import Timed
 from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.plant import Plant, PlantError
+from twin_cosim.plant_model import plant_model
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario
@@ -57,6 +57,14 @@ PROFILE_POINTS = 12
 PROFILE_EVALUATIONS = 3
 FAILURE_FACTOR = 10.0  # a failed replay's residual, relative to the fit's starting residual
 FAILURE_FLOOR = 1e3  # least normalised residual per sample of a failed replay
+
+
+@dataclass(frozen=True)
+class Timed:
+    """A pool task's result and the CPU time (s) the worker spent on it."""
+
+    result: Any
+    cpu_s: float
 
 
 def bounded(hypothesis: Hypothesis, ranges: dict[str, tuple[float, float]]) -> Hypothesis:
@@ -249,7 +257,7 @@ class Replayer:
 
     def __init__(self, spec: ReplaySpec) -> None:
         self.spec = spec
-        self.hypotheses = {h.name: h for h in library_for(spec.model)}
+        self.hypotheses = {h.name: h for h in plant_model(spec.model).hypotheses}
         self.plant = Plant(Path(spec.fmu))
         self.failure_residual = FAILURE_FLOOR
         self.training_cut = [cut(s, spec.training.end) for s in spec.training_scenarios]

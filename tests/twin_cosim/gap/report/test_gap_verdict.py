@@ -9,7 +9,7 @@ import re
 import pytest
 
 from twin_cosim.gap.data.regimes import REGIMES
-from twin_cosim.gap.floors.calibration import CalibrationFloor
+from twin_cosim.gap.floors.evidence import CalibrationFloor
 from twin_cosim.gap.report.verdict import (
     GAP_TABLE_HEADER,
     gap_table,
