@@ -22,7 +22,7 @@ import numpy as np
 from twin_cosim.contour.circle_test import CircleSpec, circle_motion
 from twin_cosim.contour.machine_run import MachinePlants, axis_grids
 from twin_cosim.contour.measured_circle import MeasuredCircle, replay_circle
-from twin_cosim.gap.diagnosis import diagnose
+from twin_cosim.gap.diagnosis import Diagnosis, diagnose
 from twin_cosim.gap.settings import settings_from
 from twin_cosim.gap.synth import EffectSpec, synthesize
 from twin_cosim.reference import interpolate
@@ -65,6 +65,7 @@ def diagnose_circle(
         replay = replay_circle(machine, measured, plants, fast)
     transitions = replay.transition_gaps()
     found: dict[str, Any] = {}
+    diagnoses: dict[str, Diagnosis] = {}
     for name in machine.axis_names:
         if name not in measured.current:
             continue
@@ -72,12 +73,12 @@ def diagnose_circle(
         grid = interpolate(run.x_ref, measured.period, machine.axes[0].settings.position_period)
         scenario = machine.axis_scenario(name, grid)
         settings = settings_from(scenario, max_effects=max_effects)
-        summary = diagnose(scenario, [run], [], None, settings, workers=workers).summary()
+        diagnosis = diagnoses[name] = diagnose(scenario, [run], [], None, settings, workers=workers)
         found[name] = {
-            "verdict": summary["gap"]["verdict"],
-            "significant": summary["gap"]["significant"],
-            "accepted": summary["accepted"],
-            "steps": summary["steps"],
+            "verdict": diagnosis.verdict,
+            "significant": diagnosis.significant,
+            "accepted": diagnosis.accepted,
+            "steps": diagnosis.summary()["steps"],
         }
     return {
         "source": measured.source,
@@ -88,23 +89,24 @@ def diagnose_circle(
         "transitions": transitions,
         "axis_gap_rms_um": replay.axis_gaps(),
         "axes": found,
-        "verdict": _verdict(found, transitions),
+        "verdict": _verdict(diagnoses, transitions),
         "paths": {"machine": replay.on_machine, "twin": replay.on_twin},
     }
 
 
-def _reduction(axis: dict[str, Any]) -> float:
-    """Held-out reduction of the axis' first accepted effect (0 when none)."""
-    steps = axis["steps"]
-    if not axis["accepted"] or not steps:
+def _reduction(diagnosis: Diagnosis) -> float:
+    """Held-out reduction of the position gap by the axis' first accepted effect (0 when none)."""
+    if not diagnosis.accepted or not diagnosis.steps:
         return 0.0
-    before, after = steps[0]["holdout_gap_before_um"], steps[0]["holdout_gap_after_um"]
+    first = diagnosis.steps[0]
+    assert first.best is not None
+    before, after = first.position_rms_um, first.best.judgement.position_rms_um
     return (before - after) / before if before > 0 else 0.0
 
 
-def _verdict(found: dict[str, Any], transitions: list[dict[str, Any]]) -> dict[str, Any]:
+def _verdict(diagnoses: dict[str, Diagnosis], transitions: list[dict[str, Any]]) -> dict[str, Any]:
     """The axis, effect and quadrant transition where the gap lies, in numbers and words."""
-    candidates = [name for name, axis in found.items() if axis["accepted"]]
+    candidates = [name for name, d in diagnoses.items() if d.accepted]
     if not candidates:
         return {
             "axis": None,
@@ -113,9 +115,8 @@ def _verdict(found: dict[str, Any], transitions: list[dict[str, Any]]) -> dict[s
             "text": "no axis' diagnosis accepts an effect: the twin explains the test "
             "within its noise and calibration floors",
         }
-    axis = max(candidates, key=lambda name: _reduction(found[name]))
-    accepted = found[axis]["accepted"][0]
-    effect = accepted if isinstance(accepted, str) else accepted[0]
+    axis = max(candidates, key=lambda name: _reduction(diagnoses[name]))
+    effect = diagnoses[axis].selection.accepted[0][0]
     own = [t for t in transitions if t["axis"] == axis]
     worst = max(own, key=lambda t: abs(t["gap_um"]))
     return {
@@ -123,10 +124,10 @@ def _verdict(found: dict[str, Any], transitions: list[dict[str, Any]]) -> dict[s
         "effect": effect,
         "transition_deg": worst["angle_deg"],
         "text": f"the gap lies in axis {axis}: {effect} (held-out gap "
-        f"{_reduction(found[axis]):.0%} smaller with it); largest at the {worst['angle_deg']:g} "
-        f"degree transition, where {axis} reverses: the paths differ by up to "
-        f"{worst['gap_um']:.2f} um (spike: measured {worst['machine_height_um']:+.2f} um, twin "
-        f"{worst['twin_height_um']:+.2f} um)",
+        f"{_reduction(diagnoses[axis]):.0%} smaller with it); largest at the "
+        f"{worst['angle_deg']:g} degree transition, where {axis} reverses: the paths differ by "
+        f"up to {worst['gap_um']:.2f} um (spike: measured {worst['machine_height_um']:+.2f} um, "
+        f"twin {worst['twin_height_um']:+.2f} um)",
     }
 
 

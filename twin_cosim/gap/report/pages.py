@@ -1,10 +1,14 @@
-"""The diagnosis report: JSON summary, Markdown and HTML pages.
+"""The diagnosis' files: ``diagnosis.json`` (its summary), ``report.md`` and ``report.html``
+(the pages), ``plant.yaml`` and ``calibrated.yaml`` (its calibrated plant, and the diagnosed
+scenario with it folded in). Everything but the JSON is written from the typed
+:class:`~twin_cosim.gap.diagnosis.Diagnosis`; the JSON is its one serialisation.
 
-Its figures are drawn apart, after the pages (:mod:`twin_cosim.gap.report.figures`).
+The figures are drawn apart, after the pages (:mod:`twin_cosim.gap.report.figures`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import html
 import json
 import re
@@ -25,102 +29,95 @@ from twin_cosim.gap.report.verdict import (
     quantity,
 )
 from twin_cosim.plant_model import plant_model
+from twin_cosim.scenario.plant_file import calibrated_scenario, write_plant_parameters
+from twin_cosim.versions import versions
 
 if TYPE_CHECKING:
-    from twin_cosim.gap.diagnosis import Diagnosis
+    from twin_cosim.gap.diagnosis import Diagnosis, HeldOutRun
+    from twin_cosim.gap.which.acceptance import Candidate
+    from twin_cosim.gap.which.selector import Round
 
 
-Row = dict[str, Any]
-Column = tuple[str, str, Callable[[Any, Row], str]]
+Column = tuple[str, Callable[[Any], str]]
 
 
-def _table(rows: list[Row], columns: list[Column]) -> list[list[str]]:
-    """Header and cells, each cell written by its column's formatter (value, row)."""
-    return [[label for _, label, _ in columns]] + [
-        [show(row.get(key), row) for key, _, show in columns] for row in rows
-    ]
+def _table(rows: list[Any], columns: list[Column]) -> list[list[str]]:
+    """Header and cells, each cell written by its column's formatter of the row."""
+    return [[label for label, _ in columns]] + [[show(row) for _, show in columns] for row in rows]
 
 
-def _num(value: Any, _row: Row) -> str:
-    return number(value)
-
-
-def _pct(value: Any, _row: Row) -> str:
-    return percent(value)
-
-
-def _text(value: Any, _row: Row) -> str:
+def _text(value: Any) -> str:
     return "-" if value is None else str(value).replace("_", " ")
 
 
-def _yes(value: Any, _row: Row) -> str:
+def _yes(value: Any) -> str:
     return "yes" if value else "no"
 
 
-def _signed(value: Any, _row: Row) -> str:
-    return {1: "+", -1: "-", 0: "both"}.get(value, "-")
-
-
-def _effect(value: Any, _row: Row) -> str:
-    return names([value]) if value is not None else "-"
-
-
-def _fitted(units: dict[str, dict[str, str]], name_key: str) -> Callable[[Any, Row], str]:
-    """A formatter of a row's fitted parameters with the units of its hypothesis."""
-
-    def show(value: Any, row: Row) -> str:
-        return parameters(value or {}, units.get(str(row.get(name_key)), {}))
-
-    return show
-
-
 def _ranking_columns(units: dict[str, dict[str, str]]) -> list[Column]:
+    """The columns of a round's ranking (one row per :class:`Candidate`)."""
+
+    def fitted(c: Candidate) -> str:
+        return parameters(c.fit.values, units.get(c.name, {}))
+
     return [
-        ("name", "hypothesis", _text),
-        ("params", "fitted parameters", _fitted(units, "name")),
-        ("bic", "training BIC", _num),
-        ("holdout_gap_after_um", "held-out position RMS with it [um]", _num),
-        ("holdout_current_after_A", "held-out current RMS with it [A]", _num),
-        ("holdout_reduction", "reduction of the normalised RMS", _pct),
-        ("evidence_z", "evidence z", _num),
-        ("critical_z", "needed z", _num),
-        ("passes", "passes", _yes),
+        ("hypothesis", lambda c: _text(c.name)),
+        ("fitted parameters", fitted),
+        ("training BIC", lambda c: number(c.bic)),
+        ("held-out position RMS with it [um]", lambda c: number(c.judgement.position_rms_um)),
+        ("held-out current RMS with it [A]", lambda c: number(c.judgement.current_rms)),
+        ("reduction of the normalised RMS", lambda c: percent(c.judgement.reduction)),
+        ("evidence z", lambda c: number(c.judgement.gain.evidence_z)),
+        ("needed z", lambda c: number(c.judgement.gain.critical_z)),
+        ("passes", lambda c: _yes(c.passes)),
     ]
 
 
 def _step_columns(units: dict[str, dict[str, str]]) -> list[Column]:
+    """The columns of the accepted effects (one row per :class:`Round` that accepted one)."""
+
+    def best(r: Round) -> Candidate:
+        assert r.best is not None
+        return r.best
+
+    def fitted(r: Round) -> str:
+        return parameters(best(r).fit.values, units.get(best(r).name, {}))
+
     return [
-        ("effect", "accepted", _effect),
-        ("params", "fitted parameters (its round)", _fitted(units, "fitted")),
-        ("holdout_gap_before_um", "held-out position RMS before it [um]", _num),
-        ("holdout_gap_after_um", "with it, as fitted in its round [um]", _num),
-        ("holdout_current_before_A", "held-out current RMS before it [A]", _num),
-        ("holdout_current_after_A", "with it, as fitted in its round [A]", _num),
-        ("reduction", "reduction of the normalised RMS", _pct),
+        ("accepted", lambda r: names([r.effect])),
+        ("fitted parameters (its round)", fitted),
+        ("held-out position RMS before it [um]", lambda r: number(r.position_rms_um)),
+        (
+            "with it, as fitted in its round [um]",
+            lambda r: number(best(r).judgement.position_rms_um),
+        ),
+        ("held-out current RMS before it [A]", lambda r: number(r.current_rms)),
+        ("with it, as fitted in its round [A]", lambda r: number(best(r).judgement.current_rms)),
+        ("reduction of the normalised RMS", lambda r: percent(best(r).judgement.reduction)),
     ]
 
 
-SHARE_COLUMNS: list[Column] = [
-    ("regime", "regime", _text),
-    ("time_share", "share of the time [%]", _pct),
-    ("energy_share", "share of the residual energy [%]", _pct),
-    ("enrichment", "energy share over time share [x]", _num),
+SHARE_COLUMNS: list[Column] = [  # rows: (regime, its shares)
+    ("regime", lambda row: _text(row[0])),
+    ("share of the time [%]", lambda row: percent(row[1]["time_share"])),
+    ("share of the residual energy [%]", lambda row: percent(row[1]["energy_share"])),
+    ("energy share over time share [x]", lambda row: number(row[1]["enrichment"])),
 ]
-AXIS_COLUMNS: list[Column] = [
-    ("from_mm", "from [mm]", _num),
-    ("to_mm", "to [mm]", _num),
-    ("direction", "direction of motion", _signed),
-    ("at_stroke_end", STROKE_END, _yes),
-    ("energy_share", "share of the energy above the even level [%]", _pct),
-    ("enrichment", "peak energy over the even level [x]", _num),
+AXIS_COLUMNS: list[Column] = [  # rows: AxisSpan
+    ("from [mm]", lambda span: number(span.from_mm)),
+    ("to [mm]", lambda span: number(span.to_mm)),
+    ("direction of motion", lambda span: {1: "+", -1: "-", 0: "both"}.get(span.direction, "-")),
+    (STROKE_END, lambda span: _yes(span.at_stroke_end)),
+    ("share of the energy above the even level [%]", lambda span: percent(span.energy_share)),
+    ("peak energy over the even level [x]", lambda span: number(span.enrichment)),
 ]
 
 
-def _errors(value: Any, _row: Row) -> str:
-    return ", ".join(f"{k} {percent(v / 100.0)}" for k, v in (value or {}).items()) or "-"
+def _errors(value: dict[str, float]) -> str:
+    return ", ".join(f"{k} {percent(v / 100.0)}" for k, v in value.items()) or "-"
 
 
-def _pulses(value: Any, _row: Row) -> str:
+def _pulses(value: dict[str, float] | None) -> str:
     if not value:
         return "-"
     return (
@@ -129,26 +126,26 @@ def _pulses(value: Any, _row: Row) -> str:
     )
 
 
-def _run_columns(runs: list[Row]) -> list[Column]:
+def _run_columns(runs: list[HeldOutRun]) -> list[Column]:
+    """The columns of the held-out runs (one row per :class:`HeldOutRun`)."""
     columns: list[Column] = [
-        ("source", "held-out run", _text),
-        ("position_rms_um_before", "position RMS before [um]", _num),
-        ("position_rms_um_after", "after [um]", _num),
-        ("current_rms_before", "current RMS before [A]", _num),
-        ("current_rms_after", "after [A]", _num),
-        ("relative_errors_before", "relative errors before", _errors),
-        ("relative_errors_after", "after", _errors),
+        ("held-out run", lambda r: _text(r.source)),
+        ("position RMS before [um]", lambda r: number(r.position_rms_um_before)),
+        ("after [um]", lambda r: number(r.position_rms_um_after)),
+        ("current RMS before [A]", lambda r: number(r.current_rms_before)),
+        ("after [A]", lambda r: number(r.current_rms_after)),
+        ("relative errors before", lambda r: _errors(r.relative_errors_before)),
+        ("after", lambda r: _errors(r.relative_errors_after)),
     ]
-    if any(r.get("pulse_response_before") for r in runs):
+    if any(r.pulse_response_before for r in runs):
         columns += [
-            ("pulse_response_before", "acceleration residual after pulse edges, before", _pulses),
-            ("pulse_response_after", "after", _pulses),
+            (
+                "acceleration residual after pulse edges, before",
+                lambda r: _pulses(r.pulse_response_before),
+            ),
+            ("after", lambda r: _pulses(r.pulse_response_after)),
         ]
     return columns
-
-
-def _shares_rows(shares: dict[str, dict[str, float]]) -> list[Row]:
-    return [{"regime": name, **values} for name, values in shares.items()]
 
 
 def hypothesis_units(model: str) -> dict[str, dict[str, str]]:
@@ -185,14 +182,14 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
     Every number is written for people (:mod:`twin_cosim.gap.report.verdict`); the verdict is
     followed by the table that holds each of its numbers (:func:`gap_table`).
     """
-    summary = d.summary()
     units = hypothesis_units(d.context.model)
+    first = next((r for r in d.rounds if r.candidates), None)
     before, after = d.metrics_before[0], d.metrics_after[0]
     figures = d.validation
     verdict = f"{d.verdict}."
     if d.remaining.text not in d.verdict:
         verdict += f" {d.remaining.text[0].upper()}{d.remaining.text[1:]}."
-    verdict += f" Accepted, in order: {names(summary['accepted'])}."
+    verdict += f" Accepted, in order: {names(d.accepted)}."
     before_shares = energy_shares(d.holdout_before.position, d.holdout_before.regimes)
     noise = parameters(d.noise.plant_parameters, _parameter_units(d.context.model))
     parts: list[tuple[str, str | list[list[str]]]] = [
@@ -224,26 +221,26 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
         ),
         (
             "Held-out runs, before and after the accepted effects",
-            _table(summary["gap"]["holdout_runs"], _run_columns(summary["gap"]["holdout_runs"])),
+            _table(d.held_out_runs, _run_columns(d.held_out_runs)),
         ),
         (
             "Where the gap lies before the accepted effects (training and held-out data): "
             "position residual by regime",
-            _table(_shares_rows(d.where.position), SHARE_COLUMNS),
+            _table(list(d.where.position.items()), SHARE_COLUMNS),
         ),
         (
             "Before the accepted effects: current residual by regime",
-            _table(_shares_rows(d.where.current), SHARE_COLUMNS),
+            _table(list(d.where.current.items()), SHARE_COLUMNS),
         ),
         (
             "Before the accepted effects: spans along the axis where the residual is concentrated",
-            _table([asdict(s) for s in d.where.along_axis], AXIS_COLUMNS)
+            _table(d.where.along_axis, AXIS_COLUMNS)
             if d.where.along_axis
             else "The residual is spread evenly along the axis: no span stands out.",
         ),
         (
             "After the accepted effects (held-out data): spans along the axis",
-            _table([asdict(s) for s in d.remaining_where.along_axis], AXIS_COLUMNS)
+            _table(d.remaining_where.along_axis, AXIS_COLUMNS)
             if d.remaining_where.along_axis
             else "What is left is spread evenly along the axis: no span stands out.",
         ),
@@ -258,19 +255,18 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
             "Which: hypotheses fitted on the training data, judged on the held-out data (first "
             f"round; held-out position RMS before {number(d.rounds[0].position_rms_um)} um, "
             f"current {number(d.rounds[0].current_rms)} A)",
-            _table(summary["effects"], _ranking_columns(units)),
+            _table(first.candidates if first else [], _ranking_columns(units)),
         ),
         (
             "How far: each accepted effect on the held-out data, as fitted in its round",
-            _table(summary["steps"], _step_columns(units))
-            if summary["steps"]
+            _table(d.steps, _step_columns(units))
+            if d.steps
             else "No effect passed the held-out test.",
         ),
         (
             "Share of the held-out position gap energy left after the accepted effects, by regime",
             ", ".join(
-                f"{k.replace('_', ' ')} {percent(v)}"
-                for k, v in summary["gap"]["unexplained_share_by_regime"].items()
+                f"{k.replace('_', ' ')} {percent(v)}" for k, v in d.unexplained_by_regime.items()
             ),
         ),
         (
@@ -282,7 +278,7 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
             "Thresholds (DiagnosisSettings; the scenario's diagnose: section)",
             [["setting", "value"]] + [[k, _setting(k, v)] for k, v in asdict(d.settings).items()],
         ),
-        ("Warnings", "; ".join(summary["warnings"]) or "none"),
+        ("Warnings", "; ".join(d.warnings) or "none"),
     ]
     return parts
 
@@ -315,15 +311,27 @@ FIGURES = ("residuals.png", "regimes.png", "along_axis.png", "spectra.png", "ran
 
 
 def write_report(
-    d: Diagnosis, out: Path, extra: dict[str, Any] | None = None, figures: bool = True
+    d: Diagnosis,
+    out: Path,
+    summary: dict[str, Any],
+    command: str,
+    figures: bool = True,
 ) -> dict[str, str]:
-    """Write diagnosis.json (the summary and ``extra``), report.md and report.html into ``out``.
+    """Write the diagnosis' files into ``out``: diagnosis.json (``summary``: the diagnosis'
+    :meth:`~twin_cosim.gap.diagnosis.Diagnosis.summary` and what the command adds), report.md
+    and report.html, plant.yaml (its calibrated plant, made by ``command`` and this version)
+    and calibrated.yaml (the diagnosed scenario with it).
 
     The pages show :data:`FIGURES` when ``figures`` (written apart, after the pages:
-    :func:`twin_cosim.gap.figures.write_figures`).
+    :func:`twin_cosim.gap.report.figures.write_figures`).
+
+    Returns
+    -------
+    dict
+        Paths of the files written: ``json``, ``markdown``, ``html``, ``plant`` and
+        ``calibrated``.
     """
     out.mkdir(parents=True, exist_ok=True)
-    summary = {**d.summary(), **(extra or {})}
     (out / "diagnosis.json").write_text(json.dumps(summary, indent=2) + "\n")
     parts = sections(d)
     markdown = ["# Sim-to-real gap diagnosis", ""]
@@ -349,8 +357,15 @@ def write_report(
     page.append("</body></html>")
     (out / "report.md").write_text("\n".join(markdown))
     (out / "report.html").write_text("\n".join(page) + "\n")
+    plant = d.calibrated_plant
+    made = {**plant.created_by, "command": command, "version": versions()["twin-cosim"]}
+    plant = dataclasses.replace(plant, created_by=made)
+    plant_file = write_plant_parameters(out / "plant.yaml", plant)
+    calibrated = calibrated_scenario(d.context.scenario.source, plant, out / "calibrated.yaml")
     return {
         "json": str(out / "diagnosis.json"),
         "markdown": str(out / "report.md"),
         "html": str(out / "report.html"),
+        "plant": str(plant_file),
+        "calibrated": str(calibrated),
     }

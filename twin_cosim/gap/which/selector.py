@@ -172,6 +172,14 @@ class Round:
     pair: Pair | None = None
 
     @property
+    def effect(self) -> str | list[str]:
+        """What the round accepted as reports name it: a pair's ``first+second``, a group of
+        look-alikes, or one effect's name."""
+        if self.pair is not None:
+            return self.pair.name
+        return list(self.accepted) if len(self.accepted) > 1 else self.accepted[0]
+
+    @property
     def best(self) -> Candidate | None:
         """The accepted candidate (or pair)."""
         if self.pair is not None:
