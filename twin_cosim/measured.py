@@ -33,6 +33,11 @@ MIN_SAMPLES = 100
 UNIT_FACTORS = {1e3: "mm instead of m", 1e6: "um instead of m"}
 
 
+def _signal(name: str, doc: str) -> property:
+    """A signal of a run's record as an attribute of the run (the column itself, a view)."""
+    return property(lambda run: run.record[name], doc=doc)
+
+
 class MeasuredDataError(ValueError):
     """A measured run cannot be used; the message names the file, the column and the problem."""
 
@@ -74,25 +79,10 @@ class MeasuredRun:
         record = RunRecord.from_columns(signals, {**known, **(units or {})})
         return cls(source, record, scalars=dict(scalars or {}))
 
-    @property
-    def t(self) -> np.ndarray:
-        """Sample times, s."""
-        return self.record["t"]
-
-    @property
-    def x_ref(self) -> np.ndarray:
-        """Reference carriage position, m."""
-        return self.record["x_ref"]
-
-    @property
-    def x(self) -> np.ndarray:
-        """Measured carriage position, m."""
-        return self.record["x"]
-
-    @property
-    def current(self) -> np.ndarray:
-        """Current command, A (the drive command, V, of an EMPS run)."""
-        return self.record["current"]
+    t = _signal("t", "Sample times, s.")
+    x_ref = _signal("x_ref", "Reference carriage position, m.")
+    x = _signal("x", "Measured carriage position, m.")
+    current = _signal("current", "Current command, A (the drive command, V, of an EMPS run).")
 
     @property
     def motor_speed(self) -> np.ndarray | None:

@@ -105,7 +105,7 @@ class HeldOutRun:
         force.
     pulse_response_before, pulse_response_after : dict or None
         For a run with a disturbance signal: how the acceleration residual concentrates after
-        its edges (:func:`twin_cosim.gap.residuals.pulse_response`).
+        its edges (:func:`twin_cosim.gap.data.residuals.pulse_response`).
     """
 
     source: str
@@ -300,22 +300,26 @@ def _acceptance_tests(j: Judgement) -> dict[str, Any]:
     return {
         "holdout_reduction": j.reduction,
         "reduction_beyond_calibration": j.reduction_beyond_calibration,
-        "evidence_z": j.gain.evidence_z,
-        "critical_z": j.gain.critical_z,
-        "excess_share": j.gain.excess_share,
-        "fair_share": j.gain.fair_share,
+        **asdict(j.gain),  # evidence z, critical z, excess share, fair share
         "size_above_tolerance": j.size_above_tolerance,
     }
 
 
-def _row(c: Candidate, round_: Round) -> dict[str, Any]:
-    fit, judged = c.fit, c.judgement
+def _fitted(c: Candidate) -> dict[str, Any]:
+    """A candidate's fit: its hypothesis, values, training cost and BIC, replays."""
     return {
-        "name": fit.hypothesis,
-        "params": fit.values,
-        "train_cost": fit.train_cost,
+        "name": c.name,
+        "params": c.fit.values,
+        "train_cost": c.fit.train_cost,
         "bic": c.bic,
-        "replays": fit.replays,
+        "replays": c.fit.replays,
+    }
+
+
+def _row(c: Candidate, round_: Round) -> dict[str, Any]:
+    judged = c.judgement
+    return {
+        **_fitted(c),
         "holdout_gap_before_um": round_.position_rms_um,
         "holdout_gap_after_um": judged.position_rms_um,
         "holdout_current_before_A": round_.current_rms,
@@ -364,11 +368,7 @@ def _swap_row(w: Swap) -> dict[str, Any]:
     judged = c.judgement
     return {
         "removed": w.removed,
-        "name": c.name,
-        "params": c.fit.values,
-        "train_cost": c.fit.train_cost,
-        "bic": c.bic,
-        "replays": c.fit.replays,
+        **_fitted(c),
         "holdout_normalised_rms_after": judged.holdout_rms,
         "holdout_gap_after_um": judged.position_rms_um,
         "holdout_current_after_A": judged.current_rms,
@@ -387,10 +387,7 @@ def _refit_row(r: Refit) -> dict[str, Any]:
         "values_after": r.values_after,
         "left_before": r.left_before,
         "left_after": r.left_after,
-        "evidence_z": r.gain.evidence_z,
-        "critical_z": r.gain.critical_z,
-        "excess_share": r.gain.excess_share,
-        "fair_share": r.gain.fair_share,
+        **asdict(r.gain),
         "significant": r.significant,
     }
 

@@ -37,7 +37,7 @@ class Residuals:
     current : numpy.ndarray
         Current (drive command) residual, A (or V).
     regimes : numpy.ndarray
-        Regime codes of :data:`twin_cosim.gap.regimes.REGIMES`.
+        Regime codes of :data:`twin_cosim.gap.data.regimes.REGIMES`.
     motor_angle : numpy.ndarray
         Motor angle of the replay, rad.
     x : numpy.ndarray

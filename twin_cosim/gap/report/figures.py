@@ -41,6 +41,14 @@ def _shade_regimes(ax, t: np.ndarray, labels: np.ndarray) -> None:
             )
 
 
+def _saved(fig, path: Path) -> Path:
+    """Lay the figure out, write it to ``path`` (PNG, 100 dpi) and free it."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
 def plot_residuals(d: Diagnosis, path: Path) -> Path:
     """Position and current residuals over time, regimes shaded, before and after the effects."""
     fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
@@ -62,10 +70,7 @@ def plot_residuals(d: Diagnosis, path: Path) -> Path:
     axes[1].set_xlabel(
         "t [s]  (shading: standstill grey, breakaway orange, acceleration blue, reversal red)"
     )
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _saved(fig, path)
 
 
 def plot_regimes(d: Diagnosis, path: Path) -> Path:
@@ -83,10 +88,7 @@ def plot_regimes(d: Diagnosis, path: Path) -> Path:
         ax.set_title(f"{signal} residual")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3, axis="y")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _saved(fig, path)
 
 
 def plot_spectra(d: Diagnosis, path: Path) -> Path:
@@ -120,10 +122,7 @@ def plot_spectra(d: Diagnosis, path: Path) -> Path:
     fig.suptitle(
         "Residual spectra: training data, before the accepted effects (measured - nominal twin)"
     )
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _saved(fig, path)
 
 
 def plot_ranking(d: Diagnosis, path: Path) -> Path:
@@ -140,10 +139,7 @@ def plot_ranking(d: Diagnosis, path: Path) -> Path:
         "held-out evidence z beyond calibration and noise (listed by training BIC, best first)"
     )
     ax.grid(alpha=0.3, axis="x")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _saved(fig, path)
 
 
 SPAN_COLOURS = {False: "tab:red", True: "tab:purple"}  # by AxisSpan.at_stroke_end
@@ -197,14 +193,11 @@ def plot_along_axis(d: Diagnosis, path: Path) -> Path:
             handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, markerscale=4
         )
     axes[1].set_xlabel("carriage position [mm]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _saved(fig, path)
 
 
 def write_figures(d: Diagnosis, out: Path) -> None:
-    """Write the report's figures (:data:`twin_cosim.gap.report.FIGURES`) into ``out``."""
+    """Write the report's figures (:data:`twin_cosim.gap.report.pages.FIGURES`) into ``out``."""
     plot_residuals(d, out / "residuals.png")
     plot_regimes(d, out / "regimes.png")
     plot_along_axis(d, out / "along_axis.png")

@@ -227,7 +227,7 @@ def gap_table(
         What is left.
     before_shares
         Position residual shares per regime of the held-out gap before the effects
-        (:func:`twin_cosim.gap.regimes.energy_shares`).
+        (:func:`twin_cosim.gap.data.regimes.energy_shares`).
     where
         Where what is left lies (the after column of the regimes; the spans).
     """

@@ -17,7 +17,7 @@
   speed-dependent effect (friction near v = 0) concentrates there as a local defect would.
 - Orders and frequencies: order spectra of the motor and screw angle and a spectrum in Hz on the
   constant-velocity stretches, with the position-periodic / temporal rule of
-  :func:`twin_cosim.gap.spectra.periodicity`.
+  :func:`twin_cosim.gap.where.spectra.periodicity`.
 """
 
 from __future__ import annotations
@@ -102,7 +102,7 @@ def stroke_ends(res: Residuals) -> np.ndarray:
     """True for the samples where a stroke starts or ends: the axis speeds up from a stop or a
     reversal, or slows into one.
 
-    Of each stroke (:func:`twin_cosim.gap.regimes.strokes`), the samples before its first and
+    Of each stroke (:func:`twin_cosim.gap.data.regimes.strokes`), the samples before its first and
     after its last constant-velocity sample (all of them without one), except at the ends of
     the record when it is moving there (the motion began before or goes on after it).
     """

@@ -18,12 +18,16 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from twin_cosim.gap.floors.evidence import CalibrationBasis, CalibrationFloor
 from twin_cosim.gap.which.acceptance import Judging
 from twin_cosim.gap.which.replay import FitResult, Replays, SimulateTask
+
+if TYPE_CHECKING:
+    from twin_cosim.workers import BoundPool
 
 Progress = Callable[[int], None]
 
@@ -94,12 +98,13 @@ def _replays_of(result: FitResult | Replays) -> int:
     return result.replays if isinstance(result, FitResult) else len(result.judging)
 
 
+@dataclass
 class ReplayPool:
     """Replays and fits of the selection on a pool of replay workers.
 
     Parameters
     ----------
-    pool
+    pool : BoundPool
         Pool of :class:`~twin_cosim.gap.which.replay.Replayer` workers.
     nominal : dict
         Nominal FMU parameters of the twin (noise model included).
@@ -111,25 +116,20 @@ class ReplayPool:
         Relative uncertainty of the calibrated parameters.
     progress : callable or None
         Called with the number of tasks done.
+    times : PhaseTimes
+        Where the time went, per phase.
+    bases : dict
+        The calibration directions of each parameter set asked for.
     """
 
-    def __init__(
-        self,
-        pool,
-        nominal: dict[str, float],
-        calibrated: list[str],
-        judging: Judging,
-        tolerance: float,
-        progress: Progress | None = None,
-    ) -> None:
-        self.pool = pool
-        self.nominal = nominal
-        self.calibrated = calibrated
-        self.judging = judging
-        self.tolerance = tolerance
-        self.progress = progress
-        self.times = PhaseTimes()
-        self._bases: dict[tuple, CalibrationBasis] = {}
+    pool: BoundPool
+    nominal: dict[str, float]
+    calibrated: list[str]
+    judging: Judging
+    tolerance: float
+    progress: Progress | None = None
+    times: PhaseTimes = field(default_factory=PhaseTimes)
+    bases: dict[tuple, CalibrationBasis] = field(default_factory=dict, repr=False)
 
     def tasks(self, phase: str, tasks: list) -> list:
         """Results of tasks on the pool, in task order, reporting each completion; the time
@@ -150,9 +150,9 @@ class ReplayPool:
         """Calibration directions around the parameter set ``nominal + base`` (each set's
         replayed once)."""
         key = tuple(sorted(base.items()))
-        if key not in self._bases:
-            self._bases[key] = self._new_basis(base)
-        return self._bases[key]
+        if key not in self.bases:
+            self.bases[key] = self._new_basis(base)
+        return self.bases[key]
 
     def _new_basis(self, base: dict[str, float]) -> CalibrationBasis:
         current = {**self.nominal, **base}

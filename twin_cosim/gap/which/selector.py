@@ -293,6 +293,7 @@ def rivals(
     return found
 
 
+@dataclass
 class Selector:
     """Runs the steps of the selection on a replay pool (module docstring).
 
@@ -315,23 +316,13 @@ class Selector:
         dead time).
     """
 
-    def __init__(
-        self,
-        pool: ReplayPool,
-        library: dict[str, Hypothesis],
-        judging: Judging,
-        settings: DiagnosisSettings,
-        train_seconds: float,
-        context: DiagnosisContext | None = None,
-        hypothesis_context: dict[str, float] | None = None,
-    ) -> None:
-        self.pool = pool
-        self.library = library
-        self.judging = judging
-        self.settings = settings
-        self.train_seconds = train_seconds
-        self.context = context
-        self.hypothesis_context = hypothesis_context or {}
+    pool: ReplayPool
+    library: dict[str, Hypothesis]
+    judging: Judging
+    settings: DiagnosisSettings
+    train_seconds: float
+    context: DiagnosisContext | None = None
+    hypothesis_context: dict[str, float] = field(default_factory=dict)
 
     def expected_tasks(self) -> int:
         """Pool tasks of a selection that accepts the most effects (for progress bars)."""
@@ -482,7 +473,8 @@ class Selector:
                 done = dataclasses.replace(opened, candidates=candidates, accepted=group)
                 found = [(list(group), tuple(best.fit.values.values()))]
             elif len(accepted) + 2 <= settings.max_effects:
-                pairs = self.screen_pairs(candidates, context, base, held)
+                screened = dataclasses.replace(opened, candidates=candidates)
+                pairs = self.screen_pairs(screened, base, held)
                 pair = next((p for p in pairs if p.passes), None)
                 if pair is None:
                     rounds.append(dataclasses.replace(opened, candidates=candidates, pairs=pairs))
@@ -593,28 +585,22 @@ class Selector:
             return joint, joint_replays[0]
         return sequential, replays
 
-    def screen_pairs(
-        self,
-        candidates: list[Candidate],
-        context: dict[str, float],
-        base: dict[str, float],
-        held: HeldOut,
-    ) -> list[Pair]:
+    def screen_pairs(self, opened: Round, base: dict[str, float], held: HeldOut) -> list[Pair]:
         """Pairs of the round's leading hypotheses by training BIC, the second fitted on top of
         the first, judged as one candidate and each member against the other alone (module
         docstring); best training BIC first.
 
         Parameters
         ----------
-        candidates
-            The round's candidates, fitted and judged (best training BIC first).
-        context
-            The round's hypothesis context.
+        opened
+            The round: its hypothesis context and its candidates, fitted and judged (best
+            training BIC first).
         base
             FMU parameters of the accepted effects.
         held
             The held-out residual at the start of the round.
         """
+        candidates, context = opened.candidates, opened.context
         leaders = [c for c in candidates if math.isfinite(c.bic) and c.fit.values]
         couples = list(itertools.combinations(leaders[: self.settings.pair_candidates], 2))
         if not couples:

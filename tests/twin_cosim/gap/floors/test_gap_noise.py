@@ -9,7 +9,7 @@ import pytest
 
 from twin_cosim.gap.data.regimes import CONSTANT_VELOCITY, STANDSTILL
 from twin_cosim.gap.data.residuals import Residuals
-from twin_cosim.gap.floors import noise as floors_module
+from twin_cosim.gap.floors import noise as noise_module
 from twin_cosim.gap.floors.noise import (
     Floors,
     Harmonic,
@@ -142,7 +142,7 @@ START = {
 def test_a_harmonic_with_a_negative_frequency_is_dropped_and_reported(monkeypatch):
     """The crash of issue 10: noise_frequency_1 = -2.8865 reached the FMU."""
     found = [Harmonic(3e-8, -2.8865, 0.1), Harmonic(2e-8, 120.0, 0.2)]
-    monkeypatch.setattr(floors_module, "noise_harmonics", lambda *a, **k: found)
+    monkeypatch.setattr(noise_module, "noise_harmonics", lambda *a, **k: found)
     model = identify_noise(residuals(np.zeros(4000), np.zeros(4000)), DT, RANGES, START)
     assert [h.frequency_hz for h in model.harmonics] == [120.0]
     assert model.plant_parameters["noise_frequency_1"] == 120.0
@@ -221,8 +221,8 @@ def test_noise_alone_is_not_a_metric_gap():
         comparison = compare_metrics(run, record, floors, settings)
         assert comparison.off == [], comparison
         naive = abs(
-            floors_module.run_metrics(run.t, run.x_ref - run.x, run.current)["ITAE"]
-            / floors_module.run_metrics(run.t, run.x_ref - record["x"], run.current)["ITAE"]
+            noise_module.run_metrics(run.t, run.x_ref - run.x, run.current)["ITAE"]
+            / noise_module.run_metrics(run.t, run.x_ref - record["x"], run.current)["ITAE"]
             - 1
         )
         assert naive > settings.significance_metric  # what a comparison without noise says
