@@ -86,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
 def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     """The diagnosis, its files and its figures, with ``pool`` running the replays."""
     from twin_cosim.gap.diagnosis import diagnose
+    from twin_cosim.gap.report.pages import summary as summary_of
     from twin_cosim.gap.report.pages import write_report
     from twin_cosim.gap.settings import settings_from
     from twin_cosim.measured import read_measured
@@ -106,7 +107,7 @@ def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     progress.finish()
     wall_s = time.perf_counter() - start
     summary = {
-        **result.summary(),
+        **summary_of(result),
         "wall_s": wall_s,
         "versions": versions(),
         "warnings": mismatch + result.warnings,

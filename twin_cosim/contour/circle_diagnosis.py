@@ -23,6 +23,7 @@ from twin_cosim.contour.circle_test import CircleSpec, circle_motion
 from twin_cosim.contour.machine_run import MachinePlants, axis_grids
 from twin_cosim.contour.measured_circle import MeasuredCircle, replay_circle
 from twin_cosim.gap.diagnosis import Diagnosis, diagnose
+from twin_cosim.gap.report.pages import summary
 from twin_cosim.gap.settings import settings_from
 from twin_cosim.gap.synth import EffectSpec, synthesize
 from twin_cosim.reference import interpolate
@@ -78,7 +79,7 @@ def diagnose_circle(
             "verdict": diagnosis.verdict,
             "significant": diagnosis.significant,
             "accepted": diagnosis.accepted,
-            "steps": diagnosis.summary()["steps"],
+            "steps": summary(diagnosis)["steps"],
         }
     return {
         "source": measured.source,

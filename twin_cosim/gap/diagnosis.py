@@ -2,8 +2,8 @@
 shrinks, what is left, and the calibrated plant.
 
 Stages, each a typed result held by :class:`Diagnosis` to the end (the JSON is one
-serialisation of it, :meth:`Diagnosis.summary`; the pages, the plant files and the printed
-verdict are written from its fields):
+serialisation of it, :func:`twin_cosim.gap.report.pages.summary`; the pages, the plant files
+and the printed verdict are written from its fields):
 
 1. **Context** (:func:`~twin_cosim.gap.data.context.build_context`): the scenario, the plant
    model and its variable ranges, the measured runs checked (outliers repaired and reported)
@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -58,13 +58,14 @@ from twin_cosim.gap.floors.noise import (
     identify_noise,
     noise_floors,
 )
+from twin_cosim.gap.report.pages import jsonable
 from twin_cosim.gap.report.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.where.location import Location, locate
-from twin_cosim.gap.which.acceptance import Candidate, Judgement, Judging, Pair
+from twin_cosim.gap.which.acceptance import Judging
 from twin_cosim.gap.which.replay import Replays, ReplaySpec, TrainingData
 from twin_cosim.gap.which.replay_pool import ReplayPool
-from twin_cosim.gap.which.selector import Refit, Round, Selection, Selector, Swap
+from twin_cosim.gap.which.selector import Round, Selection, Selector, Swap
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
 from twin_cosim.plant_model import plant_model
@@ -204,221 +205,6 @@ class Diagnosis:
     def warnings(self) -> list[str]:
         """Problems that did not stop the diagnosis: the runs' and the noise harmonics'."""
         return self.context.warnings + self.noise.dropped
-
-    def summary(self) -> dict[str, Any]:
-        """The diagnosis as JSON-ready data (the one place it is serialised)."""
-        selection = self.selection
-        first = next((r for r in self.rounds if r.candidates), None)
-        last = next((r for r in reversed(self.rounds) if r.candidates), None)
-        swapped_out = [w.removed for w in selection.swaps if w.kept]
-        steps = [_step(r, selection.dropped, swapped_out) for r in self.steps]
-        held = self.held_out_runs
-        gap = {
-            "significant": self.significant,
-            "holdout_normalised_rms": self.rounds[0].holdout_rms,
-            "verdict": self.verdict,
-            "validation_figures": self.validation,
-            "holdout_metrics_before": _metrics(self.metrics_before[0]),
-            "holdout_metrics_after": _metrics(self.metrics_after[0]),
-            "unexplained_share_by_regime": self.unexplained_by_regime,
-            "remaining": asdict(self.remaining),
-            "holdout_runs": [asdict(h) for h in held],
-            "holdout_relative_errors_before": _combined(held, "relative_errors_before"),
-            "holdout_relative_errors_after": _combined(held, "relative_errors_after"),
-        }
-        context = self.context
-        return _jsonable(
-            {
-                "scenario": str(context.scenario.source),
-                "model": context.model,
-                "measured": context.measured,
-                "holdout": context.holdout or context.split,
-                "split": context.split,
-                "accepted": self.accepted,
-                "marginal": [asdict(m) for m in selection.marginal],
-                "dropped": selection.dropped,
-                "swaps": [_swap_row(w) for w in selection.swaps],
-                "refits": [_refit_row(r) for r in selection.refits],
-                "steps": steps,
-                "effects": [_row(c, first) for c in first.candidates] if first else [],
-                "last_round": [_row(c, last) for c in last.candidates] if last else [],
-                "rounds": [_round(r) for r in self.rounds],
-                "where": {
-                    "position": self.where.position,
-                    "current": self.where.current,
-                    "along_axis": [asdict(s) for s in self.where.along_axis],
-                },
-                "periodicity": self.where.periodicity,
-                "gap": gap,
-                "noise": {
-                    "harmonics": [asdict(h) for h in self.noise.harmonics],
-                    "dropped": self.noise.dropped,
-                    "plant_parameters": self.noise.plant_parameters,
-                    "sigma_position_um": self.floors.sigma_position_m * 1e6,
-                    "sigma_current_A": self.floors.sigma_current,
-                    "floor_sources": {
-                        "position": self.floors.position_source,
-                        "current": self.floors.current_source,
-                    },
-                },
-                "context": self.rounds[0].context,
-                "thresholds": asdict(self.settings),
-                "warnings": self.warnings,
-                "final_plant_parameters": selection.plant_parameters,
-                "time": self.times,
-            }
-        )
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, (np.floating, np.integer, np.bool_)):
-        return value.item()
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value
-
-
-def _metrics(c: MetricComparison) -> dict[str, Any]:
-    return {
-        "run": c.run,
-        "measured": c.measured,
-        "twin": c.twin,
-        "relative_error": c.relative_error,
-        "noise_spread": c.noise_spread,
-        "threshold": c.threshold,
-        "largest_relative_error": c.largest_relative_error,
-        "off": c.off,
-    }
-
-
-def _acceptance_tests(j: Judgement) -> dict[str, Any]:
-    """What a candidate's acceptance tests measured (a round's candidates and a swap's rival)."""
-    return {
-        "holdout_reduction": j.reduction,
-        "reduction_beyond_calibration": j.reduction_beyond_calibration,
-        **asdict(j.gain),  # evidence z, critical z, excess share, fair share
-        "size_above_tolerance": j.size_above_tolerance,
-    }
-
-
-def _fitted(c: Candidate) -> dict[str, Any]:
-    """A candidate's fit: its hypothesis, values, training cost and BIC, replays."""
-    return {
-        "name": c.name,
-        "params": c.fit.values,
-        "train_cost": c.fit.train_cost,
-        "bic": c.bic,
-        "replays": c.fit.replays,
-    }
-
-
-def _row(c: Candidate, round_: Round) -> dict[str, Any]:
-    judged = c.judgement
-    return {
-        **_fitted(c),
-        "holdout_gap_before_um": round_.position_rms_um,
-        "holdout_gap_after_um": judged.position_rms_um,
-        "holdout_current_before_A": round_.current_rms,
-        "holdout_current_after_A": judged.current_rms,
-        **_acceptance_tests(judged),
-        "explained_normalised_rms": judged.explained,
-        "calibration_floor_normalised_rms": round_.calibration.explained,
-        "consistent": judged.consistent,
-        "passes": c.passes,
-    }
-
-
-def _step(r: Round, dropped: list[str], swapped_out: list[str]) -> dict[str, Any]:
-    best = r.best
-    assert best is not None
-    judged = best.judgement
-    return {
-        "round": r.index,
-        "effect": r.effect,
-        "together": list(r.pair.members) if r.pair else [],
-        "fitted": best.name,
-        "params": best.fit.values,
-        "plant_parameters": best.fit.overrides,
-        "context": r.context,
-        "holdout_gap_before_um": r.position_rms_um,
-        "holdout_gap_after_um": judged.position_rms_um,
-        "holdout_current_before_A": r.current_rms,
-        "holdout_current_after_A": judged.current_rms,
-        "holdout_normalised_rms_before": r.holdout_rms,
-        "holdout_normalised_rms_after": judged.holdout_rms,
-        "reduction": judged.reduction,
-        "reduction_beyond_calibration": judged.reduction_beyond_calibration,
-        "evidence_z": judged.gain.evidence_z,
-        "critical_z": judged.gain.critical_z,
-        "excess_share": judged.gain.excess_share,
-        "dropped_in_backward_pass": best.name in dropped,
-        "swapped_out": best.name in swapped_out,
-        "ranking": [_row(c, r) for c in r.candidates],
-    }
-
-
-def _swap_row(w: Swap) -> dict[str, Any]:
-    """A swap tried: the effect taken out, the rival put in with its fit and its acceptance
-    tests against the model as it was, and whether the swap was made."""
-    c = w.candidate
-    judged = c.judgement
-    return {
-        "removed": w.removed,
-        **_fitted(c),
-        "holdout_normalised_rms_after": judged.holdout_rms,
-        "holdout_gap_after_um": judged.position_rms_um,
-        "holdout_current_after_A": judged.current_rms,
-        **_acceptance_tests(judged),
-        "consistent": judged.consistent,
-        "passes": c.passes,
-        "kept": w.kept,
-    }
-
-
-def _refit_row(r: Refit) -> dict[str, Any]:
-    """A cold refit that replaced its effect, and its gain against the rule."""
-    return {
-        "effect": r.effect,
-        "values_before": r.values_before,
-        "values_after": r.values_after,
-        "left_before": r.left_before,
-        "left_after": r.left_after,
-        **asdict(r.gain),
-        "significant": r.significant,
-    }
-
-
-def _round(r: Round) -> dict[str, Any]:
-    return {
-        "round": r.index,
-        "significant": r.significant,
-        "context": r.context,
-        "holdout_normalised_rms": r.holdout_rms,
-        "calibration": asdict(r.calibration),
-        "metrics_after_calibration": [_metrics(m) for m in r.metrics],
-        "fitted": [c.name for c in r.candidates],
-        "accepted": r.accepted,
-        "pairs": [_pair_row(p, r) for p in r.pairs],
-    }
-
-
-def _pair_row(p: Pair, round_: Round) -> dict[str, Any]:
-    """A screened pair: its row as a candidate's, and what each member adds to the other."""
-    return {**_row(p, round_), "members": list(p.members), "within": [asdict(m) for m in p.within]}
-
-
-def _combined(runs: list[HeldOutRun], key: str) -> dict[str, float]:
-    """One figure per signal over all held-out runs (the first run's when there is one)."""
-    if not runs:
-        return {}
-    if len(runs) == 1:
-        return getattr(runs[0], key)
-    names = getattr(runs[0], key).keys()
-    return {n: float(np.sqrt(np.mean([getattr(r, key)[n] ** 2 for r in runs]))) for n in names}
 
 
 def _unexplained(before: Residuals, after: Residuals) -> dict[str, float]:
@@ -794,7 +580,7 @@ def _effect_source(effect: str, number: int, step: Round) -> dict[str, Any]:
     """Where a value set by an accepted effect came from: the step that accepted it."""
     best = step.best
     assert best is not None
-    return _jsonable(
+    return jsonable(
         {
             "source": f"accepted effect {effect} (step {number} of twin diagnose)",
             "effect": step.effect,
@@ -808,7 +594,7 @@ def _effect_source(effect: str, number: int, step: Round) -> dict[str, Any]:
 def _swap_source(swap: Swap) -> dict[str, Any]:
     """Where a value set by an effect swapped in for an accepted one came from."""
     rival = swap.candidate
-    return _jsonable(
+    return jsonable(
         {
             "source": f"accepted effect {rival.name} (swapped in for {swap.removed} by twin "
             "diagnose)",

@@ -17,6 +17,7 @@ from tight_spot import build_tight_spot_fmu
 from twin_cosim.gap.diagnosis import calibrated_plant, diagnose
 from twin_cosim.gap.floors.evidence import CalibrationFloor
 from twin_cosim.gap.floors.noise import NoiseModel
+from twin_cosim.gap.report.pages import summary
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.synth import parse_effect, synthesize
 from twin_cosim.gap.which.acceptance import Candidate, Gain, Judgement
@@ -46,9 +47,8 @@ def blind(
     )
     path = tmp_path / "run.csv"
     synthesis.run.frame().to_csv(path, index=False)
-    return diagnose(
-        scenario, [read_measured_csv(path)], settings=DiagnosisSettings(max_effects=max_effects)
-    ).summary()
+    settings = DiagnosisSettings(max_effects=max_effects)
+    return summary(diagnose(scenario, [read_measured_csv(path)], settings=settings))
 
 
 @pytest.mark.slow

@@ -1,7 +1,7 @@
 """The diagnosis' files: ``diagnosis.json`` (its summary), ``report.md`` and ``report.html``
 (the pages), ``plant.yaml`` and ``calibrated.yaml`` (its calibrated plant, and the diagnosed
-scenario with it folded in). Everything but the JSON is written from the typed
-:class:`~twin_cosim.gap.diagnosis.Diagnosis`; the JSON is its one serialisation.
+scenario with it folded in), each written from the typed
+:class:`~twin_cosim.gap.diagnosis.Diagnosis`; :func:`summary` is its one serialisation to JSON.
 
 The figures are drawn apart, after the pages (:mod:`twin_cosim.gap.report.figures`).
 """
@@ -16,6 +16,8 @@ from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from twin_cosim.gap.data.context import library_for
 from twin_cosim.gap.data.regimes import energy_shares
@@ -34,8 +36,9 @@ from twin_cosim.versions import versions
 
 if TYPE_CHECKING:
     from twin_cosim.gap.diagnosis import Diagnosis, HeldOutRun
-    from twin_cosim.gap.which.acceptance import Candidate
-    from twin_cosim.gap.which.selector import Round
+    from twin_cosim.gap.floors.noise import MetricComparison
+    from twin_cosim.gap.which.acceptance import Candidate, Judgement, Pair
+    from twin_cosim.gap.which.selector import Refit, Round, Swap
 
 
 Column = tuple[str, Callable[[Any], str]]
@@ -44,6 +47,226 @@ Column = tuple[str, Callable[[Any], str]]
 def _table(rows: list[Any], columns: list[Column]) -> list[list[str]]:
     """Header and cells, each cell written by its column's formatter of the row."""
     return [[label for label, _ in columns]] + [[show(row) for _, show in columns] for row in rows]
+
+
+def jsonable(value: Any) -> Any:
+    """``value`` ready for JSON (and YAML): mappings with text keys, lists, numpy scalars as
+    Python numbers, non-finite floats as None."""
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def summary(d: Diagnosis) -> dict[str, Any]:
+    """The diagnosis as JSON-ready data (``diagnosis.json``, ``--json``): the one place it is
+    serialised."""
+    selection = d.selection
+    first = next((r for r in d.rounds if r.candidates), None)
+    last = next((r for r in reversed(d.rounds) if r.candidates), None)
+    swapped_out = [w.removed for w in selection.swaps if w.kept]
+    steps = [_step(r, selection.dropped, swapped_out) for r in d.steps]
+    held = d.held_out_runs
+    gap = {
+        "significant": d.significant,
+        "holdout_normalised_rms": d.rounds[0].holdout_rms,
+        "verdict": d.verdict,
+        "validation_figures": d.validation,
+        "holdout_metrics_before": _metric_row(d.metrics_before[0]),
+        "holdout_metrics_after": _metric_row(d.metrics_after[0]),
+        "unexplained_share_by_regime": d.unexplained_by_regime,
+        "remaining": asdict(d.remaining),
+        "holdout_runs": [asdict(h) for h in held],
+        "holdout_relative_errors_before": _combined(held, "relative_errors_before"),
+        "holdout_relative_errors_after": _combined(held, "relative_errors_after"),
+    }
+    context = d.context
+    return jsonable(
+        {
+            "scenario": str(context.scenario.source),
+            "model": context.model,
+            "measured": context.measured,
+            "holdout": context.holdout or context.split,
+            "split": context.split,
+            "accepted": d.accepted,
+            "marginal": [asdict(m) for m in selection.marginal],
+            "dropped": selection.dropped,
+            "swaps": [_swap_row(w) for w in selection.swaps],
+            "refits": [_refit_row(r) for r in selection.refits],
+            "steps": steps,
+            "effects": [_row(c, first) for c in first.candidates] if first else [],
+            "last_round": [_row(c, last) for c in last.candidates] if last else [],
+            "rounds": [_round(r) for r in d.rounds],
+            "where": {
+                "position": d.where.position,
+                "current": d.where.current,
+                "along_axis": [asdict(s) for s in d.where.along_axis],
+            },
+            "periodicity": d.where.periodicity,
+            "gap": gap,
+            "noise": {
+                "harmonics": [asdict(h) for h in d.noise.harmonics],
+                "dropped": d.noise.dropped,
+                "plant_parameters": d.noise.plant_parameters,
+                "sigma_position_um": d.floors.sigma_position_m * 1e6,
+                "sigma_current_A": d.floors.sigma_current,
+                "floor_sources": {
+                    "position": d.floors.position_source,
+                    "current": d.floors.current_source,
+                },
+            },
+            "context": d.rounds[0].context,
+            "thresholds": asdict(d.settings),
+            "warnings": d.warnings,
+            "final_plant_parameters": selection.plant_parameters,
+            "time": d.times,
+        }
+    )
+
+
+def _metric_row(c: MetricComparison) -> dict[str, Any]:
+    """A held-out run's figures of merit, measured and the twin's, and whether they are off."""
+    return {
+        "run": c.run,
+        "measured": c.measured,
+        "twin": c.twin,
+        "relative_error": c.relative_error,
+        "noise_spread": c.noise_spread,
+        "threshold": c.threshold,
+        "largest_relative_error": c.largest_relative_error,
+        "off": c.off,
+    }
+
+
+def _acceptance_tests(j: Judgement) -> dict[str, Any]:
+    """What a candidate's acceptance tests measured (a round's candidates and a swap's rival)."""
+    return {
+        "holdout_reduction": j.reduction,
+        "reduction_beyond_calibration": j.reduction_beyond_calibration,
+        **asdict(j.gain),  # evidence z, critical z, excess share, fair share
+        "size_above_tolerance": j.size_above_tolerance,
+    }
+
+
+def _fitted(c: Candidate) -> dict[str, Any]:
+    """A candidate's fit: its hypothesis, values, training cost and BIC, replays."""
+    return {
+        "name": c.name,
+        "params": c.fit.values,
+        "train_cost": c.fit.train_cost,
+        "bic": c.bic,
+        "replays": c.fit.replays,
+    }
+
+
+def _row(c: Candidate, round_: Round) -> dict[str, Any]:
+    judged = c.judgement
+    return {
+        **_fitted(c),
+        "holdout_gap_before_um": round_.position_rms_um,
+        "holdout_gap_after_um": judged.position_rms_um,
+        "holdout_current_before_A": round_.current_rms,
+        "holdout_current_after_A": judged.current_rms,
+        **_acceptance_tests(judged),
+        "explained_normalised_rms": judged.explained,
+        "calibration_floor_normalised_rms": round_.calibration.explained,
+        "consistent": judged.consistent,
+        "passes": c.passes,
+    }
+
+
+def _step(r: Round, dropped: list[str], swapped_out: list[str]) -> dict[str, Any]:
+    best = r.best
+    assert best is not None
+    judged = best.judgement
+    return {
+        "round": r.index,
+        "effect": r.effect,
+        "together": list(r.pair.members) if r.pair else [],
+        "fitted": best.name,
+        "params": best.fit.values,
+        "plant_parameters": best.fit.overrides,
+        "context": r.context,
+        "holdout_gap_before_um": r.position_rms_um,
+        "holdout_gap_after_um": judged.position_rms_um,
+        "holdout_current_before_A": r.current_rms,
+        "holdout_current_after_A": judged.current_rms,
+        "holdout_normalised_rms_before": r.holdout_rms,
+        "holdout_normalised_rms_after": judged.holdout_rms,
+        "reduction": judged.reduction,
+        "reduction_beyond_calibration": judged.reduction_beyond_calibration,
+        "evidence_z": judged.gain.evidence_z,
+        "critical_z": judged.gain.critical_z,
+        "excess_share": judged.gain.excess_share,
+        "dropped_in_backward_pass": best.name in dropped,
+        "swapped_out": best.name in swapped_out,
+        "ranking": [_row(c, r) for c in r.candidates],
+    }
+
+
+def _swap_row(w: Swap) -> dict[str, Any]:
+    """A swap tried: the effect taken out, the rival put in with its fit and its acceptance
+    tests against the model as it was, and whether the swap was made."""
+    c = w.candidate
+    judged = c.judgement
+    return {
+        "removed": w.removed,
+        **_fitted(c),
+        "holdout_normalised_rms_after": judged.holdout_rms,
+        "holdout_gap_after_um": judged.position_rms_um,
+        "holdout_current_after_A": judged.current_rms,
+        **_acceptance_tests(judged),
+        "consistent": judged.consistent,
+        "passes": c.passes,
+        "kept": w.kept,
+    }
+
+
+def _refit_row(r: Refit) -> dict[str, Any]:
+    """A cold refit that replaced its effect, and its gain against the rule."""
+    return {
+        "effect": r.effect,
+        "values_before": r.values_before,
+        "values_after": r.values_after,
+        "left_before": r.left_before,
+        "left_after": r.left_after,
+        **asdict(r.gain),
+        "significant": r.significant,
+    }
+
+
+def _round(r: Round) -> dict[str, Any]:
+    return {
+        "round": r.index,
+        "significant": r.significant,
+        "context": r.context,
+        "holdout_normalised_rms": r.holdout_rms,
+        "calibration": asdict(r.calibration),
+        "metrics_after_calibration": [_metric_row(m) for m in r.metrics],
+        "fitted": [c.name for c in r.candidates],
+        "accepted": r.accepted,
+        "pairs": [_pair_row(p, r) for p in r.pairs],
+    }
+
+
+def _pair_row(p: Pair, round_: Round) -> dict[str, Any]:
+    """A screened pair: its row as a candidate's, and what each member adds to the other."""
+    return {**_row(p, round_), "members": list(p.members), "within": [asdict(m) for m in p.within]}
+
+
+def _combined(runs: list[HeldOutRun], key: str) -> dict[str, float]:
+    """One figure per signal over all held-out runs (the first run's when there is one)."""
+    if not runs:
+        return {}
+    if len(runs) == 1:
+        return getattr(runs[0], key)
+    names = getattr(runs[0], key).keys()
+    return {n: float(np.sqrt(np.mean([getattr(r, key)[n] ** 2 for r in runs]))) for n in names}
 
 
 def _text(value: Any) -> str:
@@ -318,7 +541,7 @@ def write_report(
     figures: bool = True,
 ) -> dict[str, str]:
     """Write the diagnosis' files into ``out``: diagnosis.json (``summary``: the diagnosis'
-    :meth:`~twin_cosim.gap.diagnosis.Diagnosis.summary` and what the command adds), report.md
+    :func:`summary` and what the command adds), report.md
     and report.html, plant.yaml (its calibrated plant, made by ``command`` and this version)
     and calibrated.yaml (the diagnosed scenario with it).
 
