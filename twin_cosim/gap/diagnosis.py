@@ -58,7 +58,6 @@ from twin_cosim.gap.floors.noise import (
     identify_noise,
     noise_floors,
 )
-from twin_cosim.gap.report.pages import jsonable
 from twin_cosim.gap.report.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.where.location import Location, locate
@@ -205,6 +204,20 @@ class Diagnosis:
     def warnings(self) -> list[str]:
         """Problems that did not stop the diagnosis: the runs' and the noise harmonics'."""
         return self.context.warnings + self.noise.dropped
+
+
+def jsonable(value: Any) -> Any:
+    """``value`` ready for JSON (and YAML): mappings with text keys, lists, numpy scalars as
+    Python numbers, non-finite floats as None."""
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
 
 
 def _unexplained(before: Residuals, after: Residuals) -> dict[str, float]:

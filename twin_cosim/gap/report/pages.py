@@ -21,6 +21,7 @@ import numpy as np
 
 from twin_cosim.gap.data.context import library_for
 from twin_cosim.gap.data.regimes import energy_shares
+from twin_cosim.gap.diagnosis import Diagnosis, HeldOutRun, jsonable
 from twin_cosim.gap.report.verdict import (
     STROKE_END,
     gap_table,
@@ -35,7 +36,6 @@ from twin_cosim.scenario.plant_file import calibrated_scenario, write_plant_para
 from twin_cosim.versions import versions
 
 if TYPE_CHECKING:
-    from twin_cosim.gap.diagnosis import Diagnosis, HeldOutRun
     from twin_cosim.gap.floors.noise import MetricComparison
     from twin_cosim.gap.which.acceptance import Candidate, Judgement, Pair
     from twin_cosim.gap.which.selector import Refit, Round, Swap
@@ -47,20 +47,6 @@ Column = tuple[str, Callable[[Any], str]]
 def _table(rows: list[Any], columns: list[Column]) -> list[list[str]]:
     """Header and cells, each cell written by its column's formatter of the row."""
     return [[label for label, _ in columns]] + [[show(row) for _, show in columns] for row in rows]
-
-
-def jsonable(value: Any) -> Any:
-    """``value`` ready for JSON (and YAML): mappings with text keys, lists, numpy scalars as
-    Python numbers, non-finite floats as None."""
-    if isinstance(value, dict):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [jsonable(v) for v in value]
-    if isinstance(value, (np.floating, np.integer, np.bool_)):
-        return value.item()
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value
 
 
 def summary(d: Diagnosis) -> dict[str, Any]:
