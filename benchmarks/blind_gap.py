@@ -13,7 +13,8 @@ interrupted benchmark resumes where it stopped.
   (``scenarios/sweep.yaml``) besides the first: other magnitudes, both signs, orders other than
   6, pairs of effects (up to three effects accepted), clean null runs, and effects outside the
   library, one of them a tight spot of the guideway built as a patched copy of drive2mass at run
-  time (:mod:`twin_cosim.gap.defects`). Prints one line per case and the targets.
+  time (``tests/tight_spot.py``, shared with the tests). Prints one line per case and the
+  targets.
 
     python benchmarks/blind_gap.py [--suite library|unseen] [--seeds N] [--null-seeds N]
                                    [--perturb 0.02] [--results FILE]
@@ -197,7 +198,8 @@ def unseen_cases(perturb: float) -> list[dict]:
 
 def run_unseen_case(case: dict, folder: Path) -> dict:
     """Synthesise and diagnose one case of the unseen suite (up to three effects accepted)."""
-    from twin_cosim.gap.defects import build_tight_spot_fmu
+    sys.path.insert(0, str(ROOT / "tests"))  # the tight spot is the tests' (tests/tight_spot.py)
+    from tight_spot import build_tight_spot_fmu
 
     run = folder / "run.csv"
     synth = [

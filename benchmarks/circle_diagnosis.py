@@ -67,7 +67,7 @@ def main() -> None:
         )
         with tempfile.TemporaryDirectory() as folder:
             path = Path(folder) / "measured.csv"
-            table.to_csv(path, index=False)
+            table.frame().to_csv(path, index=False)
             found = diagnose_circle(machine, read_measured_circle(path))
         verdict = found["verdict"]
         name = effect.split(":")[0]

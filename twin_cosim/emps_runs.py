@@ -135,7 +135,7 @@ def emps_gains(
         speed gain per m/s of the load, ``gtau`` the plant's drive gain.
     """
     measured = read_measured(follow) if follow else None
-    scalars = measured.extra if measured else {}
+    scalars = measured.scalars if measured else {}
     if all(k in scalars for k in ("kp", "kv", "gtau")):
         return {k: float(scalars[k]) for k in ("kp", "kv", "gtau")}
     with Plant(scenario.plant_fmu(fmu)) as plant:

@@ -6,27 +6,36 @@ CSV (the project's format): ``t`` [s], ``x_ref`` [m], ``x`` [m] (measured load p
 EMPS benchmark .mat files (as published, Janot, Gautier, Brunot 2019): ``t`` [s], ``qg``
 (reference, m), ``qm`` (motor position in load units, m), ``vir`` (drive command, V) and the
 scalars ``gtau`` [N/V], ``kp`` [1/s], ``kv`` [V/(m/s)]; the validation run also holds ``pulses_N``
-(kept in ``extra``). ``current`` then holds the drive command vir in V.
+(a signal of its record, N). ``current`` then holds the drive command vir in V.
 
-Time must be strictly increasing and regular. Every problem gets an error naming the file, the
-column and what was expected, or, where the data can still be used, an explicit warning that the
-report repeats.
+A run's samples are a :class:`~twin_cosim.run_record.RunRecord` (a unit per column). Time must be
+strictly increasing and regular. Every problem gets an error naming the file, the column and
+what was expected, or, where the data can still be used, an explicit warning that the report
+repeats.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from twin_cosim.reference import ReferenceGrid
+from twin_cosim.run_record import RunRecord
 
 REQUIRED = ("t", "x_ref", "x", "current")
 OPTIONAL = ("motor_speed",)
+SIGNAL_UNITS = {"t": "s", "x_ref": "m", "x": "m", "current": "A", "motor_speed": "rad/s"}
 REGULARITY_TOLERANCE = 1e-3  # relative jitter of the sample period
 MIN_SAMPLES = 100
 UNIT_FACTORS = {1e3: "mm instead of m", 1e6: "um instead of m"}
+
+
+def _signal(name: str, doc: str) -> property:
+    """A signal of a run's record as an attribute of the run (the column itself, a view)."""
+    return property(lambda run: run.record[name], doc=doc)
 
 
 class MeasuredDataError(ValueError):
@@ -41,29 +50,44 @@ class MeasuredRun:
     ----------
     source : str
         File it came from.
-    t : numpy.ndarray
-        Sample times, s.
-    x_ref, x : numpy.ndarray
-        Reference and measured carriage position, m.
-    current : numpy.ndarray
-        Current command, A.
-    motor_speed : numpy.ndarray or None
-        Measured motor speed, rad/s.
+    record : RunRecord
+        The samples: ``t`` [s], ``x_ref`` and ``x`` (reference and measured carriage position,
+        m), ``current`` (current command, A; the drive command in V for an EMPS run), optionally
+        ``motor_speed`` [rad/s] and further signals of the file (e.g. EMPS ``pulses_N``, N).
     warnings : list of str
         Problems that did not stop the diagnosis.
-    extra : dict
-        Further per-sample signals of the file (e.g. EMPS ``pulses_N``) and its scalars.
+    scalars : dict
+        Numbers the file holds besides its signals (e.g. EMPS ``gtau``, ``kp``, ``kv``).
     """
 
     source: str
-    t: np.ndarray
-    x_ref: np.ndarray
-    x: np.ndarray
-    current: np.ndarray
-    motor_speed: np.ndarray | None = None
+    record: RunRecord
     warnings: list[str] = field(default_factory=list)
-    extra: dict[str, np.ndarray | float] = field(default_factory=dict)
-    extra: dict[str, np.ndarray | float] = field(default_factory=dict)
+    scalars: dict[str, float] = field(default_factory=dict)
+
+    @classmethod
+    def from_signals(
+        cls,
+        source: str,
+        signals: Mapping[str, np.ndarray],
+        units: Mapping[str, str] | None = None,
+        scalars: Mapping[str, float] | None = None,
+    ) -> MeasuredRun:
+        """A run of ``signals`` by name (``t``, ``x_ref``, ``x``, ``current`` and any further
+        ones), in :data:`SIGNAL_UNITS` unless ``units`` names another."""
+        known = {name: unit for name, unit in SIGNAL_UNITS.items() if name in signals}
+        record = RunRecord.from_columns(signals, {**known, **(units or {})})
+        return cls(source, record, scalars=dict(scalars or {}))
+
+    t = _signal("t", "Sample times, s.")
+    x_ref = _signal("x_ref", "Reference carriage position, m.")
+    x = _signal("x", "Measured carriage position, m.")
+    current = _signal("current", "Current command, A (the drive command, V, of an EMPS run).")
+
+    @property
+    def motor_speed(self) -> np.ndarray | None:
+        """Measured motor speed, rad/s (None when the file has none)."""
+        return self.record.get("motor_speed")
 
     @property
     def period(self) -> float:
@@ -72,20 +96,12 @@ class MeasuredRun:
 
     def select(self, mask: np.ndarray) -> MeasuredRun:
         """The samples where ``mask`` is True (same source, warnings and scalars)."""
-        speed = None if self.motor_speed is None else self.motor_speed[mask]
-        extra = {
-            k: v[mask] if isinstance(v, np.ndarray) and v.shape == self.t.shape else v
-            for k, v in self.extra.items()
-        }
+        return MeasuredRun(self.source, self.record.rows(mask), self.warnings, self.scalars)
+
+    def with_signals(self, signals: Mapping[str, np.ndarray]) -> MeasuredRun:
+        """The run with ``signals`` (by name, one value per sample) in place of its own."""
         return MeasuredRun(
-            self.source,
-            self.t[mask],
-            self.x_ref[mask],
-            self.x[mask],
-            self.current[mask],
-            speed,
-            self.warnings,
-            extra,
+            self.source, self.record.with_columns(signals), self.warnings, self.scalars
         )
 
 
@@ -123,14 +139,7 @@ def read_measured_csv(path: Path | str) -> MeasuredRun:
                 "gaps must be filled"
             )
         columns[name] = values
-    run = MeasuredRun(
-        str(path),
-        columns["t"],
-        columns["x_ref"],
-        columns["x"],
-        columns["current"],
-        columns.get("motor_speed"),
-    )
+    run = MeasuredRun.from_signals(str(path), columns)
     check_time(run)
     return run
 
@@ -182,17 +191,15 @@ def read_emps_mat(path: Path | str) -> MeasuredRun:
         signals[role] = values
     if len({len(v) for v in signals.values()}) != 1:
         raise MeasuredDataError(f"{path}: t, qg, qm and vir must have the same length")
-    extra: dict[str, np.ndarray | float] = {
+    scalars = {
         name: float(_numeric(path, name, data[name])[0]) for name in EMPS_SCALARS if name in data
     }
     if "pulses_N" in data:
         pulses = _numeric(path, "pulses_N", data["pulses_N"])
         if pulses.shape != signals["t"].shape or not np.all(np.isfinite(pulses)):
             raise MeasuredDataError(f"{path}: pulses_N must be finite and as long as t")
-        extra["pulses_N"] = pulses
-    run = MeasuredRun(
-        str(path), signals["t"], signals["x_ref"], signals["x"], signals["current"], extra=extra
-    )
+        signals["pulses_N"] = pulses
+    run = MeasuredRun.from_signals(str(path), signals, {"current": "V", "pulses_N": "N"}, scalars)
     check_time(run)
     return run
 

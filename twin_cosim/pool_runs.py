@@ -47,7 +47,7 @@ def prepare_campaign_worker() -> None:
 
 def prepare_replay_worker() -> None:
     """:func:`prepare_worker` of a diagnosis's pool: the replays and fits (SciPy's optimizers)."""
-    prepare_worker(("twin_cosim.gap.replay",))
+    prepare_worker(("twin_cosim.gap.which.replay",))
 
 
 @dataclass(frozen=True)

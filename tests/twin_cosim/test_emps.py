@@ -50,8 +50,8 @@ def fake_mat(path: Path, pulses: bool) -> Path:
 def test_mat_loader_reads_the_published_layout(tmp_path, pulses):
     run = read_measured(fake_mat(tmp_path / "run.mat", pulses))
     assert run.period == pytest.approx(1e-3)
-    assert run.extra["gtau"] == pytest.approx(35.15)
-    assert ("pulses_N" in run.extra) == pulses
+    assert run.scalars["gtau"] == pytest.approx(35.15)
+    assert ("pulses_N" in run.record) == pulses
 
 
 def test_mat_loader_errors(tmp_path):
@@ -224,7 +224,7 @@ def test_synthetic_validation_run_with_pulses_leaves_only_noise(twin_cli, tmp_pa
     )
     assert made.returncode == 0, made.stderr
     run = read_measured(held)
-    assert np.abs(run.extra["pulses_N"]).max() == pytest.approx(3.0)  # the pulses are there
+    assert np.abs(run.record["pulses_N"]).max() == pytest.approx(3.0)  # the pulses are there
     summary = diagnose_with_holdout(twin_cli, tmp_path, train, held)
     (held_run,) = summary["gap"]["holdout_runs"]
     assert held_run["current_rms_before"] < 0.0075  # the 5 mV of white noise, not the pulses

@@ -18,9 +18,9 @@ def test_template_is_a_bang_bang_run_with_pulses(tmp_path):
     accelerating = np.abs(acceleration[np.abs(acceleration) > 1e-6])
     at_limit = np.abs(accelerating - 0.8) < 1e-3  # bang-bang: +/- the limit, or coasting
     assert at_limit.mean() > 0.95  # the rest: samples that straddle a switch
-    pulses = run.extra["pulses_N"]
+    pulses = run.record["pulses_N"]
     assert set(np.unique(pulses)) == {-3.0, 0.0, 3.0}
-    assert {"kp", "kv", "gtau"} <= set(run.extra)
+    assert {"kp", "kv", "gtau"} <= set(run.scalars)
 
 
 def test_an_existing_file_is_not_overwritten(tmp_path, capsys):

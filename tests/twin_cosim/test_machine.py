@@ -69,7 +69,7 @@ def test_measured_run_is_judged_from_its_own_record(scenario, tmp_path):
     """A noise-free synthetic run made with the same gains gives the twin's own metrics."""
     run = synthesize(scenario, [], noise_position=0.0, noise_current=0.0).run
     path = Path(tmp_path / "run.csv")
-    run.to_csv(path, index=False)
+    run.frame().to_csv(path, index=False)
     judged, kind = machine_metrics(scenario, paper.FINE_TUNE, path)
     assert kind == "measured run"
     figures = prediction(twin_metrics(scenario), judged)

@@ -23,6 +23,7 @@ from twin_cosim.commands.options import (
 )
 
 if TYPE_CHECKING:
+    from twin_cosim.gap.diagnosis import Diagnosis
     from twin_cosim.workers import ProcessPool, SerialPool
 
 
@@ -84,9 +85,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     """The diagnosis, its files and its figures, with ``pool`` running the replays."""
-    from twin_cosim.gap.calibrated_plant import write_calibration
     from twin_cosim.gap.diagnosis import diagnose
-    from twin_cosim.gap.report import write_report
+    from twin_cosim.gap.report.pages import summary as summary_of
+    from twin_cosim.gap.report.pages import write_report
     from twin_cosim.gap.settings import settings_from
     from twin_cosim.measured import read_measured
     from twin_cosim.scenario import resolve_scenario
@@ -104,27 +105,26 @@ def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
         scenario, measured, holdout, args.plant, settings, progress=progress, pool=pool
     )
     progress.finish()
-    extra = {
-        "wall_s": time.perf_counter() - start,
+    wall_s = time.perf_counter() - start
+    summary = {
+        **summary_of(result),
+        "wall_s": wall_s,
         "versions": versions(),
-        "warnings": mismatch + result.summary()["warnings"],
+        "warnings": mismatch + result.warnings,
     }
-    files = write_report(result, out, extra, figures=not args.no_plots)
-    summary = {**result.summary(), **extra}
-    files |= write_calibration(scenario, summary, out, _command(args), args.plant)
+    files = write_report(result, out, summary, _command(args), figures=not args.no_plots)
     if args.json:
         print(json.dumps(summary))
     else:
-        _print_text(summary, result.context.model)
+        _print_text(result)
     if not args.no_plots:
-        from twin_cosim.gap.figures import write_figures
+        from twin_cosim.gap.report.figures import write_figures
 
         write_figures(result, out)
     if not args.json:
         print(
             f"wrote {files['markdown']}, {files['html']}, {files['json']}, {files['plant']}, "
-            f"{files['calibrated']}{'' if args.no_plots else ' and figures'} "
-            f"({summary['wall_s']:.1f} s)"
+            f"{files['calibrated']}{'' if args.no_plots else ' and figures'} ({wall_s:.1f} s)"
         )
     return 0
 
@@ -166,18 +166,20 @@ class _ProgressBars:
         self.bars = []
 
 
-def _print_text(summary: dict[str, Any], model: str) -> None:
+def _print_text(result: Diagnosis) -> None:
     """The verdict and each accepted effect's held-out gaps, numbers for people."""
-    from twin_cosim.gap.numbers import names, number, parameters
-    from twin_cosim.gap.report import hypothesis_units
+    from twin_cosim.gap.report.pages import hypothesis_units
+    from twin_cosim.gap.report.verdict import names, number, parameters
 
-    units = hypothesis_units(model)
-    print(summary["gap"]["verdict"])
-    for step in summary["steps"]:
+    units = hypothesis_units(result.context.model)
+    print(result.verdict)
+    for step in result.steps:
+        best = step.best
+        assert best is not None
         print(
-            f"  {names([step['effect']])}: held-out position gap "
-            f"{number(step['holdout_gap_before_um'])} -> {number(step['holdout_gap_after_um'])} "
-            f"um, current {number(step['holdout_current_before_A'])} -> "
-            f"{number(step['holdout_current_after_A'])} A, as fitted in its round: "
-            f"{parameters(step['params'], units.get(step['fitted'], {}))}"
+            f"  {names([step.effect])}: held-out position gap "
+            f"{number(step.position_rms_um)} -> {number(best.judgement.position_rms_um)} "
+            f"um, current {number(step.current_rms)} -> "
+            f"{number(best.judgement.current_rms)} A, as fitted in its round: "
+            f"{parameters(best.fit.values, units.get(best.name, {}))}"
         )

@@ -16,9 +16,8 @@ from twin_cosim.commands.options import (
 )
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from twin_cosim.gap.synth import EffectSpec
+    from twin_cosim.run_record import RunRecord
     from twin_cosim.scenario import Scenario
 
 # The effect libraries of the plant models (models/<model>/card.yaml; a test checks this text).
@@ -117,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     if out.suffix.lower() == ".mat":
         _write_emps(out, synthesis.run, scenario, args.follow, args.plant)
     else:
-        synthesis.run.to_csv(out, index=False)
+        synthesis.run.frame().to_csv(out, index=False)
     write_json(truth, {**synthesis.truth, "followed": args.follow})
     wrote = _write_machine(machine, scenario, synthesis.truth, out, args.plant)
     print(
@@ -185,7 +184,7 @@ def _files(args: argparse.Namespace) -> tuple[Path, Path, Path]:
 
 
 def _write_emps(
-    out: Path, run: pd.DataFrame, scenario: Scenario, follow: str | None, fmu: str | None
+    out: Path, run: RunRecord, scenario: Scenario, follow: str | None, fmu: str | None
 ) -> None:
     """Write the run as an EMPS .mat file, with the followed run's pulses when it has them."""
     import numpy as np
@@ -196,7 +195,7 @@ def _write_emps(
     pulses = None
     if follow and scenario.disturbance_spec:
         followed = read_measured(follow)
-        values = followed.extra.get(scenario.disturbance_spec["variable"])
+        values = followed.record.get(scenario.disturbance_spec["variable"])
         if isinstance(values, np.ndarray):
             pulses = np.interp(run["t"], followed.t, values)
     gains = emps_gains(scenario, follow, fmu)

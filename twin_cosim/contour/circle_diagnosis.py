@@ -18,15 +18,16 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from twin_cosim.contour.circle import CircleSpec, circle_motion
 from twin_cosim.contour.machine_run import MachinePlants, axis_grids
 from twin_cosim.contour.measured_circle import MeasuredCircle, replay_circle
-from twin_cosim.gap.diagnosis import diagnose
+from twin_cosim.gap.diagnosis import Diagnosis, diagnose
+from twin_cosim.gap.report.pages import summary
 from twin_cosim.gap.settings import settings_from
 from twin_cosim.gap.synth import EffectSpec, synthesize
 from twin_cosim.reference import interpolate
+from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario.machine import MachineScenario
 
 
@@ -65,6 +66,7 @@ def diagnose_circle(
         replay = replay_circle(machine, measured, plants, fast)
     transitions = replay.transition_gaps()
     found: dict[str, Any] = {}
+    diagnoses: dict[str, Diagnosis] = {}
     for name in machine.axis_names:
         if name not in measured.current:
             continue
@@ -72,12 +74,12 @@ def diagnose_circle(
         grid = interpolate(run.x_ref, measured.period, machine.axes[0].settings.position_period)
         scenario = machine.axis_scenario(name, grid)
         settings = settings_from(scenario, max_effects=max_effects)
-        summary = diagnose(scenario, [run], [], None, settings, workers=workers).summary()
+        diagnosis = diagnoses[name] = diagnose(scenario, [run], [], None, settings, workers=workers)
         found[name] = {
-            "verdict": summary["gap"]["verdict"],
-            "significant": summary["gap"]["significant"],
-            "accepted": summary["accepted"],
-            "steps": summary["steps"],
+            "verdict": diagnosis.verdict,
+            "significant": diagnosis.significant,
+            "accepted": diagnosis.accepted,
+            "steps": summary(diagnosis)["steps"],
         }
     return {
         "source": measured.source,
@@ -88,23 +90,24 @@ def diagnose_circle(
         "transitions": transitions,
         "axis_gap_rms_um": replay.axis_gaps(),
         "axes": found,
-        "verdict": _verdict(found, transitions),
+        "verdict": _verdict(diagnoses, transitions),
         "paths": {"machine": replay.on_machine, "twin": replay.on_twin},
     }
 
 
-def _reduction(axis: dict[str, Any]) -> float:
-    """Held-out reduction of the axis' first accepted effect (0 when none)."""
-    steps = axis["steps"]
-    if not axis["accepted"] or not steps:
+def _reduction(diagnosis: Diagnosis) -> float:
+    """Held-out reduction of the position gap by the axis' first accepted effect (0 when none)."""
+    if not diagnosis.accepted or not diagnosis.steps:
         return 0.0
-    before, after = steps[0]["holdout_gap_before_um"], steps[0]["holdout_gap_after_um"]
+    first = diagnosis.steps[0]
+    assert first.best is not None
+    before, after = first.position_rms_um, first.best.judgement.position_rms_um
     return (before - after) / before if before > 0 else 0.0
 
 
-def _verdict(found: dict[str, Any], transitions: list[dict[str, Any]]) -> dict[str, Any]:
+def _verdict(diagnoses: dict[str, Diagnosis], transitions: list[dict[str, Any]]) -> dict[str, Any]:
     """The axis, effect and quadrant transition where the gap lies, in numbers and words."""
-    candidates = [name for name, axis in found.items() if axis["accepted"]]
+    candidates = [name for name, d in diagnoses.items() if d.accepted]
     if not candidates:
         return {
             "axis": None,
@@ -113,9 +116,8 @@ def _verdict(found: dict[str, Any], transitions: list[dict[str, Any]]) -> dict[s
             "text": "no axis' diagnosis accepts an effect: the twin explains the test "
             "within its noise and calibration floors",
         }
-    axis = max(candidates, key=lambda name: _reduction(found[name]))
-    accepted = found[axis]["accepted"][0]
-    effect = accepted if isinstance(accepted, str) else accepted[0]
+    axis = max(candidates, key=lambda name: _reduction(diagnoses[name]))
+    effect = diagnoses[axis].selection.accepted[0][0]
     own = [t for t in transitions if t["axis"] == axis]
     worst = max(own, key=lambda t: abs(t["gap_um"]))
     return {
@@ -123,10 +125,10 @@ def _verdict(found: dict[str, Any], transitions: list[dict[str, Any]]) -> dict[s
         "effect": effect,
         "transition_deg": worst["angle_deg"],
         "text": f"the gap lies in axis {axis}: {effect} (held-out gap "
-        f"{_reduction(found[axis]):.0%} smaller with it); largest at the {worst['angle_deg']:g} "
-        f"degree transition, where {axis} reverses: the paths differ by up to "
-        f"{worst['gap_um']:.2f} um (spike: measured {worst['machine_height_um']:+.2f} um, twin "
-        f"{worst['twin_height_um']:+.2f} um)",
+        f"{_reduction(diagnoses[axis]):.0%} smaller with it); largest at the "
+        f"{worst['angle_deg']:g} degree transition, where {axis} reverses: the paths differ by "
+        f"up to {worst['gap_um']:.2f} um (spike: measured {worst['machine_height_um']:+.2f} um, "
+        f"twin {worst['twin_height_um']:+.2f} um)",
     }
 
 
@@ -139,8 +141,9 @@ def synthesize_circle(
     noise_position: float = 20e-9,
     noise_current: float = 5e-3,
     decimate: int = 4,
-) -> pd.DataFrame:
-    """A measured circular test of a virtual machine (columns of a measured test's CSV).
+) -> RunRecord:
+    """A measured circular test of a virtual machine (the columns of a measured test's CSV,
+    :mod:`twin_cosim.contour.measured_circle`).
 
     Parameters
     ----------
@@ -173,9 +176,11 @@ def synthesize_circle(
             noise_current=noise_current,
         ).run
         lower = name.lower()
-        columns["t"] = run["t"].to_numpy()
-        columns[f"{lower}_ref"] = run["x_ref"].to_numpy()
-        columns[lower] = run["x"].to_numpy()
-        columns[f"current_{lower}"] = run["current"].to_numpy()
-    table = pd.DataFrame(columns)[["t", "x_ref", "y_ref", "x", "y", "current_x", "current_y"]]
-    return table.iloc[::decimate].reset_index(drop=True)
+        columns["t"] = run["t"]
+        columns[f"{lower}_ref"] = run["x_ref"]
+        columns[lower] = run["x"]
+        columns[f"current_{lower}"] = run["current"]
+    order = ("t", "x_ref", "y_ref", "x", "y", "current_x", "current_y")
+    units = {name: "A" if name.startswith("current") else "m" for name in order} | {"t": "s"}
+    table = RunRecord.from_columns({name: columns[name] for name in order}, units)
+    return table.rows(slice(None, None, decimate))

@@ -87,12 +87,14 @@ class MeasuredCircle:
                 f"{COLUMNS[name][2]!r}"
             )
         offset = self.centre[0 if name == "X" else 1]
-        return MeasuredRun(
+        return MeasuredRun.from_signals(
             f"{self.source} (axis {name})",
-            self.t,
-            self.reference[name] + offset,
-            self.actual[name] + offset,
-            self.current[name],
+            {
+                "t": self.t,
+                "x_ref": self.reference[name] + offset,
+                "x": self.actual[name] + offset,
+                "current": self.current[name],
+            },
         )
 
 
@@ -129,7 +131,7 @@ def read_measured_circle(path: Path | str) -> MeasuredCircle:
             )
         values[name] = column
     t = values["t"]
-    check_time(MeasuredRun(str(path), t, values["x_ref"], values["x"], values["x"]))
+    check_time(MeasuredRun.from_signals(str(path), {"t": t, "x_ref": values["x_ref"]}))
     cx, cy, radius = least_squares_circle(values["x_ref"], values["y_ref"])
     turn = np.unwrap(np.arctan2(values["y_ref"] - cy, values["x_ref"] - cx))
     if not radius > 0 or abs(turn[-1] - turn[0]) < 2 * math.pi * 0.99:

@@ -1,48 +1,49 @@
 """The diagnosis pipeline: where the gap lies, which unmodelled effect causes it, how far it
-shrinks, and what is left.
+shrinks, what is left, and the calibrated plant.
 
-Stages, each a typed result (serialised to JSON in one place, :meth:`Diagnosis.summary`):
+Stages, each a typed result held by :class:`Diagnosis` to the end (the JSON is one
+serialisation of it, :func:`twin_cosim.gap.report.pages.summary`; the pages, the plant files
+and the printed verdict are written from its fields):
 
-1. **Context** (:func:`build_context`): the scenario, the plant model and its variable ranges,
-   the measured runs checked (outliers repaired and reported, :mod:`twin_cosim.gap.outliers`),
+1. **Context** (:func:`~twin_cosim.gap.data.context.build_context`): the scenario, the plant
+   model and its variable ranges, the measured runs checked (outliers repaired and reported)
    and the split: ``--holdout`` runs judge (each following its own reference and disturbance
    when the scenario's reference comes from a measured file, e.g. the EMPS validation run), or
    every measured run is split in time at ``split``. The fit never sees a held-out sample.
-2. **Replay and noise** (:mod:`twin_cosim.gap.floors`): the twin replays the scenario; the
-   measured noise at standstill becomes plant parameters; the noise floors normalise all
+2. **Replay and noise** (:mod:`twin_cosim.gap.floors.noise`): the twin replays the scenario;
+   the measured noise at standstill becomes plant parameters; the noise floors normalise all
    residuals, with their source.
-3. **Where** (:mod:`twin_cosim.gap.location`): regimes, along the axis, orders and frequencies.
-4. **Which** (:mod:`twin_cosim.gap.selection`): rounds of fits, each looking again at the
-   residual left, judged on held-out data against the noise and calibration floors.
-5. **Verdict and what is left** (:mod:`twin_cosim.gap.verdict`), per held-out run the figures
-   before and after (RMS gaps, the benchmark's relative errors).
+3. **Where** (:mod:`twin_cosim.gap.where.location`): regimes, along the axis, orders and
+   frequencies.
+4. **Which** (:mod:`twin_cosim.gap.which.selector`): rounds of fits, each looking again at the
+   residual left, judged on held-out data against the noise and calibration floors, then the
+   cold refits, the swaps and the backward pass.
+5. **Verdict and what is left** (:mod:`twin_cosim.gap.report.verdict`), per held-out run the
+   figures before and after (RMS gaps, the benchmark's relative errors).
+6. **The calibrated plant** (:func:`calibrated_plant`): the noise harmonics, the kept effects'
+   FMU parameters and the calibration correction, each with where it came from (the file
+   ``plant.yaml``, :mod:`twin_cosim.scenario.plant_file`).
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from twin_cosim.cosim import run_scenario
-from twin_cosim.gap.context import DiagnosisContext, build_context, training_residuals
-from twin_cosim.gap.effects import estimate_resolution
-from twin_cosim.gap.floors import (
-    Floors,
-    MetricComparison,
-    NoiseModel,
-    identify_noise,
-    noise_floors,
+from twin_cosim.gap.data.context import (
+    DiagnosisContext,
+    build_context,
+    estimate_resolution,
+    library_for,
+    training_residuals,
 )
-from twin_cosim.gap.judging import Judging
-from twin_cosim.gap.location import Location, locate
-from twin_cosim.gap.regimes import REGIMES
-from twin_cosim.gap.replay import Replays, ReplaySpec, TrainingData
-from twin_cosim.gap.residuals import (
+from twin_cosim.gap.data.regimes import REGIMES
+from twin_cosim.gap.data.residuals import (
     Residuals,
     joined,
     pulse_response,
@@ -50,20 +51,41 @@ from twin_cosim.gap.residuals import (
     residuals_of,
     validation_figures,
 )
-from twin_cosim.gap.rounds import Candidate, Marginal, Pair, Refit, Round, Selection, Swap
-from twin_cosim.gap.selection import Selector
+from twin_cosim.gap.floors.noise import (
+    Floors,
+    MetricComparison,
+    NoiseModel,
+    identify_noise,
+    noise_floors,
+)
+from twin_cosim.gap.report.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.gap.settings import DiagnosisSettings
-from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
+from twin_cosim.gap.where.location import Location, locate
+from twin_cosim.gap.which.acceptance import Judging
+from twin_cosim.gap.which.replay import Replays, ReplaySpec, TrainingData
+from twin_cosim.gap.which.replay_pool import ReplayPool
+from twin_cosim.gap.which.selector import Round, Selection, Selector, Swap
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
+from twin_cosim.plant_model import plant_model
 from twin_cosim.pool_runs import prepare_replay_worker
 from twin_cosim.scenario import Scenario
+from twin_cosim.scenario.plant_file import PlantParameters
 from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, make_pool
 
 ProgressFactory = Callable[[int, str], Callable[[int], None]]
 # Wording of the verdict only: a rejected hypothesis that cuts the raw held-out gap by this share
 # or more is named as explaining it within calibration error (acceptance is the evidence test).
 EXPLAINS_SHARE = 0.25
+NOISE_SOURCE = "noise harmonics identified at standstill by twin diagnose"
+CALIBRATION_SOURCE = (
+    "calibration correction of twin diagnose: the best correction within the calibration "
+    "tolerance of what the accepted effects leave on the held-out runs (linearised)"
+)
+JOINT_SOURCE = (
+    "joint refit of twin diagnose: the calibrated parameters refitted with the accepted effects "
+    "under their prior (the tolerance)"
+)
 
 
 @dataclass(frozen=True)
@@ -83,7 +105,7 @@ class HeldOutRun:
         force.
     pulse_response_before, pulse_response_after : dict or None
         For a run with a disturbance signal: how the acceleration residual concentrates after
-        its edges (:func:`twin_cosim.gap.residuals.pulse_response`).
+        its edges (:func:`twin_cosim.gap.data.residuals.pulse_response`).
     """
 
     source: str
@@ -99,233 +121,103 @@ class HeldOutRun:
 
 @dataclass(frozen=True)
 class Diagnosis:
-    """The stages' results; :meth:`summary` is the JSON the CLI prints and writes."""
+    """The stages' results, from the data to the calibrated plant.
+
+    Attributes
+    ----------
+    context : DiagnosisContext
+        The runs, the split and the plant model.
+    settings : DiagnosisSettings
+        Thresholds and effort.
+    noise : NoiseModel
+        The noise harmonics kept as plant parameters and those dropped.
+    floors : Floors
+        The noise floors of the residuals.
+    where : Location
+        Where the gap lies before the accepted effects (training and held-out data).
+    selection : Selection
+        The rounds, the accepted effects and their FMU parameters, swaps, cold refits and the
+        backward pass.
+    significant : bool
+        Whether the held-out gap of the nominal twin is significant.
+    verdict : str
+        The verdict in words.
+    remaining : Remaining
+        What the accepted effects leave of the held-out gap, and what it was before them.
+    remaining_where : Location
+        Where what is left lies (held-out data).
+    metrics_before, metrics_after : list of MetricComparison
+        The held-out figures of merit before and after the accepted effects.
+    held_out_runs : list of HeldOutRun
+        Per held-out run, its figures before and after.
+    validation : dict
+        The paper's validation figures of the position gap before the effects, um.
+    train_before, holdout_before, holdout_after : Residuals
+        The training residual of the nominal twin, and the held-out residual before and after.
+    calibrated_plant : PlantParameters
+        The calibrated plant (``plant.yaml``), made by the measured and held-out runs.
+    times : dict
+        Where the time went, per phase of the selection and of the diagnosis.
+    """
 
     context: DiagnosisContext
     settings: DiagnosisSettings
     noise: NoiseModel
     floors: Floors
     where: Location
-    rounds: list[Round]
+    selection: Selection
     significant: bool
-    metrics_before: list[MetricComparison]
-    metrics_after: list[MetricComparison]
+    verdict: str
     remaining: Remaining
     remaining_where: Location
-    verdict: str
+    metrics_before: list[MetricComparison]
+    metrics_after: list[MetricComparison]
     held_out_runs: list[HeldOutRun]
-    plant_parameters: dict[str, float]
     validation: dict[str, float]
-    nominal_record: pd.DataFrame
-    final_record: pd.DataFrame
     train_before: Residuals
     holdout_before: Residuals
     holdout_after: Residuals
-    accepted_groups: list[list[str]] = field(default_factory=list)
-    marginal: list[Marginal] = field(default_factory=list)
-    dropped: list[str] = field(default_factory=list)
-    swaps: list[Swap] = field(default_factory=list)
-    refits: list[Refit] = field(default_factory=list)
+    calibrated_plant: PlantParameters
     times: dict[str, dict[str, float]] = field(default_factory=dict)
 
-    def summary(self) -> dict[str, Any]:
-        """The diagnosis as JSON-ready data (the one place it is serialised)."""
-        first = next((r for r in self.rounds if r.candidates), None)
-        last = next((r for r in reversed(self.rounds) if r.candidates), None)
-        swapped_out = [w.removed for w in self.swaps if w.kept]
-        steps = [_step(r, self.dropped, swapped_out) for r in self.rounds if r.accepted]
-        held = self.held_out_runs
-        gap = {
-            "significant": self.significant,
-            "holdout_normalised_rms": self.rounds[0].holdout_rms,
-            "verdict": self.verdict,
-            "validation_figures": self.validation,
-            "holdout_metrics_before": _metrics(self.metrics_before[0]),
-            "holdout_metrics_after": _metrics(self.metrics_after[0]),
-            "unexplained_share_by_regime": _unexplained(self.holdout_before, self.holdout_after),
-            "remaining": asdict(self.remaining),
-            "holdout_runs": [asdict(h) for h in held],
-            "holdout_relative_errors_before": _combined(held, "relative_errors_before"),
-            "holdout_relative_errors_after": _combined(held, "relative_errors_after"),
-        }
-        context = self.context
-        return _jsonable(
-            {
-                "scenario": str(context.scenario.source),
-                "model": context.model,
-                "measured": context.measured,
-                "holdout": context.holdout or context.split,
-                "split": context.split,
-                "accepted": [g if len(g) > 1 else g[0] for g in self.accepted_groups],
-                "marginal": [asdict(m) for m in self.marginal],
-                "dropped": self.dropped,
-                "swaps": [_swap_row(w) for w in self.swaps],
-                "refits": [{**asdict(r), "significant": r.significant} for r in self.refits],
-                "steps": steps,
-                "effects": [_row(c, first) for c in first.candidates] if first else [],
-                "last_round": [_row(c, last) for c in last.candidates] if last else [],
-                "rounds": [_round(r) for r in self.rounds],
-                "where": {
-                    "position": self.where.position,
-                    "current": self.where.current,
-                    "along_axis": [asdict(s) for s in self.where.along_axis],
-                },
-                "periodicity": self.where.periodicity,
-                "gap": gap,
-                "noise": {
-                    "harmonics": [asdict(h) for h in self.noise.harmonics],
-                    "dropped": self.noise.dropped,
-                    "plant_parameters": self.noise.plant_parameters,
-                    "sigma_position_um": self.floors.sigma_position_m * 1e6,
-                    "sigma_current_A": self.floors.sigma_current,
-                    "floor_sources": {
-                        "position": self.floors.position_source,
-                        "current": self.floors.current_source,
-                    },
-                },
-                "context": self.rounds[0].context,
-                "thresholds": asdict(self.settings),
-                "warnings": context.warnings + self.noise.dropped,
-                "final_plant_parameters": self.plant_parameters,
-                "time": self.times,
-            }
-        )
+    @property
+    def rounds(self) -> list[Round]:
+        """The rounds of the selection."""
+        return self.selection.rounds
+
+    @property
+    def steps(self) -> list[Round]:
+        """The rounds that accepted an effect (a group or a pair), in order."""
+        return [r for r in self.rounds if r.accepted]
+
+    @property
+    def accepted(self) -> list[str | list[str]]:
+        """The accepted effects in order: a name, or a group of look-alikes."""
+        return [g if len(g) > 1 else g[0] for g in self.selection.accepted]
+
+    @property
+    def unexplained_by_regime(self) -> dict[str, float]:
+        """Held-out position residual energy left per regime, as a share of what it was."""
+        return _unexplained(self.holdout_before, self.holdout_after)
+
+    @property
+    def warnings(self) -> list[str]:
+        """Problems that did not stop the diagnosis: the runs' and the noise harmonics'."""
+        return self.context.warnings + self.noise.dropped
 
 
-def _jsonable(value: Any) -> Any:
+def jsonable(value: Any) -> Any:
+    """``value`` ready for JSON (and YAML): mappings with text keys, lists, numpy scalars as
+    Python numbers, non-finite floats as None."""
     if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
+        return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
+        return [jsonable(v) for v in value]
     if isinstance(value, (np.floating, np.integer, np.bool_)):
         return value.item()
     if isinstance(value, float) and not np.isfinite(value):
         return None
     return value
-
-
-def _metrics(c: MetricComparison) -> dict[str, Any]:
-    return {
-        "run": c.run,
-        "measured": c.measured,
-        "twin": c.twin,
-        "relative_error": c.relative_error,
-        "noise_spread": c.noise_spread,
-        "threshold": c.threshold,
-        "largest_relative_error": c.largest_relative_error,
-        "off": c.off,
-    }
-
-
-def _acceptance_tests(c: Candidate) -> dict[str, Any]:
-    """What a candidate's acceptance tests measured (a round's candidates and a swap's rival)."""
-    return {
-        "holdout_reduction": c.reduction,
-        "reduction_beyond_calibration": c.reduction_beyond_calibration,
-        "evidence_z": c.evidence_z,
-        "critical_z": c.critical_z,
-        "excess_share": c.excess_share,
-        "fair_share": c.fair_share,
-        "size_above_tolerance": c.size_above_tolerance,
-    }
-
-
-def _row(c, round_: Round) -> dict[str, Any]:
-    fit = c.fit
-    return {
-        "name": fit.hypothesis,
-        "params": fit.values,
-        "train_cost": fit.train_cost,
-        "bic": c.bic,
-        "replays": fit.replays,
-        "holdout_gap_before_um": round_.position_rms_um,
-        "holdout_gap_after_um": c.position_rms_um,
-        "holdout_current_before_A": round_.current_rms,
-        "holdout_current_after_A": c.current_rms,
-        **_acceptance_tests(c),
-        "explained_normalised_rms": c.explained,
-        "calibration_floor_normalised_rms": round_.calibration.explained,
-        "consistent": c.consistent,
-        "passes": c.passes,
-    }
-
-
-def _step(r: Round, dropped: list[str], swapped_out: list[str]) -> dict[str, Any]:
-    best = r.best
-    assert best is not None
-    return {
-        "round": r.index,
-        "effect": best.name if r.pair else (r.accepted if len(r.accepted) > 1 else r.accepted[0]),
-        "together": list(r.pair.members) if r.pair else [],
-        "fitted": best.name,
-        "params": best.fit.values,
-        "plant_parameters": best.fit.overrides,
-        "context": r.context,
-        "holdout_gap_before_um": r.position_rms_um,
-        "holdout_gap_after_um": best.position_rms_um,
-        "holdout_current_before_A": r.current_rms,
-        "holdout_current_after_A": best.current_rms,
-        "holdout_normalised_rms_before": r.holdout_rms,
-        "holdout_normalised_rms_after": best.holdout_rms,
-        "reduction": best.reduction,
-        "reduction_beyond_calibration": best.reduction_beyond_calibration,
-        "evidence_z": best.evidence_z,
-        "critical_z": best.critical_z,
-        "excess_share": best.excess_share,
-        "dropped_in_backward_pass": best.name in dropped,
-        "swapped_out": best.name in swapped_out,
-        "ranking": [_row(c, r) for c in r.candidates],
-    }
-
-
-def _swap_row(w: Swap) -> dict[str, Any]:
-    """A swap tried: the effect taken out, the rival put in with its fit and its acceptance
-    tests against the model as it was, and whether the swap was made."""
-    c = w.candidate
-    return {
-        "removed": w.removed,
-        "name": c.name,
-        "params": c.fit.values,
-        "train_cost": c.fit.train_cost,
-        "bic": c.bic,
-        "replays": c.fit.replays,
-        "holdout_normalised_rms_after": c.holdout_rms,
-        "holdout_gap_after_um": c.position_rms_um,
-        "holdout_current_after_A": c.current_rms,
-        **_acceptance_tests(c),
-        "consistent": c.consistent,
-        "passes": c.passes,
-        "kept": w.kept,
-    }
-
-
-def _round(r: Round) -> dict[str, Any]:
-    return {
-        "round": r.index,
-        "significant": r.significant,
-        "context": r.context,
-        "holdout_normalised_rms": r.holdout_rms,
-        "calibration": asdict(r.calibration),
-        "metrics_after_calibration": [_metrics(m) for m in r.metrics],
-        "fitted": [c.name for c in r.candidates],
-        "accepted": r.accepted,
-        "pairs": [_pair_row(p, r) for p in r.pairs],
-    }
-
-
-def _pair_row(p: Pair, round_: Round) -> dict[str, Any]:
-    """A screened pair: its row as a candidate's, and what each member adds to the other."""
-    return {**_row(p, round_), "members": list(p.members), "within": [asdict(m) for m in p.within]}
-
-
-def _combined(runs: list[HeldOutRun], key: str) -> dict[str, float]:
-    """One figure per signal over all held-out runs (the first run's when there is one)."""
-    if not runs:
-        return {}
-    if len(runs) == 1:
-        return getattr(runs[0], key)
-    names = getattr(runs[0], key).keys()
-    return {n: float(np.sqrt(np.mean([getattr(r, key)[n] ** 2 for r in runs]))) for n in names}
 
 
 def _unexplained(before: Residuals, after: Residuals) -> dict[str, float]:
@@ -345,7 +237,7 @@ def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float
     with Plant(context.fmu) as plant:
 
         def replay(scenarios: list[Scenario], parameters: dict[str, float]):
-            return [run_scenario(plant, s, plant_overrides=parameters).frame() for s in scenarios]
+            return [run_scenario(plant, s, plant_overrides=parameters) for s in scenarios]
 
         first = replay(context.training_scenarios, context.nominal)
         noise = identify_noise(
@@ -361,7 +253,7 @@ def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float
             for s in context.judging_scenarios
         ]
         judging = [
-            r if r is not None else run_scenario(plant, s, plant_overrides=nominal).frame()
+            r if r is not None else run_scenario(plant, s, plant_overrides=nominal)
             for r, s in zip(judging, context.judging_scenarios, strict=True)
         ]
     return noise, nominal, Replays(first, judging)
@@ -439,18 +331,25 @@ def _diagnose(
         settings,
     )
     selector = Selector(
-        BoundPool(pool, _replay_spec(context, nominal, floors)),
-        context,
-        nominal,
+        ReplayPool(
+            BoundPool(pool, _replay_spec(context, nominal, floors)),
+            nominal,
+            [n for n in plant_model(context.model).calibrated if n in nominal],
+            judging,
+            settings.calibration_tolerance,
+        ),
+        {h.name: h for h in library_for(context.model)},
         judging,
         settings,
+        sum(float(r.t[-1] - r.t[0]) for r in context.train),
+        context,
         {
             "position_resolution": resolution,
             "dead_time_steps": nominal.get("dead_time_steps", 0.0),
         },
     )
     if progress:
-        selector.progress = progress(selector.expected_tasks(), "diagnose")
+        selector.pool.progress = progress(selector.expected_tasks(), "diagnose")
     selection = selector.run(start)
     final = selection.replays
     hold_final = judging.residuals(final)
@@ -467,32 +366,32 @@ def _diagnose(
         },
     }
     return Diagnosis(
-        context,
-        settings,
-        noise,
-        floors,
-        where,
-        selection.rounds,
-        significant,
-        judging.metrics(start, settings),
-        judging.metrics(final, settings),
-        remaining,
-        remaining_where,
-        verdict,
-        _held_out_runs(judging, context.judging_scenarios, start, final),
-        selection.plant_parameters,
-        validation_figures(joined([train0, hold0])),
-        start.training[0],
-        final.training[0],
-        train0,
-        hold0,
-        hold_final,
-        selection.accepted,
-        selection.marginal,
-        selection.dropped,
-        selection.swaps,
-        selection.refits,
-        times,
+        context=context,
+        settings=settings,
+        noise=noise,
+        floors=floors,
+        where=where,
+        selection=selection,
+        significant=significant,
+        verdict=verdict,
+        remaining=remaining,
+        remaining_where=remaining_where,
+        metrics_before=judging.metrics(start, settings),
+        metrics_after=judging.metrics(final, settings),
+        held_out_runs=_held_out_runs(judging, context.judging_scenarios, start, final),
+        validation=validation_figures(joined([train0, hold0])),
+        train_before=train0,
+        holdout_before=hold0,
+        holdout_after=hold_final,
+        calibrated_plant=calibrated_plant(
+            selection,
+            noise,
+            context.model,
+            context.scenario.plant_parameters,
+            settings.calibration_tolerance,
+            {"measured": context.measured, "holdout": context.holdout or context.split},
+        ),
+        times=times,
     )
 
 
@@ -553,7 +452,7 @@ def _verdict_stage(
     below = [
         c.name
         for c in (first.candidates if not first.accepted else [])
-        if c.reduction >= EXPLAINS_SHARE and c.consistent and not c.passes
+        if c.judgement.reduction >= EXPLAINS_SHARE and c.judgement.consistent and not c.passes
     ]
     groups = selection.accepted
     return remaining, where, verdict_text(first.significant, groups, below, remaining)
@@ -593,3 +492,127 @@ def _held_out_runs(
             )
         )
     return result
+
+
+def calibrated_plant(
+    selection: Selection,
+    noise: NoiseModel,
+    model: str,
+    nominal: dict[str, float],
+    tolerance: float,
+    made: dict[str, Any],
+) -> PlantParameters:
+    """The calibrated plant of a diagnosis: noise, accepted effects and calibration correction,
+    each value with where it came from.
+
+    Parameters
+    ----------
+    selection
+        The selection: its steps (the rounds that accepted an effect, each with its fit's
+        cumulative FMU parameters), its kept effects and their FMU parameters after the joint
+        refits, cold refits, swaps and the backward pass (which win), and the last round's
+        calibration correction.
+    noise
+        The noise harmonics kept as plant parameters.
+    model
+        The plant model the diagnosis ran on.
+    nominal
+        The diagnosed scenario's plant parameters (SI units of the model's variable table), on
+        top of the model's start values: what the correction multiplies.
+    tolerance
+        The calibration tolerance (relative).
+    made
+        What made it (``measured``, ``holdout``).
+
+    Notes
+    -----
+    A value set by an accepted effect's hypothesis is that effect's (``accepted effect NAME
+    (step N of twin diagnose)``: the step that accepted it, its fit and held-out figures;
+    ``refitted_jointly`` when the final model holds another value); a calibrated parameter
+    that no effect sets but the joint refits moved is the joint refit's. A calibrated parameter
+    p becomes p (1 + a tol), a the last round's coefficient (|a| <= 1), when that round
+    accepted nothing (its residual is what the accepted effects leave); an accepted effect's
+    value of p is the one corrected.
+    """
+    library = {h.name: h for h in plant_model(model).hypotheses}
+    parameters: dict[str, float] = {}
+    provenance: dict[str, dict[str, Any]] = {}
+    for name, value in noise.plant_parameters.items():
+        parameters[name] = float(value)
+        provenance[name] = {"source": NOISE_SOURCE}
+    steps = [r for r in selection.rounds if r.accepted]
+    owners: set[str] = set()  # FMU parameters set by an effect of the steps so far
+    previous: dict[str, float] = {}
+    for number, step in enumerate(steps, start=1):
+        best = step.best
+        assert best is not None
+        cumulative = {k: float(v) for k, v in best.fit.overrides.items()}
+        members = list(step.pair.members) if step.pair else step.accepted[:1]
+        setting = {name: m for m in members for name in library[m].sets}
+        for name in _changed(previous, cumulative):
+            if name in setting:
+                provenance[name] = _effect_source(setting[name], number, step)
+            elif name not in owners and name not in provenance:
+                provenance[name] = {"source": JOINT_SOURCE}
+        owners |= set(setting)
+        parameters |= cumulative
+        previous = cumulative
+    final = selection.plant_parameters
+    for name in set(previous) - set(final):  # the backward pass dropped its effect
+        parameters.pop(name, None)
+        provenance.pop(name, None)
+    swapped_in = {w.candidate.name: w for w in selection.swaps if w.kept}
+    for name, value in final.items():
+        if name not in provenance:
+            effect = next((a.name for a in selection.effects if name in library[a.name].sets), "")
+            swap = swapped_in.get(effect)
+            provenance[name] = {"source": JOINT_SOURCE} if swap is None else _swap_source(swap)
+        elif "effect" in provenance[name] and parameters.get(name) != float(value):
+            provenance[name]["refitted_jointly"] = True
+        parameters[name] = float(value)
+    last = selection.rounds[-1] if selection.rounds else None
+    if last is not None and not last.accepted:
+        base = {**plant_model(model).start_values(), **nominal, **parameters}
+        for name, a in last.calibration.coefficients.items():
+            if a != 0.0:
+                parameters[name] = float(base[name] * (1.0 + a * tolerance))
+                provenance[name] = {
+                    "source": CALIBRATION_SOURCE,
+                    "before": float(base[name]),
+                    "relative_change": float(a * tolerance),
+                }
+    return PlantParameters(model, parameters, provenance, dict(made))
+
+
+def _changed(before: dict[str, float], after: dict[str, float]) -> list[str]:
+    """The names whose value ``after`` holds and ``before`` does not."""
+    return [name for name, value in after.items() if before.get(name) != value]
+
+
+def _effect_source(effect: str, number: int, step: Round) -> dict[str, Any]:
+    """Where a value set by an accepted effect came from: the step that accepted it."""
+    best = step.best
+    assert best is not None
+    return jsonable(
+        {
+            "source": f"accepted effect {effect} (step {number} of twin diagnose)",
+            "effect": step.effect,
+            "fitted": dict(best.fit.values),
+            "holdout_reduction": best.judgement.reduction,
+            "holdout_gap_um": [step.position_rms_um, best.judgement.position_rms_um],
+        }
+    )
+
+
+def _swap_source(swap: Swap) -> dict[str, Any]:
+    """Where a value set by an effect swapped in for an accepted one came from."""
+    rival = swap.candidate
+    return jsonable(
+        {
+            "source": f"accepted effect {rival.name} (swapped in for {swap.removed} by twin "
+            "diagnose)",
+            "effect": rival.name,
+            "fitted": dict(rival.fit.values),
+            "holdout_reduction": rival.judgement.reduction,
+        }
+    )

@@ -2,8 +2,9 @@
 
 The scenario's ``diagnose`` section may set any field but ``hypotheses``; the command line
 overrides ``split`` and ``max_effects``. What each threshold means is said where it is used:
-significance in :mod:`twin_cosim.gap.floors`, acceptance in :mod:`twin_cosim.gap.selection`,
-localisation in :mod:`twin_cosim.gap.location`.
+significance in :mod:`twin_cosim.gap.floors.noise` and :mod:`twin_cosim.gap.floors.evidence`,
+acceptance in :mod:`twin_cosim.gap.which.acceptance`, the effort of the selection in
+:mod:`twin_cosim.gap.which.selector`, localisation in :mod:`twin_cosim.gap.where.location`.
 """
 
 from __future__ import annotations
@@ -31,12 +32,13 @@ class DiagnosisSettings:
         ``significance_metric``.
     significance_level : float
         Level of the test of the held-out residual the best calibration correction leaves
-        against noise at the floors (:func:`twin_cosim.gap.evidence.gap_threshold`): the gap is
-        significant when it fails that test, or when a figure of merit is off.
+        against noise at the floors (:func:`twin_cosim.gap.floors.evidence.gap_threshold`): the
+        gap is significant when it fails that test, or when a figure of merit is off.
     acceptance_level : float
-        Family-wise level of the test that an effect improves the held-out fit beyond the noise
-        (:func:`twin_cosim.gap.evidence.improvement_z`), shared by the hypotheses judged in a
-        round (Bonferroni); the same level keeps an effect in the backward pass.
+        Family-wise level of the test that a change improves the held-out fit beyond the noise
+        (:class:`twin_cosim.gap.which.acceptance.Acceptance`), shared by the changes judged
+        together (Bonferroni): a round's hypotheses, its pairs, the swaps or cold refits tried,
+        the effects of the backward pass.
     calibration_tolerance : float
         Relative uncertainty of the calibrated parameters (the calibration floor).
     worsen_limit : float

@@ -22,12 +22,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from twin_cosim.cosim import run_scenario
-from twin_cosim.gap.effects import DEFAULT_CONTEXT, library_for
+from twin_cosim.gap.data.context import DEFAULT_CONTEXT, library_for
 from twin_cosim.plant import Plant
 from twin_cosim.plant_model import model_names, plant_model
+from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario
 
 
@@ -93,9 +93,10 @@ def effect_overrides(
 
 @dataclass
 class Synthesis:
-    """A synthetic measured run and its known answer."""
+    """A synthetic measured run (the columns of a measured-run CSV, :mod:`twin_cosim.measured`)
+    and its known answer."""
 
-    run: pd.DataFrame
+    run: RunRecord
     truth: dict[str, Any] = field(default_factory=dict)
 
 
@@ -139,20 +140,21 @@ def synthesize(
         fmu_parameters = set(plant.parameter_names())
         for effect in effects:
             parameters |= effect_overrides(effect, parameters, fmu_parameters, model)
-        record = run_scenario(plant, scenario, plant_overrides=parameters).frame()
+        record = run_scenario(plant, scenario, plant_overrides=parameters)
     n = len(record)
-    x = record["x"].to_numpy() + rng.normal(0.0, noise_position, n)
+    x = record["x"] + rng.normal(0.0, noise_position, n)
     resolution = parameters.get("position_resolution", 0.0)
     if resolution > 0:  # the noise is jitter before the encoder: its readings stay on the grid
         x = resolution * np.round(x / resolution)
-    run = pd.DataFrame(
+    run = RunRecord.from_columns(
         {
             "t": record["t"],
             "x_ref": record["x_ref"],
             "x": x,
             "current": record["current"] + rng.normal(0.0, noise_current, n),
             "motor_speed": record["motor_speed"],
-        }
+        },
+        record.units,
     )
     truth = {
         "scenario": str(scenario.source),

@@ -15,12 +15,17 @@ applies it, so that one excitation run calibrates the twin for every production 
 It is read with the scenarios' YAML loader and checker (:mod:`twin_cosim.schema`), so a value
 reads the same in both (``2e-5`` is a number). Reading checks the model, that every name is a
 parameter of the model's variable table, and that every value is finite and inside the table's
-range; errors name the file and the key.
+range; errors name the file and the key. Writing spells every value out where it stands (no
+YAML anchors and aliases for a person editing the file to decode).
+
+:func:`calibrated_scenario` folds such a file into a copy of a scenario file
+(``calibrated.yaml`` beside a diagnosis' ``plant.yaml``).
 """
 
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +37,19 @@ from twin_cosim.plant_model import PlantModelError, plant_model
 from twin_cosim.schema import Checker, ScenarioError, load_yaml
 
 TOP_KEYS = {"model", "parameters", "provenance", "created_by"}
+
+
+class _PlainDumper(yaml.SafeDumper):
+    """YAML written out in full: an object met twice is written twice, never as an anchor and
+    an alias (``&id001``, ``*id001``)."""
+
+    def ignore_aliases(self, data: Any) -> bool:
+        return True
+
+
+def dump_yaml(data: Any) -> str:
+    """``data`` as YAML for people: keys in their order, 100 columns, no anchors."""
+    return yaml.dump(data, Dumper=_PlainDumper, sort_keys=False, width=100)
 
 
 class PlantParametersError(ScenarioError):
@@ -179,5 +197,43 @@ def write_plant_parameters(path: Path | str, plant: PlantParameters) -> Path:
     """Write a plant parameter file (values are checked first; floats round-trip exactly)."""
     check_values(plant.parameters, plant.model, str(path))
     path = Path(path)
-    path.write_text(yaml.safe_dump(plant.as_dict(), sort_keys=False, width=100))
+    path.write_text(dump_yaml(plant.as_dict()))
     return path
+
+
+def _relocated(value: Any, source_dir: Path, target_dir: Path) -> str:
+    """A path relative to ``source_dir``, re-expressed relative to ``target_dir``."""
+    path = Path(str(value))
+    if path.is_absolute():
+        return str(path)
+    return os.path.relpath((source_dir / path).resolve(), target_dir.resolve())
+
+
+def calibrated_scenario(scenario_file: Path | str, plant: PlantParameters, out: Path | str) -> Path:
+    """Write ``out``: the scenario file with the calibrated values folded into plant.parameters.
+
+    Values of a ``plant.parameters_file`` are folded in too (the file key is dropped); the
+    calibrated values win. Paths the scenario names (``plant.fmu``, ``reference.csv``,
+    ``reference.measured``) are rewritten relative to the new file's folder.
+    """
+    scenario_file, out = Path(scenario_file), Path(out)
+    data = load_yaml(scenario_file)
+    plant_section = dict(data.get("plant") or {})
+    folded = dict(plant_section.get("parameters") or {})
+    if "parameters_file" in plant_section:
+        extra = read_plant_parameters(
+            scenario_file.parent / str(plant_section.pop("parameters_file"))
+        )
+        folded = {**extra.parameters, **folded}
+    plant_section["parameters"] = {**folded, **plant.parameters}
+    for section, key in (("plant", "fmu"), ("reference", "csv"), ("reference", "measured")):
+        body = plant_section if section == "plant" else data.get(section) or {}
+        if key in body:
+            body[key] = _relocated(body[key], scenario_file.parent, out.parent)
+    data["plant"] = plant_section
+    data["description"] = (
+        f"{data.get('description', '')} Calibrated: the plant parameters of the plant.yaml "
+        "beside this file folded in."
+    ).strip()
+    out.write_text(dump_yaml(data))
+    return out

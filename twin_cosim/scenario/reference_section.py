@@ -123,7 +123,7 @@ def run_disturbance(
 
     A run without that variable (e.g. the EMPS estimation run, which has no pulses) has none.
     """
-    values = run.extra.get(spec["variable"]) if spec else None
+    values = run.record.get(spec["variable"]) if spec else None
     if not isinstance(values, np.ndarray):
         return None, None
     signal = spec["gain"] * np.interp(grid.time, run.t, values)

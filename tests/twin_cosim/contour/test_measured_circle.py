@@ -25,7 +25,7 @@ def machine():
 def _write(machine, tmp_path, effects=None, **noise):
     table = synthesize_circle(machine, SPEC, effects or {}, **noise)
     path = tmp_path / "measured.csv"
-    table.to_csv(path, index=False)
+    table.frame().to_csv(path, index=False)
     return path
 
 

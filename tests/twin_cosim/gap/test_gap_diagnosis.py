@@ -1,4 +1,5 @@
-"""Blind diagnoses of synthetic runs (a seeded subset of benchmarks/blind_gap.py).
+"""Blind diagnoses of synthetic runs (a seeded subset of benchmarks/blind_gap.py), and the
+calibrated plant of a typed diagnosis.
 
 The data come from the twin with known effects, calibration error and white noise; the
 diagnosis is not told the answer.
@@ -6,17 +7,25 @@ diagnosis is not told the answer.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
 import pytest
+from tight_spot import build_tight_spot_fmu
 
-from twin_cosim.gap.defects import build_tight_spot_fmu
-from twin_cosim.gap.diagnosis import diagnose
+from twin_cosim.gap.diagnosis import calibrated_plant, diagnose
+from twin_cosim.gap.floors.evidence import CalibrationFloor
+from twin_cosim.gap.floors.noise import NoiseModel
+from twin_cosim.gap.report.pages import summary
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.synth import parse_effect, synthesize
+from twin_cosim.gap.which.acceptance import Candidate, Gain, Judgement
+from twin_cosim.gap.which.replay import FitResult, Replays
+from twin_cosim.gap.which.selector import Accepted, Round, Selection
 from twin_cosim.measured import read_measured_csv
 from twin_cosim.scenario import load_scenario
+from twin_cosim.scenario.plant_file import read_plant_parameters, write_plant_parameters
 
 ROOT = Path(__file__).resolve().parents[3]
 SCENARIO = ROOT / "scenarios" / "diagnosis.yaml"
@@ -37,10 +46,9 @@ def blind(
         scenario, [parse_effect(e) for e in effects], perturb=perturb, seed=seed, fmu=fmu
     )
     path = tmp_path / "run.csv"
-    synthesis.run.to_csv(path, index=False)
-    return diagnose(
-        scenario, [read_measured_csv(path)], settings=DiagnosisSettings(max_effects=max_effects)
-    ).summary()
+    synthesis.run.frame().to_csv(path, index=False)
+    settings = DiagnosisSettings(max_effects=max_effects)
+    return summary(diagnose(scenario, [read_measured_csv(path)], settings=settings))
 
 
 @pytest.mark.slow
@@ -211,7 +219,7 @@ def test_a_tight_spot_is_no_library_effect_and_is_located(twin_cli, tmp_path):
     fmu = build_tight_spot_fmu(1.0, 0.025, 0.5e-3, tmp_path / "spot")
     run = tmp_path / "run.csv"
     scenario = load_scenario(SWEEP)
-    synthesize(scenario, [], perturb=0.02, seed=7, fmu=fmu).run.to_csv(run, index=False)
+    synthesize(scenario, [], perturb=0.02, seed=7, fmu=fmu).run.frame().to_csv(run, index=False)
     result = twin_cli("diagnose", str(SWEEP), "--measured", str(run), "--out", str(tmp_path / "r"))
     assert result.returncode == 0, result.stderr
     assert "diagnose:" in result.stderr  # the progress bar, on stderr
@@ -234,9 +242,9 @@ def test_an_outlier_is_reported_not_a_crash(twin_cli, tmp_path):
     """One absurd sample (current[1234] = 1e12) is repaired before fitting and reported."""
     run = tmp_path / "run.csv"
     scenario = load_scenario(SCENARIO)
-    frame = synthesize(scenario, [parse_effect("coulomb_change:delta_coulomb=0.2")], seed=2).run
-    frame.loc[1234, "current"] = 1e12
-    frame.to_csv(run, index=False)
+    record = synthesize(scenario, [parse_effect("coulomb_change:delta_coulomb=0.2")], seed=2).run
+    record["current"][1234] = 1e12
+    record.frame().to_csv(run, index=False)
     result = twin_cli(
         "diagnose",
         str(SCENARIO),
@@ -256,7 +264,119 @@ def test_an_outlier_is_reported_not_a_crash(twin_cli, tmp_path):
 
 
 def test_a_plant_model_without_a_library_is_refused(plant):
-    from twin_cosim.gap.effects import UnknownModelError, library_for
+    from twin_cosim.gap.data.context import UnknownModelError, library_for
 
     with pytest.raises(UnknownModelError, match="no hypothesis library for plant model 'other'"):
         library_for("other")
+
+
+# --- the calibrated plant of a typed diagnosis (plant.yaml)
+
+NO_REPLAYS = Replays(None, [])
+PASSED = Gain(20.0, 2.7, 0.5, 1.0 / 12.0)
+
+
+def _step(
+    index: int,
+    accepted: list[str],
+    values: dict[str, float],
+    overrides: dict[str, float],
+    gap_um: tuple[float, float],
+    coefficients: dict[str, float] | None = None,
+) -> Round:
+    """A round that accepted ``accepted`` (the first fitted: ``values``, the model's FMU
+    parameters with it ``overrides``), its held-out position gap before and after."""
+    reduction = 1.0 - gap_um[1] / gap_um[0]
+    judged = Judgement(1.0, reduction, reduction, 1.0, PASSED, True, True, gap_um[1], 0.01, [])
+    fit = FitResult(accepted[0], values, overrides, 1.0, 10, "")
+    floor = CalibrationFloor(2.0, 1.5, 1.3, coefficients or {})
+    candidate = Candidate(fit, len(values), 0.0, NO_REPLAYS, judged)
+    return Round(index, {}, True, 2.0, gap_um[0], 0.02, floor, [], [candidate], accepted)
+
+
+def _selection(rounds: list[Round], effects: list[Accepted], final: dict[str, float]):
+    floor = CalibrationFloor(1.0, 1.0, 0.0, {})
+    return Selection(rounds, effects, final, NO_REPLAYS, floor, NO_REPLAYS)
+
+
+def _left(coefficients: dict[str, float]) -> Round:
+    """The last round: nothing accepted, its calibration correction."""
+    return Round(3, {}, True, 1.2, 0.1, 0.01, CalibrationFloor(1.2, 1.1, 0.4, coefficients), [])
+
+
+def test_each_value_of_plant_yaml_names_the_effect_and_step_that_set_it(tmp_path):
+    """The issue's three-effect machine: Stribeck accepted in step 1, the group
+    {backlash_change, coulomb_change} in step 2, whose fit's FMU parameters hold the Stribeck
+    curve and the calibrated parameters as the joint refit after step 1 left them."""
+    stribeck = {"stribeck_friction": 0.216, "stribeck_speed": 0.404}
+    after_joint = {"motor_inertia": 2.99e-4, "coulomb_friction": 0.644}
+    second = {
+        **after_joint,
+        "backlash": 1.99e-5,
+        "stribeck_friction": 0.203,
+        "stribeck_speed": 0.413,
+    }
+    final = {**after_joint, "backlash": 2.2e-5, "stribeck_friction": 0.2, "stribeck_speed": 0.4}
+    rounds = [
+        _step(1, ["stribeck"], stribeck, stribeck, (1.33, 0.18)),
+        _step(
+            2,
+            ["backlash_change", "coulomb_change"],
+            {"delta_backlash": 7.3e-6},
+            second,
+            (1.29, 0.82),
+        ),
+        _left({"damping_ratio": -1.0}),
+    ]
+    effects = [
+        Accepted(["stribeck"], (0.2, 0.4), {}, 1),
+        Accepted(["backlash_change", "coulomb_change"], (7.3e-6,), {}, 2),
+    ]
+    made = {"measured": ["three.csv"], "holdout": "time split at t = 6.2 s"}
+    noise = NoiseModel([], {}, [])
+    plant = calibrated_plant(
+        _selection(rounds, effects, final), noise, "drive2mass", {}, 0.03, made
+    )
+    curve = plant.provenance["stribeck_friction"]
+    assert curve["source"] == "accepted effect stribeck (step 1 of twin diagnose)"
+    assert curve["effect"] == "stribeck" and curve["fitted"] == stribeck
+    assert curve["holdout_gap_um"] == [1.33, 0.18] and curve["refitted_jointly"]
+    assert plant.provenance["stribeck_speed"]["source"] == curve["source"]
+    backlash = plant.provenance["backlash"]
+    assert backlash["source"] == "accepted effect backlash_change (step 2 of twin diagnose)"
+    assert backlash["effect"] == ["backlash_change", "coulomb_change"]
+    for name in after_joint:  # moved by the joint refit after step 1, set by no effect
+        assert plant.provenance[name]["source"].startswith("joint refit of twin diagnose")
+    assert plant.parameters["stribeck_friction"] == 0.2  # the final model's values
+    assert plant.parameters["damping_ratio"] == pytest.approx(0.15 * 0.97)  # the correction
+    assert plant.created_by == made
+    path = write_plant_parameters(tmp_path / "plant.yaml", plant)
+    assert "&id" not in path.read_text() and "*id" not in path.read_text()
+    assert read_plant_parameters(path).provenance == plant.provenance
+
+
+def test_the_calibration_correction_of_the_last_round_is_applied():
+    coulomb = {"coulomb_friction": 0.5}
+    first = _step(1, ["coulomb_change"], {"delta_coulomb": -0.125}, coulomb, (1.0, 0.5))
+    first = dataclasses.replace(
+        first, calibration=CalibrationFloor(2.0, 1.5, 1.3, {"backlash": 1.0})
+    )
+    coefficients = {"motor_inertia": 1.0, "coulomb_friction": -0.5, "backlash": 0.0}
+    effects = [Accepted(["coulomb_change"], (-0.125,), {}, 1)]
+    selection = _selection([first, _left(coefficients)], effects, coulomb)
+    noise = NoiseModel([], {}, [])
+    nominal = {"motor_inertia": 2e-4}
+    plant = calibrated_plant(selection, noise, "drive2mass", nominal, 0.03, {})
+    assert plant.parameters["motor_inertia"] == pytest.approx(2e-4 * 1.03)  # the scenario's value
+    assert plant.parameters["coulomb_friction"] == pytest.approx(0.5 * 0.985)  # the effect's value
+    assert "backlash" not in plant.parameters  # a zero coefficient changes nothing
+    assert plant.provenance["motor_inertia"]["relative_change"] == pytest.approx(0.03)
+    assert "calibration correction" in plant.provenance["motor_inertia"]["source"]
+    # A last round that accepted an effect saw the residual before it: no correction then.
+    backlash = {**coulomb, "backlash": 1.3e-5}  # the backward pass dropped it again
+    accepting = _step(2, ["backlash_change"], {"delta_backlash": 8e-7}, backlash, (0.5, 0.4))
+    accepting = dataclasses.replace(accepting, calibration=_left(coefficients).calibration)
+    plant = calibrated_plant(
+        _selection([first, accepting], effects, coulomb), noise, "drive2mass", {}, 0.03, {}
+    )
+    assert plant.parameters == {"coulomb_friction": 0.5}

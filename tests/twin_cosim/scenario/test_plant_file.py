@@ -12,13 +12,14 @@ import yaml
 from scenario_texts import scenario_text
 
 from twin_cosim import cli
+from twin_cosim.gap import diagnosis as diagnosis_module
 from twin_cosim.gap import settings as diagnosis_settings
-from twin_cosim.gap.calibrated_plant import calibrated_scenario, from_diagnosis
 from twin_cosim.gap.synth import parse_effect, synthesize
 from twin_cosim.scenario import ScenarioError, load_scenario, with_plant_parameters
 from twin_cosim.scenario.plant_file import (
     PlantParameters,
     PlantParametersError,
+    calibrated_scenario,
     read_plant_parameters,
     write_plant_parameters,
 )
@@ -39,24 +40,38 @@ def excitation(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def diagnosis_dir(excitation, tmp_path_factory) -> Path:
-    """``twin diagnose --out DIR`` on a run with a known answer (two hypotheses, to stay fast)."""
+def diagnosed(excitation, tmp_path_factory) -> tuple[Path, diagnosis_module.Diagnosis]:
+    """``twin diagnose --out DIR`` on a run with a known answer (two hypotheses, to stay fast):
+    the folder and the diagnosis it wrote."""
     scenario = load_scenario(excitation)
     synthesis = synthesize(scenario, [parse_effect(e) for e in HIDDEN], seed=1)
     run = tmp_path_factory.mktemp("run") / "run.csv"
-    synthesis.run.to_csv(run, index=False)
+    synthesis.run.frame().to_csv(run, index=False)
     out = tmp_path_factory.mktemp("diagnosis")
 
     def two_hypotheses(*args, **kwargs):  # the whole library would take minutes
         settings = original(*args, **kwargs)
         return dataclasses.replace(settings, hypotheses=("coulomb_change", "backlash_change"))
 
-    original = diagnosis_settings.settings_from
+    made = []
+
+    def kept(*args, **kwargs):  # the diagnosis the command wrote its files from
+        made.append(diagnose(*args, **kwargs))
+        return made[-1]
+
+    original, diagnose = diagnosis_settings.settings_from, diagnosis_module.diagnose
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(diagnosis_settings, "settings_from", two_hypotheses)
+        patch.setattr(diagnosis_module, "diagnose", kept)
         argv = ["diagnose", str(excitation), "--measured", str(run), "--max-effects", "1"]
         assert cli.main([*argv, "--workers", "1", "--out", str(out)]) == 0
-    return out
+    return out, made[0]
+
+
+@pytest.fixture(scope="module")
+def diagnosis_dir(diagnosed) -> Path:
+    """The folder ``twin diagnose`` wrote."""
+    return diagnosed[0]
 
 
 @pytest.fixture(scope="module")
@@ -65,9 +80,11 @@ def diagnosis_summary(diagnosis_dir) -> dict:
     return json.loads((diagnosis_dir / "diagnosis.json").read_text())
 
 
-def test_plant_yaml_of_a_real_diagnosis_holds_the_hidden_answer(diagnosis_summary, tmp_path):
+def test_plant_yaml_of_a_real_diagnosis_holds_the_hidden_answer(
+    diagnosed, diagnosis_summary, tmp_path
+):
     assert diagnosis_summary["accepted"] == ["coulomb_change"]
-    plant = from_diagnosis(diagnosis_summary, "drive2mass", {"command": "twin diagnose ..."})
+    plant = diagnosed[1].calibrated_plant
     assert plant.parameters["coulomb_friction"] == pytest.approx(NOMINAL_COULOMB + 0.2, rel=0.05)
     assert "coulomb_change" in plant.provenance["coulomb_friction"]["source"]
     assert plant.provenance["coulomb_friction"]["holdout_reduction"] >= 0.25
@@ -81,17 +98,18 @@ def test_plant_yaml_of_a_real_diagnosis_holds_the_hidden_answer(diagnosis_summar
     assert back.provenance == plant.provenance
 
 
-def test_diagnose_writes_plant_and_calibrated_yaml(diagnosis_dir, diagnosis_summary):
+def test_diagnose_writes_plant_and_calibrated_yaml(diagnosed):
+    diagnosis_dir, diagnosis = diagnosed
     written = read_plant_parameters(diagnosis_dir / "plant.yaml", "drive2mass")
-    assert written.parameters == from_diagnosis(diagnosis_summary, "drive2mass").parameters
+    assert written.parameters == diagnosis.calibrated_plant.parameters
     assert written.created_by["command"].startswith("twin diagnose ")
     calibrated = load_scenario(diagnosis_dir / "calibrated.yaml")
     for name, value in written.parameters.items():
         assert calibrated.plant_parameters[name] == value
 
 
-def test_calibrated_scenario_folds_the_parameters_in(diagnosis_summary, excitation, tmp_path):
-    plant = from_diagnosis(diagnosis_summary, "drive2mass")
+def test_calibrated_scenario_folds_the_parameters_in(diagnosed, excitation, tmp_path):
+    plant = diagnosed[1].calibrated_plant
     out = tmp_path / "deeper" / "calibrated.yaml"
     out.parent.mkdir()
     calibrated = load_scenario(calibrated_scenario(excitation, plant, out))
@@ -155,36 +173,23 @@ def test_scenario_key_and_command_line_file(excitation, tmp_path):
         load_scenario(tmp_path / "s.yaml")
 
 
-def test_the_calibration_correction_of_the_last_round_is_applied():
-    summary = {
-        "steps": [
-            {
-                "plant_parameters": {"coulomb_friction": 0.5},
-                "fitted": "coulomb_change",
-                "effect": "coulomb_change",
-            }
-        ],
-        "rounds": [
-            {"accepted": ["coulomb_change"], "calibration": {"coefficients": {"backlash": 1.0}}},
-            {
-                "accepted": [],
-                "calibration": {
-                    "coefficients": {"motor_inertia": 1.0, "coulomb_friction": -0.5, "backlash": 0}
-                },
-            },
-        ],
-        "thresholds": {"calibration_tolerance": 0.03},
-    }
-    plant = from_diagnosis(summary, "drive2mass", nominal={"motor_inertia": 2e-4})
-    assert plant.parameters["motor_inertia"] == pytest.approx(2e-4 * 1.03)  # the scenario's value
-    assert plant.parameters["coulomb_friction"] == pytest.approx(0.5 * 0.985)  # the effect's value
-    assert "backlash" not in plant.parameters  # a zero coefficient changes nothing
-    assert plant.provenance["motor_inertia"]["relative_change"] == pytest.approx(0.03)
-    assert "calibration correction" in plant.provenance["motor_inertia"]["source"]
-    # A last round that accepted an effect saw the residual before it: no correction then.
-    summary["rounds"][-1]["accepted"] = ["backlash_change"]
-    plant = from_diagnosis(summary, "drive2mass")
-    assert plant.parameters == {"coulomb_friction": 0.5}
+def test_a_plant_file_spells_out_every_value_without_yaml_anchors(tmp_path):
+    """A value met twice (one group of effects behind two parameters) is written twice, never
+    as an anchor and an alias a person editing the file must decode."""
+    group = ["backlash_change", "coulomb_change"]
+    plant = PlantParameters(
+        "drive2mass",
+        {"backlash": 2e-5, "coulomb_friction": 0.66},
+        {
+            "backlash": {"source": "a", "effect": group},
+            "coulomb_friction": {"source": "b", "effect": group},
+        },
+    )
+    path = write_plant_parameters(tmp_path / "plant.yaml", plant)
+    text = path.read_text()
+    assert "&id" not in text and "*id" not in text
+    assert text.count("- backlash_change") == 2
+    assert read_plant_parameters(path).provenance == plant.provenance
 
 
 def test_a_hand_edited_plant_file_reads_as_a_scenario_does(tmp_path):

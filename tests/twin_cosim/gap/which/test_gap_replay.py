@@ -1,0 +1,109 @@
+"""Replays and fits on a worker: nothing a fit derives from data reaches the FMU outside the
+variable table's ranges; the global search that starts a hypothesis' local fit, from its start
+values or from the previous round's fit, and the profile over a shape parameter that starts a
+cold refit (no plant: costs with a known narrow valley)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from twin_cosim.gap.synth import DEFAULT_CONTEXT
+from twin_cosim.gap.which.replay import (
+    GLOBAL_GENERATIONS,
+    GLOBAL_POPULATION_PER_PARAMETER,
+    PROFILE_EVALUATIONS,
+    PROFILE_POINTS,
+    WARM_GENERATIONS,
+    Replayer,
+    bounded,
+    clipped,
+    profile_start,
+    shape_index,
+)
+from twin_cosim.plant_model import plant_model
+
+BY_NAME = {h.name: h for h in plant_model("drive2mass").hypotheses}
+
+
+def test_position_friction_at_its_fit_bounds_is_clipped_to_the_fmu_range(plant):
+    """cos and sin parts at 0.9 each give an amplitude of 1.27 > the FMU's 0.99."""
+    from twin_cosim.gap.data.context import variable_ranges
+
+    ranges = variable_ranges(plant)
+    hypothesis = BY_NAME["position_friction"]
+    overrides = hypothesis.to_plant(np.array([0.9, 0.9]), {}, DEFAULT_CONTEXT)
+    assert overrides["position_friction_amplitude"] == pytest.approx(np.hypot(0.9, 0.9))
+    safe = clipped(overrides, ranges)
+    assert safe["position_friction_amplitude"] == ranges["position_friction_amplitude"][1]
+    plant.start_run(safe)  # accepted by the FMU
+
+
+def test_bounds_of_fmu_parameters_come_from_the_variable_table():
+    ranges = {"stribeck_friction": (0.0, 1.5), "stribeck_speed": (0.1, 100.0)}
+    narrowed = bounded(BY_NAME["stribeck"], ranges)
+    friction, speed = narrowed.parameters
+    assert (friction.lower, friction.upper) == (0.0, 1.5)
+    assert (speed.lower, speed.upper) == (0.1, 2.0)
+    assert speed.lower <= speed.initial <= speed.upper
+
+
+BACKLASH = {h.name: h for h in plant_model("drive2mass").hypotheses}["backlash_change"]
+TRUE_CHANGE = 6e-6  # m
+
+
+def valley(u: np.ndarray) -> np.ndarray:
+    """A residual whose cost has one narrow valley at the true backlash change (width 0.5 um),
+    flat elsewhere: a local fit from far away does not see it."""
+    change = BACKLASH.from_unit(u)[0]
+    return np.array([1.0 - np.exp(-(((change - TRUE_CHANGE) / 0.5e-6) ** 2))])
+
+
+def test_cold_start_searches_the_whole_range_within_its_budget():
+    start, evaluations = Replayer._coarse_start(BACKLASH, valley, None)
+    population = GLOBAL_POPULATION_PER_PARAMETER * len(BACKLASH.parameters)
+    assert evaluations <= population * (GLOBAL_GENERATIONS + 1)
+    assert start.shape == (1,) and 0.0 <= start[0] <= 1.0
+
+
+def test_warm_start_keeps_the_previous_valley_at_a_fraction_of_the_cost():
+    previous = (TRUE_CHANGE + 0.1e-6,)  # the round before found the valley
+    start, evaluations = Replayer._coarse_start(BACKLASH, valley, previous)
+    population = GLOBAL_POPULATION_PER_PARAMETER * len(BACKLASH.parameters)
+    assert evaluations <= population * (WARM_GENERATIONS + 1)
+    assert WARM_GENERATIONS < GLOBAL_GENERATIONS
+    assert abs(BACKLASH.from_unit(start)[0] - TRUE_CHANGE) <= 0.1e-6 + 1e-12
+    assert valley(start)[0] < 0.05
+
+
+LIBRARY = {h.name: h for h in plant_model("drive2mass").hypotheses}
+STRIBECK = LIBRARY["stribeck"]
+TRUE_LEVEL, TRUE_SPEED = 0.147, 0.615  # N.m, rad/s
+
+
+def area_valley(u: np.ndarray) -> np.ndarray:
+    """A Stribeck-like training residual: the area under the curve (level x speed) is what
+    most of the data see, linear in the level; the true width shows in a narrow valley
+    (0.3 in log speed), flat elsewhere: every curve of the right area is a local minimum."""
+    level, speed = STRIBECK.from_unit(u)
+    area = 30.0 * (level * speed - TRUE_LEVEL * TRUE_SPEED)
+    width = 1.0 - np.exp(-((np.log(speed / TRUE_SPEED) / 0.3) ** 2))
+    return np.array([area, width])
+
+
+def test_shape_parameter_is_the_log_one_of_two():
+    assert shape_index(STRIBECK) == 1
+    assert shape_index(LIBRARY["backlash_change"]) is None  # one parameter
+    assert shape_index(LIBRARY["torque_ripple"]) is None  # two, neither on a log scale
+    assert shape_index(LIBRARY["pitch_error"]) is None  # three
+
+
+def test_profile_over_the_shape_finds_the_narrow_valley_of_the_true_width():
+    start, evaluations = profile_start(STRIBECK, area_valley)
+    spacing = 1.0 / PROFILE_POINTS
+    assert abs(start[1] - STRIBECK.parameters[1].to_unit(TRUE_SPEED)) <= spacing / 2
+    level, speed = STRIBECK.from_unit(start)
+    assert abs(level * speed - TRUE_LEVEL * TRUE_SPEED) < 0.01 * TRUE_LEVEL * TRUE_SPEED
+    assert np.mean(area_valley(start) ** 2) < 0.1 * np.mean(area_valley(np.array([0.2, 0.9])) ** 2)
+    # each shape value: the level's evaluations and as many one-column Jacobians at most
+    assert evaluations <= 2 * PROFILE_EVALUATIONS * PROFILE_POINTS

@@ -1,0 +1,452 @@
+"""The selector's records and its steps after the rounds: swaps of an accepted effect for a
+rival of its round, and cold refits of the accepted effects, each on a stand-in replay pool
+whose held-out residual is a given pattern or vector per parameter set (noise at the floors is
+1)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from twin_cosim.gap.data.residuals import Residuals
+from twin_cosim.gap.floors.evidence import CalibrationBasis, CalibrationFloor
+from twin_cosim.gap.floors.noise import Floors
+from twin_cosim.gap.settings import DiagnosisSettings
+from twin_cosim.gap.which.acceptance import Candidate, Gain, Judgement, Judging, Pair
+from twin_cosim.gap.which.replay import FitResult, FitTask, JointFitTask, Replays, SimulateTask
+from twin_cosim.gap.which.selector import (
+    Accepted,
+    Round,
+    Selector,
+    Swap,
+    bic,
+    correlation,
+    rivals,
+)
+from twin_cosim.plant_model import plant_model
+
+NO_REPLAYS = Replays(None, [])
+
+
+def _judged(passes: bool) -> Judgement:
+    """A judgement that passes every test, or fails them all."""
+    gain = Gain(10.0, 3.0, 0.5, 1.0 / 12.0) if passes else Gain(0.0, 3.0, 0.0, 1.0 / 12.0)
+    return Judgement(1.0, 0.5 if passes else 0.0, 0.5, 1.0, gain, True, True, 1.0, 0.1, np.zeros(0))
+
+
+class _HeldOut(Judging):
+    """Held-out runs of ``seconds`` whose position residual is the replay's own (floors of 1)."""
+
+    def __init__(self, seconds: float) -> None:
+        super().__init__([], [], [], Floors(1.0, 1.0, "given", "given"))
+        self.seconds = seconds
+
+    @property
+    def duration_s(self) -> float:
+        return self.seconds
+
+    def residuals(self, replays: Replays) -> Residuals:
+        return _residuals(replays.judging[0])
+
+
+# --- the records: ranking helpers and which candidate a round accepted
+
+
+def _candidate(name: str, cost: float = 1.0) -> Candidate:
+    fit = FitResult(name, {}, {}, cost, 0, "")
+    return Candidate(fit, 1, bic(cost, 1, 5.0), NO_REPLAYS, _judged(True))
+
+
+def _round(candidates: list[Candidate], accepted: list[str], pair: Pair | None = None) -> Round:
+    floor = CalibrationFloor(2.0, 1.5, 1.3, {})
+    return Round(1, {}, True, 2.0, 1.0, 0.1, floor, [], candidates, accepted, [], pair)
+
+
+def test_bic_charges_each_parameter_the_log_of_the_independent_samples():
+    # 5 s of training at one independent sample per 10 ms: n_eff = 500
+    assert bic(1.0, 2, 5.0) - bic(1.0, 1, 5.0) == pytest.approx(np.log(500.0))
+    assert bic(0.5, 1, 5.0) < bic(1.0, 1, 5.0)
+
+
+def test_correlation_of_predicted_changes_ignores_sign_and_constants():
+    a = np.sin(np.linspace(0.0, 6.0, 50))
+    assert correlation(a, -2.0 * a) == pytest.approx(1.0)
+    assert correlation(a, np.ones(50)) == 0.0
+    assert correlation(a, a[:10]) == 0.0
+
+
+def test_a_round_names_its_accepted_single_or_pair():
+    single = _candidate("stribeck")
+    other = _candidate("backlash_change")
+    assert _round([other, single], ["stribeck"]).best is single
+    assert _round([other, single], []).best is None
+    pair = Pair(
+        FitResult("backlash_change+stribeck", {}, {}, 0.5, 0, ""),
+        3,
+        bic(0.5, 3, 5.0),
+        NO_REPLAYS,
+        _judged(True),
+        members=("backlash_change", "stribeck"),
+        member_values=((8e-6,), (0.2, 0.3)),
+    )
+    chosen = _round([other, single], ["backlash_change", "stribeck"], pair)
+    assert chosen.best is pair
+    assert chosen.best.name == "backlash_change+stribeck"
+
+
+# --- swaps of an accepted effect for a rival of its round
+
+SAMPLES = 2000
+PATTERN = np.sin(np.linspace(0.0, 40.0, SAMPLES))  # a structured residual, RMS 0.71
+
+LIBRARY = {
+    name: SimpleNamespace(kind="continuous", sets={key: 0}, parameters=(None,), relative_size=None)
+    for name, key in (
+        ("backlash_change", "backlash"),
+        ("stiffness_change", "resonance_frequency"),
+        ("inertia_change", "load_inertia"),
+        ("current_lag", "current_time_constant"),
+    )
+}
+
+
+def _residuals(position: np.ndarray) -> Residuals:
+    zeros = np.zeros(len(position))
+    return Residuals(np.arange(len(position)) * 0.005, position, zeros, zeros, zeros, zeros, zeros)
+
+
+@dataclass
+class SwapPool:
+    """Replays whose residual is ``gap(overrides)``; a rival's fit sets ``fitted[name]`` on
+    top of its base, a joint refit ``joint(overrides)``."""
+
+    gap: object
+    fitted: dict[str, dict[str, float]]
+    joint: object = field(default_factory=lambda: lambda overrides: overrides)
+    nominal: dict = field(default_factory=dict)
+    calibrated: list = field(default_factory=list)
+    asked: list = field(default_factory=list)
+
+    def tasks(self, phase: str, tasks: list) -> list:
+        self.asked.extend(tasks)
+        results = []
+        for task in tasks:
+            if isinstance(task, FitTask):
+                values = self.fitted[task.hypothesis]
+                overrides = {**task.base, **values}
+                results.append(FitResult(task.hypothesis, values, overrides, 1.0, 1, ""))
+            elif isinstance(task, JointFitTask):
+                sequential = {}
+                for name, start in zip(task.hypotheses, task.start, strict=True):
+                    sequential[next(iter(LIBRARY[name].sets))] = start[0]
+                results.append(FitResult("+", {}, self.joint(sequential), 1.0, 1, ""))
+            else:
+                assert isinstance(task, SimulateTask) and task.with_training
+                residual = self.gap(task.overrides)
+                results.append(Replays([residual], [residual]))
+        return results
+
+    def basis(self, base: dict[str, float]) -> CalibrationBasis:
+        return CalibrationBasis([], np.zeros((2 * SAMPLES, 0)))
+
+
+def _swapping(pool: SwapPool) -> Selector:
+    """The selector of the four-effect library on ``pool`` (held-out runs of 10 s)."""
+    return Selector(pool, LIBRARY, _HeldOut(10.0), DiagnosisSettings(), 10.0)
+
+
+def _rival(name: str, passes: bool, value: float) -> Candidate:
+    key = next(iter(LIBRARY[name].sets))
+    fit = FitResult(name, {key: value}, {key: value}, 1.0, 1, "")
+    return Candidate(fit, 1, 0.0, NO_REPLAYS, _judged(passes))
+
+
+def _rounds() -> list:
+    first = SimpleNamespace(
+        candidates=[
+            _rival("backlash_change", True, 8e-6),
+            _rival("stiffness_change", True, 60.0),
+            _rival("inertia_change", False, 5e-4),
+        ]
+    )
+    second = SimpleNamespace(candidates=[_rival("current_lag", True, 2e-4)])
+    return [first, second]
+
+
+def _two_accepted() -> list[Accepted]:
+    return [
+        Accepted(["backlash_change"], (8e-6,), {"motor_order": 6.0}, 1),
+        Accepted(["current_lag"], (2e-4,), {"motor_order": 6.0}, 2),
+    ]
+
+
+SWAP_BASE = {"backlash": 8e-6, "current_time_constant": 2e-4}
+
+
+def _gap(swapped_left: float):
+    """Residual RMS 4 with the backlash, ``swapped_left`` with the stiffness instead."""
+
+    def gap(overrides: dict[str, float]) -> np.ndarray:
+        size = swapped_left if "resonance_frequency" in overrides else 4.0
+        return 2.0 * size * PATTERN  # normalised RMS: size
+
+    return gap
+
+
+def test_rivals_are_the_other_passing_hypotheses_of_the_effects_round():
+    found = rivals(_rounds(), _two_accepted(), set())
+    assert [(j, c.name) for j, c in found] == [(0, "stiffness_change")]
+    assert rivals(_rounds(), _two_accepted(), {"stiffness_change"}) == []  # never swapped back in
+    unknown = [Accepted(["backlash_change"], (8e-6,), {}, 0)]
+    assert rivals(_rounds(), unknown, set()) == []
+
+
+def test_a_rival_that_leaves_much_less_replaces_its_effect():
+    pool = SwapPool(_gap(1.0), {"stiffness_change": {"resonance_frequency": 60.0}})
+    accepted, records = _two_accepted(), []
+    replays = Replays([_gap(1.0)(SWAP_BASE)], [_gap(1.0)(SWAP_BASE)])
+    result = _swapping(pool).swap(_rounds(), accepted, SWAP_BASE, replays, records)
+    assert result is not None
+    base, after = result
+    assert base == {"current_time_constant": 2e-4, "resonance_frequency": 60.0}
+    assert np.allclose(after.judging[0], _gap(1.0)(base))
+    assert [a.name for a in accepted] == ["stiffness_change", "current_lag"]
+    assert accepted[0].round == 1 and accepted[0].context == {"motor_order": 6.0}
+    assert [(r.removed, r.candidate.name, r.kept) for r in records] == [
+        ("backlash_change", "stiffness_change", True)
+    ]
+    assert records[0].candidate.passes
+    assert records[0].candidate.judgement.gain.evidence_z > 100.0
+    fit = next(t for t in pool.asked if isinstance(t, FitTask))
+    assert "backlash" not in fit.base and fit.base["current_time_constant"] == 2e-4
+    assert fit.start == (60.0,)  # from the rival's fit of its round
+    joint = next(t for t in pool.asked if isinstance(t, JointFitTask))
+    assert joint.hypotheses == ("stiffness_change", "current_lag")
+
+
+def test_the_joint_refit_of_the_swapped_model_is_judged_when_it_leaves_less():
+    def joint(sequential: dict[str, float]) -> dict[str, float]:
+        return {**sequential, "resonance_frequency": 58.0, "refitted": 1.0}
+
+    def gap(overrides: dict[str, float]) -> np.ndarray:
+        if "refitted" in overrides:
+            return 2.0 * PATTERN  # norm 1
+        return (3.0 if "resonance_frequency" in overrides else 4.0) * 2.0 * PATTERN
+
+    pool = SwapPool(gap, {"stiffness_change": {"resonance_frequency": 60.0}}, joint)
+    replays = Replays([gap(SWAP_BASE)], [gap(SWAP_BASE)])
+    base, _ = _swapping(pool).swap(_rounds(), _two_accepted(), SWAP_BASE, replays, [])
+    assert base["refitted"] == 1.0
+
+
+def test_no_swap_when_the_rival_does_not_fit_better_beyond_the_noise():
+    pool = SwapPool(_gap(4.0), {"stiffness_change": {"resonance_frequency": 60.0}})
+    accepted, records = _two_accepted(), []
+    replays = Replays([_gap(4.0)(SWAP_BASE)], [_gap(4.0)(SWAP_BASE)])
+    assert _swapping(pool).swap(_rounds(), accepted, SWAP_BASE, replays, records) is None
+    assert [a.name for a in accepted] == ["backlash_change", "current_lag"]
+    assert len(records) == 1 and not records[0].kept and not records[0].candidate.passes
+
+
+def test_nothing_is_fitted_without_rivals():
+    pool = SwapPool(_gap(1.0), {})
+    records: list[Swap] = []
+    replays = Replays([_gap(1.0)(SWAP_BASE)], [_gap(1.0)(SWAP_BASE)])
+    accepted = _two_accepted()[1:]
+    assert _swapping(pool).swap(_rounds(), accepted, SWAP_BASE, replays, records) is None
+    assert pool.asked == [] and records == []
+
+
+# --- cold refits of the accepted effects on top of the others
+
+CARD = {h.name: h for h in plant_model("drive2mass").hypotheses}
+REFIT_LIBRARY = {
+    "stribeck": SimpleNamespace(
+        kind="continuous",
+        relative_size=None,
+        sets={"stribeck_friction": 0, "stribeck_speed": 0},
+        parameters=CARD["stribeck"].parameters,  # a level and a shape (log) parameter
+    ),
+    "inertia_change": SimpleNamespace(
+        kind="continuous",
+        relative_size=None,
+        sets={"motor_inertia": 0},
+        parameters=CARD["inertia_change"].parameters,
+    ),
+    "dead_time": SimpleNamespace(
+        kind="scan",
+        relative_size=None,
+        sets={"dead_time_steps": 0},
+        parameters=CARD["dead_time"].parameters,
+    ),
+}
+
+
+@dataclass
+class RefitPool:
+    """Refits return ``refits[(name, profile)]`` or else ``refits[name]`` on top of their base;
+    ``left`` is ``lefts[overrides]`` (a number: that many times a unit vector of 100 samples; or
+    the vector itself)."""
+
+    refits: dict[str | tuple[str, bool], dict[str, float]]
+    lefts: dict[tuple, float | np.ndarray]
+    asked: list = field(default_factory=list)
+
+    def tasks(self, phase: str, tasks: list) -> list:
+        self.asked.extend(tasks)
+        results = []
+        for task in tasks:
+            if isinstance(task, FitTask):
+                values = self.refits.get((task.hypothesis, task.profile))
+                values = values or self.refits[task.hypothesis]
+                results.append(
+                    FitResult(task.hypothesis, values, {**task.base, **values}, 0.0, 1, "")
+                )
+            else:
+                assert isinstance(task, SimulateTask) and task.with_training
+                results.append(Replays([task.overrides], [task.overrides]))
+        return results
+
+    def left(self, overrides: dict[str, float], replays: Replays) -> np.ndarray:
+        left = self.lefts[tuple(sorted(overrides.items()))]
+        return left if isinstance(left, np.ndarray) else np.full(100, left / 10.0)
+
+
+def _refitting(pool: RefitPool, library: dict | None = None) -> Selector:
+    """The selector on ``pool``; the held-out data last 1 s (100 independent samples per
+    signal)."""
+    return Selector(pool, library or REFIT_LIBRARY, _HeldOut(1.0), DiagnosisSettings(), 1.0)
+
+
+BASE = {"stribeck_friction": 0.107, "stribeck_speed": 0.87, "motor_inertia": 3.3e-4}
+
+
+def _accepted() -> list[Accepted]:
+    return [
+        Accepted(["stribeck"], (0.107, 0.87), {}),
+        Accepted(["inertia_change"], (0.15,), {}),
+        Accepted(["dead_time"], (3.0,), {}),
+    ]
+
+
+def _key(overrides: dict[str, float]) -> tuple:
+    return tuple(sorted(overrides.items()))
+
+
+def test_the_best_cold_refit_replaces_its_effect_when_it_leaves_less():
+    stribeck = {"stribeck_friction": 0.16, "stribeck_speed": 0.58}
+    inertia = {"motor_inertia": 3.4e-4}
+    lefts = {_key(BASE): 3.8, _key({**BASE, **stribeck}): 1.0, _key({**BASE, **inertia}): 3.5}
+    pool = RefitPool({"stribeck": stribeck, "inertia_change": inertia}, lefts)
+    accepted = _accepted()
+    refitted = _refitting(pool).refresh(accepted, BASE, Replays([BASE], [BASE]))
+    assert refitted is not None
+    base, replays, record = refitted
+    assert base == {**BASE, **stribeck}
+    assert replays.judging == [base]
+    assert accepted[0].values == (0.16, 0.58)
+    assert accepted[1].values == (0.15,)  # the other refit left more: unchanged
+    fits = [t for t in pool.asked if isinstance(t, FitTask)]
+    # no scan refitted; the Stribeck curve twice: the global search and the profile over its speed
+    assert [(t.hypothesis, t.profile) for t in fits] == [
+        ("stribeck", False),
+        ("inertia_change", False),
+        ("stribeck", True),
+    ]
+    assert all(t.start is None for t in fits)  # cold starts
+    assert "stribeck_friction" not in fits[0].base and "motor_inertia" in fits[0].base
+    assert "motor_inertia" not in fits[1].base and "stribeck_speed" in fits[1].base
+    assert record.effect == "stribeck"
+    assert record.values_before == (0.107, 0.87) and record.values_after == (0.16, 0.58)
+    assert (record.left_before, record.left_after) == (3.8, 1.0)
+    # energy left 14.44 -> 1: all of the excess; z = 13.44 / (2 * 2.8 / sqrt(200)) = 33.9
+    assert record.gain.excess_share == 1.0
+    assert abs(record.gain.evidence_z - 13.44 / (2 * 2.8 / np.sqrt(200))) < 1e-9
+    assert abs(record.gain.critical_z - 2.713) < 1e-3  # level 0.01 shared by the three refits
+    assert record.significant
+
+
+def test_the_profile_refit_replaces_the_curve_when_it_leaves_less_than_the_global_search():
+    """The global search stops in the wide valley (the area right, the width wrong); the
+    profile over the speed finds the narrow one."""
+    wide = {"stribeck_friction": 0.116, "stribeck_speed": 0.91}
+    narrow = {"stribeck_friction": 0.149, "stribeck_speed": 0.615}
+    inertia = {"motor_inertia": 3.4e-4}
+    lefts = {
+        _key(BASE): 3.4,
+        _key({**BASE, **wide}): 3.3,
+        _key({**BASE, **narrow}): 0.6,
+        _key({**BASE, **inertia}): 3.5,
+    }
+    refits = {("stribeck", False): wide, ("stribeck", True): narrow, "inertia_change": inertia}
+    pool = RefitPool(refits, lefts)
+    accepted = _accepted()
+    base, _, record = _refitting(pool).refresh(accepted, BASE, Replays([BASE], [BASE]))
+    assert base == {**BASE, **narrow}
+    assert accepted[0].values == (0.149, 0.615) and record.values_after == (0.149, 0.615)
+    assert record.left_after == 0.6 and record.significant
+
+
+def test_a_refit_within_the_noise_replaces_its_effect_but_is_not_significant():
+    """A refit that leaves a little less, as noise could, is taken, and judged no gain."""
+    rng = np.random.default_rng(0)
+    before = 1.33 * np.ones(100) / 10.0
+    after = before - 0.002 * rng.standard_normal(100)  # leaves a little less, within the noise
+    after *= 0.999 * np.linalg.norm(before) / np.linalg.norm(after)
+    stribeck = {"stribeck_friction": 0.11, "stribeck_speed": 0.86}
+    inertia = {"motor_inertia": 3.4e-4}
+    lefts = {
+        _key(BASE): before,
+        _key({**BASE, **stribeck}): after,
+        _key({**BASE, **inertia}): 1.4,
+    }
+    pool = RefitPool({"stribeck": stribeck, "inertia_change": inertia}, lefts)
+    refitted = _refitting(pool).refresh(_accepted(), BASE, Replays([BASE], [BASE]))
+    assert refitted is not None
+    base, _, record = refitted
+    assert base == {**BASE, **stribeck}
+    assert record.left_after < record.left_before
+    assert record.gain.evidence_z < record.gain.critical_z
+    assert not record.significant
+
+
+def test_a_refit_needs_its_fair_share_of_the_excess_to_be_significant():
+    """A gain far beyond the noise that removes under 1/12 of the excess energy is no gain."""
+    before = np.zeros(10_000)
+    before[0] = 10.0  # energy 100, excess 99
+    after = before.copy()
+    after[0] = np.sqrt(100.0 - 5.0)  # removes 5 of the 99: z large, share 0.05 < 1/12
+    stribeck = {"stribeck_friction": 0.11, "stribeck_speed": 0.86}
+    library = {**REFIT_LIBRARY, **{f"other_{k}": REFIT_LIBRARY["dead_time"] for k in range(9)}}
+    pool = RefitPool(
+        {"stribeck": stribeck, "inertia_change": {"motor_inertia": 3.4e-4}},
+        {
+            _key(BASE): before,
+            _key({**BASE, **stribeck}): after,
+            _key({**BASE, "motor_inertia": 3.4e-4}): 11.0,
+        },
+    )
+    _, _, record = _refitting(pool, library).refresh(_accepted(), BASE, Replays([BASE], [BASE]))
+    assert record.gain.evidence_z > record.gain.critical_z
+    assert abs(record.gain.excess_share - 5.0 / 99.0) < 1e-12
+    assert record.gain.fair_share == 1.0 / 12.0
+    assert not record.significant
+
+
+def test_the_model_stays_as_it_is_when_no_refit_leaves_less():
+    stribeck = {"stribeck_friction": 0.05, "stribeck_speed": 1.9}
+    inertia = {"motor_inertia": 3.4e-4}
+    lefts = {_key(BASE): 1.0, _key({**BASE, **stribeck}): 1.2, _key({**BASE, **inertia}): 1.0}
+    pool = RefitPool({"stribeck": stribeck, "inertia_change": inertia}, lefts)
+    accepted = _accepted()
+    assert _refitting(pool).refresh(accepted, BASE, Replays([BASE], [BASE])) is None
+    assert [a.values for a in accepted] == [a.values for a in _accepted()]
+
+
+def test_a_single_effect_is_not_refitted():
+    pool = RefitPool({}, {})
+    assert _refitting(pool).refresh(_accepted()[:1], BASE, Replays([BASE], [BASE])) is None
+    assert pool.asked == []

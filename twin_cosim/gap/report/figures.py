@@ -1,0 +1,205 @@
+"""The figures of a diagnosis report (PNG files, matplotlib's Agg backend).
+
+Written after the report's pages and files (:mod:`twin_cosim.gap.report.pages`), unless
+``twin diagnose --no-plots``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
+
+from twin_cosim.gap.data import regimes as regime_model  # noqa: E402
+from twin_cosim.gap.data.residuals import joined  # noqa: E402
+from twin_cosim.gap.diagnosis import Diagnosis  # noqa: E402
+from twin_cosim.gap.report.verdict import STROKE_END  # noqa: E402
+from twin_cosim.gap.where import spectra as spectra  # noqa: E402
+from twin_cosim.metrics import UM_PER_M  # noqa: E402
+
+REGIME_COLOURS = {
+    "standstill": "#dddddd",
+    "breakaway": "#f4a582",
+    "acceleration": "#92c5de",
+    "constant_velocity": "#ffffff",
+    "reversal": "#d6604d",
+}
+
+
+def _shade_regimes(ax, t: np.ndarray, labels: np.ndarray) -> None:
+    for code, name in enumerate(regime_model.REGIMES):
+        if name == "constant_velocity":
+            continue
+        for start, stop in regime_model.segments(labels, code):
+            ax.axvspan(
+                t[start], t[min(stop, len(t) - 1)], color=REGIME_COLOURS[name], alpha=0.5, lw=0
+            )
+
+
+def _saved(fig, path: Path) -> Path:
+    """Lay the figure out, write it to ``path`` (PNG, 100 dpi) and free it."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def plot_residuals(d: Diagnosis, path: Path) -> Path:
+    """Position and current residuals over time, regimes shaded, before and after the effects."""
+    fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    for res, label, style in (
+        (d.train_before, "before (training)", "-"),
+        (d.holdout_before, "before (held out)", "-"),
+        (d.holdout_after, "after the accepted effects (held out)", "-"),
+    ):
+        axes[0].plot(res.t, res.position * UM_PER_M, style, lw=0.7, label=label)
+        axes[1].plot(res.t, res.current, style, lw=0.7, label=label)
+    for ax in axes:
+        _shade_regimes(ax, d.train_before.t, d.train_before.regimes)
+        _shade_regimes(ax, d.holdout_before.t, d.holdout_before.regimes)
+        ax.axvline(d.context.train_end, color="k", ls="--", lw=1)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+    axes[0].set_ylabel("position residual [um]")
+    axes[1].set_ylabel("current residual [A]")
+    axes[1].set_xlabel(
+        "t [s]  (shading: standstill grey, breakaway orange, acceleration blue, reversal red)"
+    )
+    return _saved(fig, path)
+
+
+def plot_regimes(d: Diagnosis, path: Path) -> Path:
+    """Share of residual energy against share of time per regime."""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    names = list(regime_model.REGIMES)
+    x = np.arange(len(names))
+    for ax, signal in zip(axes, ("position", "current"), strict=True):
+        shares = getattr(d.where, signal)
+        ax.bar(x - 0.2, [shares[n]["time_share"] for n in names], 0.4, label="time share")
+        ax.bar(
+            x + 0.2, [shares[n]["energy_share"] for n in names], 0.4, label="residual energy share"
+        )
+        ax.set_xticks(x, [n.replace("_", "\n") for n in names], fontsize=8)
+        ax.set_title(f"{signal} residual")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3, axis="y")
+    return _saved(fig, path)
+
+
+def plot_spectra(d: Diagnosis, path: Path) -> Path:
+    """Amplitude spectra of the training residual before the accepted effects (measured minus
+    the nominal twin): in Hz over the whole training data, and in orders of the motor and the
+    screw angle over its constant-velocity stretches; position left, current right."""
+    res = d.train_before
+    dt = float(np.median(np.diff(res.t)))
+    stretches = regime_model.segments(res.regimes, regime_model.REGIMES.index("constant_velocity"))
+    fig, axes = plt.subplots(3, 2, figsize=(11, 9.5))
+    for column, (signal, values, unit) in enumerate(
+        (("position", res.position * UM_PER_M, "um"), ("current", res.current, "A"))
+    ):
+        f, a = spectra.frequency_spectrum(values, dt)
+        axes[0, column].loglog(f[1:], a[1:] + 1e-12, lw=0.7)
+        axes[0, column].set_xlabel("frequency [Hz]")
+        axes[0, column].set_title(f"{signal} residual, whole training data", fontsize=10)
+        for row, (angle_name, angle) in enumerate(
+            (("motor", res.motor_angle), ("screw", d.context.screw_angle(res.motor_angle))), start=1
+        ):
+            orders, amplitude = spectra.order_spectrum(values, angle, stretches)
+            if len(orders):
+                axes[row, column].semilogy(orders[1:], amplitude[1:] + 1e-12, lw=0.8)
+            axes[row, column].set_xlabel(f"order of the {angle_name} angle [cycles/rev]")
+            axes[row, column].set_title(
+                f"{signal} residual, {angle_name} angle orders (constant velocity)", fontsize=10
+            )
+        for row in range(3):
+            axes[row, column].set_ylabel(f"amplitude [{unit}]")
+            axes[row, column].grid(alpha=0.3, which="both")
+    fig.suptitle(
+        "Residual spectra: training data, before the accepted effects (measured - nominal twin)"
+    )
+    return _saved(fig, path)
+
+
+def plot_ranking(d: Diagnosis, path: Path) -> Path:
+    """Evidence of each hypothesis (first round) beyond the noise, with the acceptance line."""
+    rows = d.rounds[0].candidates
+    fig, ax = plt.subplots(figsize=(9, 4))
+    if rows:
+        ax.barh([c.name for c in rows], [max(c.judgement.gain.evidence_z, 0.0) for c in rows])
+        ax.axvline(rows[0].judgement.gain.critical_z, color="r", ls="--", label="acceptance")
+        ax.set_xscale("symlog", linthresh=1.0)
+        ax.invert_yaxis()
+        ax.legend()
+    ax.set_xlabel(
+        "held-out evidence z beyond calibration and noise (listed by training BIC, best first)"
+    )
+    ax.grid(alpha=0.3, axis="x")
+    return _saved(fig, path)
+
+
+SPAN_COLOURS = {False: "tab:red", True: "tab:purple"}  # by AxisSpan.at_stroke_end
+SPAN_LABELS = {False: "along the travel", True: STROKE_END}
+
+
+def plot_along_axis(d: Diagnosis, path: Path) -> Path:
+    """Normalised residual energy over the carriage position, per direction, before and after
+    the accepted effects, with the spans where it is concentrated (red along the travel,
+    purple where the axis starts, stops or reverses)."""
+    fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    sigma_x, sigma_i = d.floors.sigma_position_m, d.floors.sigma_current
+    panels = (
+        (
+            joined([d.train_before, d.holdout_before]),
+            "before the accepted effects (training and held-out data)",
+            d.where.along_axis,
+        ),
+        (
+            d.holdout_after,
+            "after the accepted effects (held-out data)",
+            d.remaining_where.along_axis,
+        ),
+    )
+    for ax, (res, title, spans) in zip(axes, panels, strict=True):
+        energy = res.normalised_energy(sigma_x, sigma_i)
+        for sign, colour in ((1, "tab:blue"), (-1, "tab:orange")):
+            inside = res.direction == sign
+            ax.plot(
+                res.x[inside] * 1e3,
+                energy[inside],
+                ".",
+                ms=1.5,
+                color=colour,
+                label=f"moving {'+' if sign > 0 else '-'}",
+            )
+        for span in spans:
+            ax.axvspan(span.from_mm, span.to_mm, color=SPAN_COLOURS[span.at_stroke_end], alpha=0.2)
+        ax.axhline(1.0, color="k", lw=0.8, ls="--", label="noise at the floors")
+        handles = ax.get_legend_handles_labels()[0] + [
+            Patch(color=colour, alpha=0.2, label=f"span {SPAN_LABELS[at_end]}")
+            for at_end, colour in SPAN_COLOURS.items()
+            if any(s.at_stroke_end == at_end for s in spans)
+        ]
+        if np.any(energy > 0):
+            ax.set_yscale("log")
+        ax.set_title(title, fontsize=10)
+        ax.set_ylabel("normalised energy\n(1: noise at the floors)")
+        ax.grid(alpha=0.3)
+        ax.legend(
+            handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, markerscale=4
+        )
+    axes[1].set_xlabel("carriage position [mm]")
+    return _saved(fig, path)
+
+
+def write_figures(d: Diagnosis, out: Path) -> None:
+    """Write the report's figures (:data:`twin_cosim.gap.report.pages.FIGURES`) into ``out``."""
+    plot_residuals(d, out / "residuals.png")
+    plot_regimes(d, out / "regimes.png")
+    plot_along_axis(d, out / "along_axis.png")
+    plot_spectra(d, out / "spectra.png")
+    plot_ranking(d, out / "ranking.png")

@@ -1,0 +1,551 @@
+"""Replays of a scenario on the twin, and hypothesis fits on them, done by pool workers.
+
+A :class:`ReplaySpec` (the scenarios, numbers and the training data: it pickles) builds a
+:class:`Replayer` once per worker process: one plant instance, reset for every replay. Tasks:
+
+- :class:`SimulateTask`: replay the judging scenarios (the training scenario first when asked)
+  with some FMU parameters; returns the records;
+- :class:`FitTask`: fit one hypothesis on the training data (scipy least_squares on replays, or a
+  scan of discrete values) on top of already accepted effects;
+- :class:`JointFitTask`: refit accepted effects together with the calibrated parameters.
+
+Each result comes back with the CPU time the task took (:class:`Timed`).
+
+The fit minimises the normalised training residual: position residual / sigma_x and current
+residual / sigma_i (sigma: noise floors measured at standstill), over the training samples only;
+a replay for the fit stops at the end of the training window.
+
+Every parameter set is clipped into the FMU's variable ranges before it reaches the FMU, so that
+nothing derived from data can be refused by the plant; a replay that fails anyway scores ten
+times the residual of the fit's starting point (at least 1e3 per sample), never better than a
+valid fit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.optimize import differential_evolution, least_squares
+
+from twin_cosim.cosim import RunAborted, run_scenario
+from twin_cosim.gap.floors.evidence import EFFECTIVE_SAMPLE_SPACING_S
+from twin_cosim.hypotheses import Hypothesis
+from twin_cosim.plant import Plant, PlantError
+from twin_cosim.plant_model import plant_model
+from twin_cosim.reference import ReferenceGrid
+from twin_cosim.run_record import RunRecord
+from twin_cosim.scenario import Scenario
+
+FIT_EVALUATIONS = 10  # residual evaluations per least_squares polish (plus its Jacobians)
+JOINT_EVALUATIONS = 5  # residual evaluations of a joint refit (each with its Jacobian)
+FIT_STEP = 0.02  # finite-difference step, as a fraction of each parameter's range
+GLOBAL_POPULATION_PER_PARAMETER = 8
+# Generations of the global search after its first population: from the start values (round 1)
+# and from the previous round's fit (later rounds: the start is already near a valley).
+GLOBAL_GENERATIONS = 3
+WARM_GENERATIONS = 1
+# A cold refit of a level and a shape parameter (on a log scale) profiles over the shape: the
+# level fitted at PROFILE_POINTS shape values evenly spaced on the fit's unit scale, with
+# PROFILE_EVALUATIONS residual evaluations each (plus their Jacobians).
+PROFILE_POINTS = 12
+PROFILE_EVALUATIONS = 3
+FAILURE_FACTOR = 10.0  # a failed replay's residual, relative to the fit's starting residual
+FAILURE_FLOOR = 1e3  # least normalised residual per sample of a failed replay
+
+
+@dataclass(frozen=True)
+class Timed:
+    """A pool task's result and the CPU time (s) the worker spent on it."""
+
+    result: Any
+    cpu_s: float
+
+
+def bounded(hypothesis: Hypothesis, ranges: dict[str, tuple[float, float]]) -> Hypothesis:
+    """The hypothesis with the bounds of parameters that are FMU parameters narrowed to their
+    ranges in the variable table (the start value moved inside when needed)."""
+    parameters = []
+    for p in hypothesis.parameters:
+        if p.name in ranges:
+            low, high = max(p.lower, ranges[p.name][0]), min(p.upper, ranges[p.name][1])
+            p = dataclasses.replace(
+                p, lower=low, upper=high, initial=min(max(p.initial, low), high)
+            )
+        parameters.append(p)
+    return dataclasses.replace(hypothesis, parameters=tuple(parameters))
+
+
+def clipped(
+    overrides: dict[str, float], ranges: dict[str, tuple[float, float]]
+) -> dict[str, float]:
+    """FMU parameters clipped into their (min, max) ranges of the variable table."""
+    result = {}
+    for name, value in overrides.items():
+        low, high = ranges.get(name, (-np.inf, np.inf))
+        result[name] = float(min(max(value, low), high))
+    return result
+
+
+@dataclass(frozen=True)
+class TrainingData:
+    """Training samples of the measured runs.
+
+    Attributes
+    ----------
+    t, x, current : list of numpy.ndarray
+        Per run: sample times (s), measured position (m), measured current (A).
+    scenario_of_run : list of int
+        Per run: the index of the training scenario it follows.
+    sigma_x, sigma_i : float
+        Noise floors used to normalise the position (m) and current (A) residuals.
+    end : float
+        End of the training window, s.
+    """
+
+    t: list[np.ndarray]
+    x: list[np.ndarray]
+    current: list[np.ndarray]
+    scenario_of_run: list[int]
+    sigma_x: float
+    sigma_i: float
+    end: float
+
+
+def cut(scenario: Scenario, end: float) -> Scenario:
+    """The scenario up to ``end`` (s): reference and disturbance signals."""
+    grid = scenario.reference
+    keep = grid.time <= end + 1e-12
+    if keep.all():
+        return scenario
+    return dataclasses.replace(
+        scenario,
+        reference=ReferenceGrid(
+            grid.period, grid.position[keep], grid.velocity[keep], grid.acceleration[keep]
+        ),
+        disturbance=None if scenario.disturbance is None else scenario.disturbance[keep],
+        command_disturbance=(
+            None if scenario.command_disturbance is None else scenario.command_disturbance[keep]
+        ),
+    )
+
+
+def normalised_residual(records: list[RunRecord], data: TrainingData) -> np.ndarray:
+    """Position and current residuals of every run over its samples, normalised by the floors;
+    each run against the record of the training scenario it follows."""
+    parts = []
+    for t, x, current, k in zip(data.t, data.x, data.current, data.scenario_of_run, strict=True):
+        t_sim, x_sim, i_sim = records[k]["t"], records[k]["x"], records[k]["current"]
+        parts.append((x - np.interp(t, t_sim, x_sim)) / data.sigma_x)
+        parts.append((current - np.interp(t, t_sim, i_sim)) / data.sigma_i)
+    return np.concatenate(parts)
+
+
+@dataclass(frozen=True)
+class Replays:
+    """Records of one parameter set: each training scenario's (when asked) and each judging
+    scenario's, in the order of :attr:`ReplaySpec.training_scenarios` and
+    :attr:`ReplaySpec.judging`."""
+
+    training: list[RunRecord] | None
+    judging: list[RunRecord]
+
+
+@dataclass(frozen=True)
+class SimulateTask:
+    """Replay the judging scenarios with these FMU parameters (on top of the nominal).
+
+    ``with_training``: also the training scenarios' replays (a judging scenario's replay when
+    it is the same scenario, as for a time split).
+    """
+
+    overrides: dict[str, float]
+    with_training: bool = False
+
+
+@dataclass(frozen=True)
+class FitTask:
+    """Fit one hypothesis on top of ``base`` (the accepted effects' FMU parameters).
+
+    ``context`` holds data-derived settings of the hypotheses (orders of periodic effects,
+    encoder resolution).
+    """
+
+    hypothesis: str
+    base: dict[str, float]
+    context: dict[str, float]
+    start: tuple[float, ...] | None = None  # the previous round's fit (physical units)
+    profile: bool = False  # a level and a shape parameter: start from the shape's profile
+
+
+@dataclass(frozen=True)
+class JointFitTask:
+    """Refit accepted effects together with the calibrated parameters, each effect on top of the
+    FMU parameters of those before it.
+
+    ``start`` holds each hypothesis' fitted values (physical units) and ``contexts`` its
+    data-derived settings; scanned hypotheses keep their values, the others are refitted
+    together by least squares from ``start``. Each of ``calibrated`` moves by a factor
+    (1 + a tolerance) under a Gaussian prior of width the tolerance (calibration error is a
+    nuisance the training data may correct, at a price): the cost is the mean squared normalised
+    training residual plus |a|^2 over the training's independent samples.
+    """
+
+    hypotheses: tuple[str, ...]
+    start: tuple[tuple[float, ...], ...]
+    contexts: tuple[dict[str, float], ...]
+    calibrated: tuple[str, ...] = ()
+    tolerance: float = 0.0
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """Outcome of a fit: fitted values by name, the FMU parameters, the training cost."""
+
+    hypothesis: str
+    values: dict[str, float]
+    overrides: dict[str, float]
+    train_cost: float
+    replays: int
+    message: str
+
+
+@dataclass(frozen=True)
+class ReplaySpec:
+    """Recipe of a replay worker.
+
+    Attributes
+    ----------
+    training_scenarios : list of Scenario
+        The distinct scenarios the training runs follow (the scenario itself, or, for a scenario
+        whose reference comes from a measured file, each run's own reference and disturbance).
+    judging : list of Scenario
+        The distinct scenarios the held-out runs follow (the training scenarios themselves for a
+        time split).
+    fmu : str
+        Plant FMU.
+    nominal : dict
+        Nominal FMU parameters of the twin (start values, the scenario's, the identified noise).
+    training : TrainingData
+        What the fits see.
+    model : str
+        The FMU's model identifier, which selects the hypothesis library.
+    ranges : dict
+        (min, max) of every FMU parameter, from the variable table.
+    """
+
+    training_scenarios: list[Scenario]
+    judging: list[Scenario]
+    fmu: str
+    nominal: dict[str, float]
+    training: TrainingData
+    model: str
+    ranges: dict[str, tuple[float, float]]
+
+    def build(self) -> Replayer:
+        """The worker."""
+        return Replayer(self)
+
+
+class Replayer:
+    """Replays and fits on one plant instance."""
+
+    def __init__(self, spec: ReplaySpec) -> None:
+        self.spec = spec
+        self.hypotheses = {h.name: h for h in plant_model(spec.model).hypotheses}
+        self.plant = Plant(Path(spec.fmu))
+        self.failure_residual = FAILURE_FLOOR
+        self.training_cut = [cut(s, spec.training.end) for s in spec.training_scenarios]
+
+    def replay(self, scenario: Scenario, overrides: dict[str, float]) -> RunRecord:
+        """One scenario replayed with nominal plus ``overrides`` (clipped into their ranges)."""
+        parameters = clipped({**self.spec.nominal, **overrides}, self.spec.ranges)
+        return run_scenario(self.plant, scenario, plant_overrides=parameters)
+
+    def simulate(self, task: SimulateTask) -> Replays:
+        """The judging scenarios' replays (and the training scenario's when asked)."""
+        judging = [self.replay(s, task.overrides) for s in self.spec.judging]
+        training = None
+        if task.with_training:
+            training = []
+            for scenario in self.spec.training_scenarios:
+                same = [i for i, j in enumerate(self.spec.judging) if j is scenario]
+                training.append(judging[same[0]] if same else self.replay(scenario, task.overrides))
+        return Replays(training, judging)
+
+    def training_residual(self, overrides: dict[str, float]) -> np.ndarray:
+        """Normalised training residual; a failed replay scores a large constant residual."""
+        try:
+            records = [self.replay(s, overrides) for s in self.training_cut]
+        except (RunAborted, PlantError):
+            n = sum(2 * len(t) for t in self.spec.training.t)
+            return np.full(n, self.failure_residual)
+        return normalised_residual(records, self.spec.training)
+
+    def __call__(self, task: SimulateTask | FitTask | JointFitTask) -> Timed:
+        """The task's result and the CPU time it took."""
+        start = time.process_time()
+        if isinstance(task, SimulateTask):
+            result = self.simulate(task)
+        elif isinstance(task, JointFitTask):
+            result = self.joint_fit(task)
+        else:
+            result = self.fit(task)
+        return Timed(result, time.process_time() - start)
+
+    def joint_fit(self, task: JointFitTask) -> FitResult:
+        """Refit several hypotheses together (values by ``hypothesis.parameter``)."""
+        hypotheses = [bounded(self.hypotheses[n], self.spec.ranges) for n in task.hypotheses]
+        free = [h.kind == "continuous" for h in hypotheses]
+        starts = [np.array(v, dtype=float) for v in task.start]
+
+        def values_of(u: np.ndarray) -> list[np.ndarray]:
+            values, at = [], 0
+            for h, start, fitted in zip(hypotheses, starts, free, strict=True):
+                if fitted:
+                    values.append(h.from_unit(u[at : at + len(start)]))
+                    at += len(start)
+                else:
+                    values.append(start)
+            return values
+
+        calibrated = task.calibrated
+        effect_count = sum(len(s) for s, fitted in zip(starts, free, strict=True) if fitted)
+
+        def overrides_of(values: list[np.ndarray], a: np.ndarray) -> dict[str, float]:
+            overrides = {
+                name: self.spec.nominal[name] * (1.0 + a_j * task.tolerance)
+                for name, a_j in zip(calibrated, a, strict=True)
+            }
+            for h, v, context in zip(hypotheses, values, task.contexts, strict=True):
+                overrides |= h.to_plant(v, {**self.spec.nominal, **overrides}, context)
+            return overrides
+
+        samples = sum(2 * len(t) for t in self.spec.training.t)
+        seconds = sum(float(t[-1] - t[0]) for t in self.spec.training.t)
+        prior = math.sqrt(samples / max(seconds / EFFECTIVE_SAMPLE_SPACING_S, 1.0))
+
+        def residual(u: np.ndarray) -> np.ndarray:
+            a = u[effect_count:]
+            training = self.training_residual(overrides_of(values_of(u), a))
+            return np.concatenate([training, prior * a])
+
+        u0 = np.concatenate(
+            [
+                np.clip([p.to_unit(x) for p, x in zip(h.parameters, s, strict=True)], 0.0, 1.0)
+                for h, s, fitted in zip(hypotheses, starts, free, strict=True)
+                if fitted
+            ]
+            + [np.zeros(len(calibrated))]
+        )
+        start = self.training_residual(overrides_of(starts, np.zeros(len(calibrated))))
+        self.failure_residual = max(
+            FAILURE_FLOOR, FAILURE_FACTOR * float(np.sqrt(np.mean(start**2)))
+        )
+        best, cost, replays, message = u0, float(np.mean(start**2)), 1, "nothing to refit"
+        if len(u0):
+            lower = np.r_[np.zeros(effect_count), -np.ones(len(calibrated))]
+            upper = np.ones(len(u0))
+            solution = least_squares(
+                residual,
+                u0,
+                bounds=(lower, upper),
+                diff_step=FIT_STEP,
+                max_nfev=JOINT_EVALUATIONS,
+                x_scale=1.0,
+            )
+            found = float(np.sum(solution.fun**2)) / samples
+            if found < cost:
+                best, cost = solution.x, found
+            replays += int(solution.nfev + (solution.njev or 0) * len(u0))
+            message = solution.message
+        values = values_of(best)
+        return FitResult(
+            "+".join(task.hypotheses),
+            {
+                f"{h.name}.{name}": value
+                for h, v in zip(hypotheses, values, strict=True)
+                for name, value in h.named(v).items()
+            }
+            | {
+                f"calibration.{n}": float(a)
+                for n, a in zip(calibrated, best[effect_count:], strict=True)
+            },
+            clipped(overrides_of(values, best[effect_count:]), self.spec.ranges),
+            cost,
+            replays,
+            message,
+        )
+
+    def fit(self, task: FitTask) -> FitResult:
+        """Fit a hypothesis by least squares on replays, or by scanning its discrete values."""
+        hypothesis = bounded(self.hypotheses[task.hypothesis], self.spec.ranges)
+        nominal = {**self.spec.nominal, **task.base}
+
+        def overrides_of(values: np.ndarray) -> dict[str, float]:
+            return {**task.base, **hypothesis.to_plant(values, nominal, task.context)}
+
+        def cost(values: np.ndarray) -> float:
+            residual = self.training_residual(overrides_of(values))
+            return float(np.mean(residual**2))
+
+        start = self.training_residual(dict(task.base))
+        self.failure_residual = max(
+            FAILURE_FLOOR, FAILURE_FACTOR * float(np.sqrt(np.mean(start**2)))
+        )
+
+        if hypothesis.kind == "scan":
+            candidates = hypothesis.scan_values(task.context)
+            if not candidates:
+                return FitResult(task.hypothesis, {}, {}, float("inf"), 0, "no candidate value")
+            costs = [cost(values) for values in candidates]
+            best = candidates[int(np.argmin(costs))]
+            return FitResult(
+                task.hypothesis,
+                hypothesis.named(best),
+                clipped(overrides_of(best), self.spec.ranges),
+                min(costs),
+                len(candidates),
+                f"scanned {len(candidates)} values",
+            )
+
+        def residual_of_unit(u: np.ndarray) -> np.ndarray:
+            return self.training_residual(overrides_of(hypothesis.from_unit(u)))
+
+        if task.profile and shape_index(hypothesis) is not None:
+            u0, grid_replays = profile_start(hypothesis, residual_of_unit)
+        else:
+            u0, grid_replays = self._coarse_start(hypothesis, residual_of_unit, task.start)
+        solution = least_squares(
+            residual_of_unit,
+            u0,
+            bounds=(0.0, 1.0),
+            diff_step=FIT_STEP,
+            max_nfev=FIT_EVALUATIONS,
+            x_scale=1.0,
+        )
+        values = hypothesis.from_unit(solution.x)
+        train_cost = float(np.mean(solution.fun**2))
+        replays = grid_replays + int(solution.nfev + (solution.njev or 0) * len(u0))
+        return FitResult(
+            task.hypothesis,
+            hypothesis.named(values),
+            clipped(overrides_of(values), self.spec.ranges),
+            train_cost,
+            replays,
+            solution.message,
+        )
+
+    @staticmethod
+    def _coarse_start(
+        hypothesis: Hypothesis, residual_of_unit, previous: tuple[float, ...] | None
+    ) -> tuple[np.ndarray, int]:
+        """Start of the local fit: a small global search for one or two parameters.
+
+        Stick-slip and backlash make the training cost rough, with narrow valleys (a Stribeck
+        level 2 % off can cost ten times the optimum), so a local fit from one start stalls. For
+        one or two parameters scipy's differential evolution (seeded, no polish; a population of
+        GLOBAL_POPULATION_PER_PARAMETER per parameter, holding the start values, and
+        GLOBAL_GENERATIONS generations) picks the start of least_squares. With the previous
+        round's fit (``previous``, physical units) the population holds it instead and evolves
+        WARM_GENERATIONS generations: the accepted effects moved the valley, they seldom remove
+        it. Three-parameter hypotheses (the nearly linear lead error) start from the previous
+        fit or their start values.
+        """
+        if previous is not None and len(previous) == len(hypothesis.parameters):
+            start = np.array(
+                [p.to_unit(v) for p, v in zip(hypothesis.parameters, previous, strict=True)]
+            )
+            generations = WARM_GENERATIONS
+        else:
+            start, generations = hypothesis.initial_unit(), GLOBAL_GENERATIONS
+        start = np.clip(start, 0.0, 1.0)
+        if len(start) > 2:
+            return start, 0
+        count = 0
+
+        def cost(u: np.ndarray) -> float:
+            nonlocal count
+            count += 1
+            return float(np.mean(residual_of_unit(u) ** 2))
+
+        popsize = GLOBAL_POPULATION_PER_PARAMETER
+        search = differential_evolution(
+            cost,
+            [(0.0, 1.0)] * len(start),
+            popsize=popsize,
+            x0=start,
+            polish=False,
+            seed=0,
+            maxiter=generations,
+            tol=1e-3,
+        )
+        return np.clip(search.x, 0.0, 1.0), count
+
+    def close(self) -> None:
+        """Free the plant."""
+        self.plant.close()
+
+
+def shape_index(hypothesis: Hypothesis) -> int | None:
+    """Index of the shape parameter of a hypothesis of a level and a shape (the one of its two
+    parameters the fit moves on a log scale, e.g. the Stribeck speed), or None."""
+    logs = [i for i, p in enumerate(hypothesis.parameters) if p.log]
+    if len(hypothesis.parameters) != 2 or len(logs) != 1:
+        return None
+    return logs[0]
+
+
+def profile_start(hypothesis: Hypothesis, residual_of_unit) -> tuple[np.ndarray, int]:
+    """Start of a cold fit of a level and a shape parameter: the profile over the shape.
+
+    The training cost is rough in the shape (a Stribeck curve too wide with a level too low
+    has about the right area: a valley of its own, and the global search's few generations
+    can stop there), while at a given shape the level enters the residual nearly linearly. So
+    the level is fitted by least squares (PROFILE_EVALUATIONS evaluations, from its start
+    value) at PROFILE_POINTS shape values spread evenly on the unit (log) scale, and the
+    best of these starts the local fit of both.
+
+    Parameters
+    ----------
+    hypothesis
+        The hypothesis (two parameters, one on a log scale: :func:`shape_index`).
+    residual_of_unit
+        Normalised training residual of the parameters on the unit scale.
+
+    Returns
+    -------
+    numpy.ndarray, int
+        The start on the unit scale and the replays the profile took.
+    """
+    shape = shape_index(hypothesis)
+    level = 1 - shape
+    initial = np.clip(hypothesis.initial_unit(), 0.0, 1.0)
+    best, replays = (math.inf, initial), 0
+    for value in (np.arange(PROFILE_POINTS) + 0.5) / PROFILE_POINTS:
+
+        def at_shape(a: np.ndarray, value: float = value) -> np.ndarray:
+            u = np.empty(2)
+            u[level], u[shape] = a[0], value
+            return residual_of_unit(u)
+
+        solution = least_squares(
+            at_shape,
+            initial[level : level + 1],
+            bounds=(0.0, 1.0),
+            diff_step=FIT_STEP,
+            max_nfev=PROFILE_EVALUATIONS,
+            x_scale=1.0,
+        )
+        replays += int(solution.nfev + (solution.njev or 0))
+        cost = float(np.mean(solution.fun**2))
+        if cost < best[0]:
+            u = np.empty(2)
+            u[level], u[shape] = solution.x[0], value
+            best = (cost, u)
+    return best[1], replays
