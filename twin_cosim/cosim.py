@@ -30,7 +30,6 @@ record of the plant's outputs per speed-loop sample) joins the same way.
 
 from __future__ import annotations
 
-import ctypes
 import math
 import weakref
 from collections.abc import Mapping, Sequence
@@ -303,17 +302,12 @@ def _prologue(axes: Sequence[AxisRun], abort_error: float, speed_loop_record: bo
 
 
 class FastCalls:
-    """Addresses (ints) of one loaded plant's fmi2 C functions, for the compiled master."""
+    """Addresses (ints) of one loaded plant's FMI C functions and its FMI version, for the
+    compiled master."""
 
     def __init__(self, plant: Plant) -> None:
-        dll = plant.fmu.dll
-        address = {
-            name: ctypes.cast(getattr(dll, name), ctypes.c_void_p).value
-            for name in ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
-        }
-        self.set_real: int = address["fmi2SetReal"]
-        self.do_step: int = address["fmi2DoStep"]
-        self.get_real: int = address["fmi2GetReal"]
+        self.version: int = plant.fmi_version
+        self.set_real, self.do_step, self.get_real = plant.function_addresses()
 
 
 _FAST_CALLS: weakref.WeakKeyDictionary[Plant, FastCalls] = weakref.WeakKeyDictionary()
@@ -333,6 +327,7 @@ def _step_compiled(run: _Prologue) -> tuple[int, int, int]:
     calls = [fast_calls(a.plant) for a in axes]
     injected = run.injections
     status, step, at = compiled_loops().master(
+        np.array([c.version for c in calls], dtype=np.int64),
         np.array([c.set_real for c in calls], dtype=np.int64),
         np.array([c.do_step for c in calls], dtype=np.int64),
         np.array([c.get_real for c in calls], dtype=np.int64),
@@ -374,8 +369,7 @@ def _step_reference(run: _Prologue) -> tuple[int, int, int]:
     vr_out = [[int(v) for v in row] for row in run.vr_out]
 
     def read_outputs(a: int) -> list[float]:
-        plant = axes[a].plant
-        return plant.call("fmi2GetReal", plant.fmu.getReal, vr_out[a])
+        return axes[a].plant.get_reals(vr_out[a])
 
     outputs = [read_outputs(a) for a in range(len(axes))]
     for i in range(run.samples):
@@ -424,9 +418,8 @@ def _step_reference(run: _Prologue) -> tuple[int, int, int]:
                 inputs[_IN_CURRENT] = current
                 if load_torque is not None:
                     inputs[_IN_DISTURBANCE] = load_torque[a, k]
-                plant = axis.plant
-                plant.call("fmi2SetReal", plant.fmu.setReal, vr_in[a], inputs)
-                plant.call("fmi2DoStep", plant.fmu.doStep, k * h, h)
+                axis.plant.set_reals(vr_in[a], inputs)
+                axis.plant.do_step(k * h, h)
                 outputs[a] = read_outputs(a)
             record[a, i, _CURRENT] = current_sum / run.ratio
     return 0, -1, -1
@@ -448,7 +441,8 @@ def _raise_stopped(
         raise aborted
     log = "\n  ".join(axis.plant.messages[-10:]) or "(no message logged)"
     raise PlantError(
-        f"{named}{axis.plant.fmu_path}: fmi2 call failed with status {status} at speed-loop "
+        f"{named}{axis.plant.fmu_path}: fmi{axis.plant.fmi_version} call failed with status "
+        f"{status} at speed-loop "
         f"step {step} (t = {t:.6f} s). FMU log:\n  {log}"
     )
 
@@ -483,7 +477,7 @@ def run_axes(
     RunAborted
         An axis' error left the band (the axis named when the run has several).
     PlantError
-        An fmi2 call failed (with the FMU's log).
+        An FMI call failed (with the FMU's log).
     """
     run = _prologue(axes, abort_error, speed_loop_record)
     status, step, at = (_step_compiled if fast else _step_reference)(run)

@@ -316,7 +316,8 @@ def _hypothesis(
 
 
 def fmu_identity(fmu: Path | str) -> tuple[str, set[str], dict[str, float]]:
-    """Model identifier, variable names and parameter start values of an FMU file."""
+    """Model identifier, variable names and parameter start values of an FMU file (FMI 2.0 or
+    3.0: the independent variable that FMI 3.0 declares, ``time``, is not among the names)."""
     from fmpy import read_model_description  # fmpy is heavy; only commands with an FMU file
 
     description = read_model_description(str(fmu), validate=False)
@@ -330,7 +331,8 @@ def fmu_identity(fmu: Path | str) -> tuple[str, set[str], dict[str, float]]:
         for v in description.modelVariables
         if v.causality == "parameter" and v.start is not None
     }
-    return identifier, {v.name for v in description.modelVariables}, starts
+    names = {v.name for v in description.modelVariables if v.causality != "independent"}
+    return identifier, names, starts
 
 
 def model_of(fmu: Path | str | None) -> str:

@@ -218,6 +218,19 @@ def test_a_plant_of_another_model_is_warned_about(tmp_path, twin_cli):
     assert "is model 'emps'" in warning
 
 
+def test_the_fmi3_fmu_of_the_scenarios_model_runs_as_its_own_plant(tmp_path, twin_cli):
+    """`--plant` takes the FMI 3.0 FMU of the same model: no mismatch warning (its independent
+    variable ``time`` is no other variable), the record of the FMI 2.0 FMU."""
+    fmi3 = build_fmu("drive2mass", fmi_version=3)
+    three = twin_cli("simulate", "reference1", "--plant", str(fmi3), "--out", str(tmp_path / "3"))
+    two = twin_cli("simulate", "reference1", "--no-plots", "--out", str(tmp_path / "2"))
+    assert three.returncode == 0 and two.returncode == 0, three.stderr + two.stderr
+    assert "warning" not in three.stderr
+    assert (tmp_path / "3" / "record.csv").read_bytes() == (
+        tmp_path / "2" / "record.csv"
+    ).read_bytes()
+
+
 def test_a_second_run_of_a_scenario_needs_no_scipy():
     """Reference preparation is cached across runs: resolving reference 1 again (a new
     process) reads the stored grid instead of importing SciPy's spline."""

@@ -258,3 +258,45 @@ def test_axes_must_share_rates_and_have_their_own_instance(plants, grids):
     short = ReferenceGrid(grids[1].period, *(a[:100] for a in (grids[1].position,) * 3))
     with pytest.raises(ValueError, match="axis Y"):
         run_axes([axes[0], AxisRun("Y", plants[1], short, TABLE3["ft"], axes[0].settings)])
+
+
+@pytest.fixture(scope="module")
+def fmi3_fmu():
+    from fmu_build.build import build_fmu
+
+    return build_fmu("drive2mass", fmi_version=3)
+
+
+def test_an_fmi3_plant_runs_on_both_paths_as_the_fmi2_plant(fmu_path, fmi3_fmu, reference1):
+    """The FMI 3.0 FMU of the same sources gives the FMI 2.0 FMU's trajectory (1e-12), alone and
+    as one axis beside an FMI 2.0 axis of the same run."""
+    with Plant(fmi3_fmu) as three, Plant(fmu_path) as two:
+        assert (three.fmi_version, two.fmi_version) == (3, 2)
+        for fast in (True, False):
+            theirs = run_scenario(three, reference1, fast=fast).to_numpy()
+            own = run_scenario(two, reference1, fast=fast).to_numpy()
+            assert np.max(np.abs(theirs - own)) <= 1e-12
+    with Plant(fmi3_fmu, "X3") as three, Plant(fmu_path, "Y2") as two:
+        grid = reference1.reference
+        settings = reference1.settings
+        axes = [
+            AxisRun("X", three, grid, TABLE3["ft"], settings, {"backlash": 2e-5}),
+            AxisRun("Y", two, grid, TABLE3["ft"], settings, {"backlash": 2e-5}),
+        ]
+        records = run_axes(axes)
+        x, y = records["X"].position_loop.to_numpy(), records["Y"].position_loop.to_numpy()
+        assert np.max(np.abs(x - y)) <= 1e-12
+
+
+def test_a_failing_fmi3_call_stops_the_run_with_its_message(fmi3_fmu, reference1):
+    """fmi3DoStep fails inside the loop (a 20 kHz coupling, 4 substeps of 62.5 us): both paths
+    stop with the FMU's message, and the plant runs again after it."""
+    too_stiff = {"resonance_frequency": 20000.0}
+    with Plant(fmi3_fmu) as plant:
+        with pytest.raises(PlantError, match="fmi3 call failed with status 3(.|\n)*too long"):
+            run_scenario(plant, reference1, plant_overrides=too_stiff)
+        with pytest.raises(PlantError, match="fmi3DoStep failed(.|\n)*too long"):
+            run_scenario(plant, reference1, fast=False, plant_overrides=too_stiff)
+        run_scenario(plant, reference1)
+    with Plant(fmi3_fmu) as plant, pytest.raises(PlantError, match="fmi3SetFloat64.*backlash"):
+        run_scenario(plant, reference1, plant_overrides={"backlash": -1.0})

@@ -194,7 +194,7 @@ def open_loop(
         for k in range(steps):
             for name, plant in plants.plants.items():
                 inputs, outputs = refs[name]
-                plant.fmu.setReal(inputs, [float(currents[name][k]), 0.0])
-                plant.fmu.doStep(k * h, h)
-                found[name][k] = plant.fmu.getReal(outputs)
+                plant.set_reals(inputs, [float(currents[name][k]), 0.0])
+                plant.do_step(k * h, h)
+                found[name][k] = plant.get_reals(outputs)
     return found

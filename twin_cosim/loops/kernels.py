@@ -1,5 +1,5 @@
-"""The compiled master: the P-PI cascade stepping the plant FMUs of N axes through their fmi2 C
-functions.
+"""The compiled master: the P-PI cascade stepping the plant FMUs of N axes through their FMI C
+functions (FMI 2.0 or FMI 3.0, per axis).
 
 One plain Python function over numbers and arrays (:func:`master`), compiled by numba: just in
 time here (with numba's on-disk cache), or ahead of time into a shared library by
@@ -8,10 +8,12 @@ without numba). Callers reach it through :func:`twin_cosim.loops.compiled_loops`
 shared library when it is built for these sources; :mod:`twin_cosim.cosim` prepares its
 arguments.
 
-The fmi2 functions are called by address (:func:`real_call`, :func:`do_step`): the addresses of
-``fmi2SetReal``, ``fmi2DoStep`` and ``fmi2GetReal`` and the instance handle are plain integers, so
-that the signature holds only numbers and arrays and compiles ahead as well as just in time.
-Each call returns the fmi2Status as an integer; the master checks it.
+The FMI functions are called by address (:func:`real_call`, :func:`do_step` for FMI 2.0;
+:func:`float64_call`, :func:`do_step3` for FMI 3.0): the addresses of ``fmi2SetReal``,
+``fmi2DoStep`` and ``fmi2GetReal`` (or ``fmi3SetFloat64``, ``fmi3DoStep``, ``fmi3GetFloat64``) and
+the instance handle are plain integers, so that the signature holds only numbers and arrays and
+compiles ahead as well as just in time. Each call returns the status as an integer (FMI 2.0 and
+3.0 number theirs alike: 0 OK, 1 warning, 2 discard, 3 error, 4 fatal); the master checks it.
 """
 
 from __future__ import annotations
@@ -40,6 +42,17 @@ _STATUS = ir.IntType(32)  # fmi2Status, an enum
 _POINTER = ir.IntType(8).as_pointer()
 _REAL_CALL = ir.FunctionType(_STATUS, [_POINTER, _POINTER, ir.IntType(64), _POINTER])
 _DO_STEP = ir.FunctionType(_STATUS, [_POINTER, ir.DoubleType(), ir.DoubleType(), _STATUS])
+# FMI 3.0: fmi3SetFloat64 / fmi3GetFloat64 take the number of values as well; fmi3DoStep takes
+# noSetFMUStatePriorToCurrentPoint as a bool and returns four values through pointers.
+_BOOL = ir.IntType(8)
+_FLOAT64_CALL = ir.FunctionType(
+    _STATUS, [_POINTER, _POINTER, ir.IntType(64), _POINTER, ir.IntType(64)]
+)
+_DO_STEP3 = ir.FunctionType(
+    _STATUS,
+    [_POINTER, ir.DoubleType(), ir.DoubleType(), _BOOL, _POINTER, _POINTER, _POINTER, _POINTER],
+)
+FMI3 = 3  # an axis' FMI version, as the master's ``versions`` give it
 
 
 @intrinsic
@@ -87,6 +100,60 @@ def do_step(typingctx, address, component, time, step, no_prior_state):  # type:
     return signature, codegen
 
 
+@intrinsic
+def float64_call(typingctx, address, component, references, count, values):  # type: ignore[no-untyped-def]
+    """``fmi3SetFloat64`` or ``fmi3GetFloat64`` at ``address``: (instance, value references
+    (uint32 pointer), count, values (float64 pointer), count of values: the same) -> status."""
+    signature = types.int64(types.intp, types.intp, types.intp, types.intp, types.intp)
+
+    def codegen(context, builder, sig, args):  # type: ignore[no-untyped-def]
+        function = builder.inttoptr(args[0], _FLOAT64_CALL.as_pointer())
+        component_, references_, count_, values_ = args[1:]
+        status = builder.call(
+            function,
+            [
+                builder.inttoptr(component_, _POINTER),
+                builder.inttoptr(references_, _POINTER),
+                count_,
+                builder.inttoptr(values_, _POINTER),
+                count_,
+            ],
+        )
+        return builder.sext(status, ir.IntType(64))
+
+    return signature, codegen
+
+
+@intrinsic
+def do_step3(typingctx, address, component, time, step, scratch):  # type: ignore[no-untyped-def]
+    """``fmi3DoStep`` at ``address``: (instance, communication point (s), step size (s),
+    ``scratch``: the address of 16 bytes that receive eventHandlingNeeded, terminateSimulation,
+    earlyReturn (a byte each, at 0, 1, 2) and lastSuccessfulTime (a double, at 8)) -> status.
+    noSetFMUStatePriorToCurrentPoint is true: the master never sets a state back."""
+    signature = types.int64(types.intp, types.intp, types.float64, types.float64, types.intp)
+
+    def codegen(context, builder, sig, args):  # type: ignore[no-untyped-def]
+        function = builder.inttoptr(args[0], _DO_STEP3.as_pointer())
+        base = args[4]
+        flags = [
+            builder.inttoptr(builder.add(base, ir.Constant(ir.IntType(64), offset)), _POINTER)
+            for offset in (0, 1, 2, 8)
+        ]
+        status = builder.call(
+            function,
+            [
+                builder.inttoptr(args[1], _POINTER),
+                args[2],
+                args[3],
+                ir.Constant(_BOOL, 1),
+                *flags,
+            ],
+        )
+        return builder.sext(status, ir.IntType(64))
+
+    return signature, codegen
+
+
 # The controller's functions compiled; the master inlines them.
 position_loop = numba.njit(cache=True)(controller.position_loop)
 speed_loop = numba.njit(cache=True)(controller.speed_loop)
@@ -94,11 +161,33 @@ speed_loop = numba.njit(cache=True)(controller.speed_loop)
 
 @numba.njit(cache=True)
 def exchange(
-    set_real, step, get_real, component, vr_in, inputs, n_in, vr_out, outputs, n_out, t, h
+    version,
+    set_real,
+    step,
+    get_real,
+    component,
+    vr_in,
+    inputs,
+    n_in,
+    vr_out,
+    outputs,
+    n_out,
+    t,
+    h,
+    scratch,
 ):  # pragma: no cover - compiled
     """Set the ``n_in`` inputs, doStep(t, h) (s), read the ``n_out`` outputs (value references
-    and values at the addresses ``vr_in``, ``inputs``, ``vr_out``, ``outputs``); the first
-    failing fmi2 status, or the last one."""
+    and values at the addresses ``vr_in``, ``inputs``, ``vr_out``, ``outputs``) through the FMI
+    ``version``'s functions (``scratch``: 16 bytes for fmi3DoStep's results); the first failing
+    status, or the last one."""
+    if version == FMI3:
+        status = float64_call(set_real, component, vr_in, n_in, inputs)
+        if status > FMI2_OK_OR_WARNING:
+            return status
+        status = do_step3(step, component, t, h, scratch)
+        if status > FMI2_OK_OR_WARNING:
+            return status
+        return float64_call(get_real, component, vr_out, n_out, outputs)
     status = real_call(set_real, component, vr_in, n_in, inputs)
     if status > FMI2_OK_OR_WARNING:
         return status
@@ -110,6 +199,7 @@ def exchange(
 
 @numba.njit(cache=True)
 def master(
+    versions,
     set_reals,
     steps,
     get_reals,
@@ -142,8 +232,11 @@ def master(
 
     Parameters
     ----------
+    versions
+        Per axis: the FMI version of its plant (2 or 3).
     set_reals, steps, get_reals, components
-        Per axis: the addresses of fmi2SetReal, fmi2DoStep, fmi2GetReal and the instance.
+        Per axis: the addresses of the version's SetReal (fmi2SetReal or fmi3SetFloat64), DoStep
+        and GetReal (fmi2GetReal or fmi3GetFloat64), and the instance.
     vr_in, vr_out
         Per axis: the value references of the contract's inputs and outputs.
     p, s
@@ -178,7 +271,7 @@ def master(
     Returns
     -------
     tuple
-        fmi2 status (0 when the run finished, :data:`ABORTED`), where it stopped (the speed-loop
+        FMI status (0 when the run finished, :data:`ABORTED`), where it stopped (the speed-loop
         step, -1 before the first and when it finished) and the axis (-1 when it finished).
     """
     n_axes = components.shape[0]
@@ -186,6 +279,8 @@ def master(
     inputs = np.zeros((n_axes, n_in))
     outputs = np.zeros((n_axes, n_out))
     h = period / ratio
+    scratch = np.zeros(2)  # fmi3DoStep's four results (never read)
+    scratch_address = scratch.ctypes.data
     # The options: off when their arrays are empty; each test below is the same for the whole
     # run. Without any at the speed loop, a speed-loop sample takes the plain branch, one test.
     torque_on = load_torque.shape[1] > 0
@@ -196,13 +291,12 @@ def master(
     recording = speed_record.shape[1] > 0
     plain = not (torque_on or current_on or speed_on or noise_on or recording)
     for a in range(n_axes):
-        status = real_call(
-            get_reals[a],
-            components[a],
-            vr_out.ctypes.data + a * vr_out.strides[0],
-            n_out,
-            outputs.ctypes.data + a * outputs.strides[0],
-        )
+        axis_vr_out = vr_out.ctypes.data + a * vr_out.strides[0]
+        axis_outputs = outputs.ctypes.data + a * outputs.strides[0]
+        if versions[a] == FMI3:
+            status = float64_call(get_reals[a], components[a], axis_vr_out, n_out, axis_outputs)
+        else:
+            status = real_call(get_reals[a], components[a], axis_vr_out, n_out, axis_outputs)
         if status > FMI2_OK_OR_WARNING:
             return status, -1, a
     # The axis' controller rows: one axis keeps its views for the whole run (a view made per
@@ -229,7 +323,7 @@ def master(
             if abs(setpoint - position) > abort_error:
                 return ABORTED, i * ratio, a
             set_real, step, get_real = set_reals[a], steps[a], get_reals[a]
-            component = components[a]
+            version, component = versions[a], components[a]
             axis_vr_in = vr_in.ctypes.data + a * vr_in.strides[0]
             axis_inputs = inputs.ctypes.data + a * inputs.strides[0]
             axis_vr_out = vr_out.ctypes.data + a * vr_out.strides[0]
@@ -262,6 +356,7 @@ def master(
                         inputs[a, IN_DISTURBANCE] = load_torque[a, k]
                 inputs[a, IN_CURRENT] = current
                 status = exchange(
+                    version,
                     set_real,
                     step,
                     get_real,
@@ -274,6 +369,7 @@ def master(
                     n_out,
                     k * h,
                     h,
+                    scratch_address,
                 )
                 if status > FMI2_OK_OR_WARNING:
                     return status, k, a
