@@ -86,13 +86,51 @@ GRID_DEFAULT = {"radii_mm": [10.0], "feeds_mm_min": [1000.0], "directions": ["cc
 
 
 @dataclass(frozen=True)
+class ContourCampaignSpec:
+    """What a machine's campaign optimizes and how (stored in ``campaign.json``).
+
+    Attributes
+    ----------
+    scenario : str
+        Machine scenario file (``axes:``; its ``optimize`` section sets the target, the circles
+        and the bounds).
+    method : str
+        Optimizer name.
+    seed : int
+        Its seed.
+    budget : int or None
+        Most evaluations; the method's default when None.
+    program : str or None
+        Part program to tune on instead of the circles.
+    target : str or None
+        ``G``, ``spike`` or ``contour``; the scenario's when None.
+    early_stop : bool
+        Stop candidates early where that is exact.
+    start : str or None
+        Sets the search starts from (a Table 3 set or a file, as ``--params``: one set or one
+        per axis); the scenario's own when None. The reference of the relative scores and of
+        the IAU caps stays the scenario's own sets.
+    """
+
+    scenario: str
+    method: str
+    seed: int = 0
+    budget: int | None = None
+    program: str | None = None
+    target: str | None = None
+    early_stop: bool = True
+    start: str | None = None
+
+
+@dataclass(frozen=True)
 class ContourSettings:
     """The checked ``optimize`` section of a machine scenario.
 
     Attributes
     ----------
     target : str
-        ``G``, ``spike`` or ``contour``.
+        What a case's value is: ``G`` (circular deviation), ``spike`` (the largest reversal
+        spike) or ``contour`` (the largest contour error), um.
     relative : bool
         Score each case against the reference sets' value on it.
     circles : tuple of CircleSpec
@@ -239,42 +277,6 @@ def case_values(
     return values
 
 
-@dataclass(frozen=True)
-class ContourCampaignSpec:
-    """What a machine's campaign optimizes and how (stored in ``campaign.json``).
-
-    Attributes
-    ----------
-    scenario : str
-        Machine scenario file (its ``optimize`` section).
-    method : str
-        Optimizer name.
-    seed : int
-        Its seed.
-    budget : int or None
-        Most evaluations; the method's default when None.
-    program : str or None
-        Part program to tune on instead of the circles.
-    target : str or None
-        ``G``, ``spike`` or ``contour``; the scenario's when None.
-    early_stop : bool
-        Stop candidates early where that is exact.
-    start : str or None
-        Sets the search starts from (a Table 3 set or a file, as ``--params``: one set or one
-        per axis); the scenario's own when None. The reference of the relative scores and of
-        the IAU caps stays the scenario's own sets.
-    """
-
-    scenario: str
-    method: str
-    seed: int = 0
-    budget: int | None = None
-    program: str | None = None
-    target: str | None = None
-    early_stop: bool = True
-    start: str | None = None
-
-
 # What a machine's campaign.json holds besides its spec (and the type of each)
 RECORD_KEYS: Mapping[str, type] = {
     "target": str,
@@ -302,7 +304,7 @@ class MachineProblem:
     Attributes
     ----------
     spec : ContourCampaignSpec
-        What was asked.
+        What was asked (``campaign.json``'s ``spec``): method, seed, budget, program, target.
     machine : MachineScenario
         The machine, its own sets the reference.
     settings : ContourSettings
@@ -441,7 +443,7 @@ class ContourObjectiveSpec:
     Attributes
     ----------
     machine : MachineScenario
-        The machine.
+        The machine: every axis' plant, controller and limits (its own sets the reference).
     settings : ContourSettings
         Target, circles and limits.
     cases : tuple of Case

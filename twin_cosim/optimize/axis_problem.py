@@ -150,7 +150,7 @@ class AxisProblem:
     Attributes
     ----------
     spec : CampaignSpec
-        What was asked.
+        What was asked (``campaign.json``'s ``spec``): scenarios, method, seed, robust options.
     scenarios : tuple of Scenario
         Its scenarios, resolved (:func:`campaign_scenarios`).
     config : OptimizeConfig

@@ -32,7 +32,12 @@ import numpy as np
 from twin_cosim.optimize.algorithms import make_optimizer, method_label
 from twin_cosim.optimize.algorithms.base import Optimizer
 from twin_cosim.optimize.config import OptimizeConfig, within_bounds
-from twin_cosim.optimize.early_stop import EXACT_METHODS, EarlyStop, GenerationValues
+from twin_cosim.optimize.early_stop import (
+    EXACT_METHODS,
+    EarlyStop,
+    EvaluationTask,
+    GenerationValues,
+)
 from twin_cosim.optimize.evaluators import (
     Evaluator,
     SchedulerError,
@@ -54,6 +59,36 @@ from twin_cosim.optimize.store import (
 from twin_cosim.workers import ProcessPool, SerialPool, WorkerFactory, check_workers, make_pool
 
 LOG = logging.getLogger(__name__)
+
+
+class ProblemObjective(Protocol):
+    """What a worker builds from a problem's recipe (:meth:`Problem.objective`): its plants,
+    loaded once and reset for every run."""
+
+    def __call__(self, task: EvaluationTask | np.ndarray) -> dict[str, Any]:
+        """The result of a candidate (physical units), or of a task: :meth:`evaluate` with the
+        task's cutoff, lowered by this worker's own complete evaluations of the task's
+        generation (:class:`~twin_cosim.optimize.early_stop.OwnEvaluations`)."""
+        ...
+
+    def evaluate(self, x: np.ndarray, cutoff_um: float) -> dict[str, Any]:
+        """The result (:func:`~twin_cosim.optimize.evaluators.evaluation_result`) of candidate
+        ``x``; once its fitness is certain to exceed ``cutoff_um`` (um) it may stop, with status
+        ``stopped`` and a lower bound above the cutoff as its fitness."""
+        ...
+
+    def reference_of(self, case: int) -> dict[str, Any]:
+        """The values of case ``case`` run with the problem's own sets."""
+        ...
+
+    def record(self, x: np.ndarray | None, case: int = 0) -> Any:
+        """The record of case ``case`` run with candidate ``x`` (None: the own sets), for
+        figures."""
+        ...
+
+    def close(self) -> None:
+        """Free the plants."""
+        ...
 
 
 class Problem(Protocol):
@@ -99,12 +134,9 @@ class Problem(Protocol):
         ...
 
     def objective(self, record: dict[str, Any] | None) -> WorkerFactory:
-        """The recipe of the objective a worker builds: ``objective(task)`` scores a candidate or
-        an :class:`~twin_cosim.optimize.early_stop.EvaluationTask` (``evaluate(x, cutoff_um)``:
-        the evaluation with a cutoff), ``reference_of(case)`` the case's reference run,
-        ``record(x, case)`` the record of a candidate's run (for figures). ``record`` is the
-        campaign's record (its cases' references: IAU caps and scales); None for the reference
-        runs."""
+        """The picklable recipe of the :class:`ProblemObjective` a worker builds (``build()``);
+        ``record`` is the campaign's record (its cases' references: IAU caps, scales), None for
+        the reference runs."""
         ...
 
     def new_record(self, references: list[dict[str, Any]], found: dict[str, Any]) -> dict:
@@ -188,12 +220,14 @@ def run_campaign(
     scheduler_timeout: float | None = None,
     pool: SerialPool | ProcessPool | None = None,
 ) -> CampaignResult:
-    """Run (or resume) a campaign over ``problem`` and write its folder.
+    """Run (or resume) a campaign over ``problem`` and write its folder; the result is
+    ``result.json``'s.
 
     Parameters
     ----------
     problem
-        What to tune.
+        What to tune: a single axis' (:class:`~twin_cosim.optimize.axis_problem.AxisProblem`)
+        or a machine's (:class:`~twin_cosim.contour.tuning.MachineProblem`).
     out_dir
         Campaign folder.
     workers
@@ -323,8 +357,8 @@ def _run_locked(
         if log is not None:
             log.close()
         raise
-    loop = AskTellLoop(optimizer, problem.config, log, evaluator, early_stop)
-    wall_s = loop.run(out_dir, progress)
+    loop = AskTellLoop(optimizer, problem.config, log, evaluator, early_stop, progress)
+    wall_s = loop.run(out_dir)
     best_unit, best_fitness = optimizer.best
     best_x = problem.config.from_unit(best_unit)
     best_entry = log.lookup(best_x)
@@ -379,7 +413,7 @@ class ReferenceRuns:
 class _CaseReferences:
     """A worker answering ``objective.reference_of(case)``."""
 
-    def __init__(self, objective: Any) -> None:
+    def __init__(self, objective: ProblemObjective) -> None:
         self.objective = objective
 
     def __call__(self, case: int) -> dict[str, Any]:
@@ -405,6 +439,8 @@ class AskTellLoop:
     early_stop
         The campaign's early stopping (on or off): the cutoffs, passes and order of each
         generation.
+    progress
+        Show a progress bar (evaluations) on stderr.
     """
 
     def __init__(
@@ -414,7 +450,10 @@ class AskTellLoop:
         log: EvaluationLog,
         evaluator: Evaluator,
         early_stop: EarlyStop,
+        progress: bool,
     ) -> None:
+        from tqdm import tqdm  # the command's process only (a worker may import this module)
+
         self.optimizer = optimizer
         self.config = config
         self.log = log
@@ -422,9 +461,14 @@ class AskTellLoop:
         self.early_stop = early_stop
         self.logged_before = {entry["key"] for entry in log.entries}
         self.reused = 0  # answers from entries logged before this run
-        self.bar = None
+        self.bar = tqdm(
+            total=optimizer.budget,
+            unit="eval",
+            disable=not progress,
+            desc=method_label(optimizer.name),
+        )
 
-    def run(self, out_dir: Path, progress: bool) -> float:
+    def run(self, out_dir: Path) -> float:
         """Ask and tell until the optimizer stops (the log synced to disk and ``progress.json``
         written after every generation), then free the evaluator, the log and the optimizer.
 
@@ -438,16 +482,8 @@ class AskTellLoop:
         CampaignError
             When the Dask scheduler is lost; the message tells how to resume.
         """
-        from tqdm import tqdm  # the command's process only (a worker may import this module)
-
         start = time.perf_counter()
         optimizer = self.optimizer
-        self.bar = tqdm(
-            total=optimizer.budget,
-            unit="eval",
-            disable=not progress,
-            desc=method_label(optimizer.name),
-        )
         try:
             while optimizer.stop_reason is None:
                 unit = optimizer.ask()
