@@ -71,18 +71,18 @@ class ProblemObjective(Protocol):
         generation (:class:`~twin_cosim.optimize.early_stop.OwnEvaluations`)."""
         ...
 
-    def evaluate(self, x: np.ndarray, cutoff_um: float) -> dict[str, Any]:
+    def evaluate(self, x: np.ndarray, cutoff: float) -> dict[str, Any]:
         """The result (:func:`~twin_cosim.optimize.evaluators.evaluation_result`) of candidate
-        ``x``; once its fitness is certain to exceed ``cutoff_um`` (um) it may stop, with status
+        ``x``; once its fitness is certain to exceed ``cutoff`` (um) it may stop, with status
         ``stopped`` and a lower bound above the cutoff as its fitness."""
         ...
 
-    def reference_of(self, case: int) -> dict[str, Any]:
-        """The values of case ``case`` run with the problem's own sets."""
+    def reference_of(self, index: int) -> dict[str, Any]:
+        """The values of case ``index`` run with the problem's own sets."""
         ...
 
-    def record(self, x: np.ndarray | None, case: int = 0) -> Any:
-        """The record of case ``case`` run with candidate ``x`` (None: the own sets), for
+    def record(self, x: np.ndarray | None, index: int = 0) -> Any:
+        """The record of case ``index`` run with candidate ``x`` (None: the own sets), for
         figures."""
         ...
 
@@ -416,8 +416,8 @@ class _CaseReferences:
     def __init__(self, objective: ProblemObjective) -> None:
         self.objective = objective
 
-    def __call__(self, case: int) -> dict[str, Any]:
-        return self.objective.reference_of(case)
+    def __call__(self, index: int) -> dict[str, Any]:
+        return self.objective.reference_of(index)
 
     def close(self) -> None:
         self.objective.close()
