@@ -169,19 +169,16 @@ class AxisProblem:
     prepare_worker = staticmethod(prepare_campaign_worker)
 
     @classmethod
-    def resolve(
-        cls, spec: CampaignSpec, scenarios: tuple[Scenario, ...] | None = None
-    ) -> AxisProblem:
-        """The problem of ``spec``: its scenarios resolved now, unless the caller has them
-        already (``scenarios``, as :func:`campaign_scenarios` resolves them).
+    def resolve(cls, spec: CampaignSpec) -> AxisProblem:
+        """The problem of ``spec``: its scenarios resolved now (:func:`campaign_scenarios`), its
+        ``optimize`` section checked and its plant samples drawn.
 
         Raises
         ------
         CampaignError, ValueError, ScenarioError
             On a bad objective, tolerance or sample count, or a file that cannot be read.
         """
-        if scenarios is None:
-            scenarios = campaign_scenarios(spec)
+        scenarios = campaign_scenarios(spec)
         config = load_config(scenarios[0])
         return cls(spec, scenarios, config, robust_settings(spec, scenarios))
 

@@ -23,7 +23,7 @@ import logging
 import os
 import zipfile
 from collections.abc import Mapping
-from dataclasses import MISSING, asdict, fields, is_dataclass
+from dataclasses import MISSING, asdict, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -100,7 +100,6 @@ def check_same_options(out_dir: Path, record: dict[str, Any], spec: Any) -> None
     The options of :data:`PATH_OPTIONS` may be given under other paths: their contents are
     checked (:func:`check_same_inputs`).
     """
-    assert is_dataclass(spec)
     defaults = {f.name: f.default for f in fields(spec) if f.default is not MISSING}
     stored = {k: v for k, v in record["spec"].items() if k not in PATH_OPTIONS}
     given = {k: v for k, v in asdict(spec).items() if k not in PATH_OPTIONS}
