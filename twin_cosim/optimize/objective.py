@@ -120,8 +120,8 @@ class Objective:
             (``E_pk_um`` um, ``ITAE`` um.s^2, ``IAU`` A.s, ...).
         """
         case = self.cases[index]
-        record = run_scenario_record(self.plant, case.scenario, plant_overrides=case.overrides)
-        return {"case": case.label, **compute_metrics(record, case.window).as_dict()}
+        metrics = compute_metrics(self.record(None, index), case.window)
+        return {"case": case.label, **metrics.as_dict()}
 
     def record(self, x: np.ndarray | None, index: int = 0) -> RunRecord:
         """The record of case ``index`` run with candidate ``x`` (physical units; None: the

@@ -9,6 +9,7 @@ import textwrap
 import numpy as np
 import pytest
 
+from twin_cosim.contour.machine_run import contour_metrics
 from twin_cosim.contour.tuning import (
     ContourCampaignSpec,
     ContourObjectiveSpec,
@@ -67,6 +68,23 @@ def test_the_objective_scores_the_reference_at_its_own_value_and_caps_iau(machin
         assert stopped["status"] == "stopped" and stopped["fitness"] > 1e-3
         refused = objective(np.zeros(12))
         assert refused["status"] == "failed"
+    finally:
+        objective.close()
+
+
+def test_the_record_of_a_run_is_the_run_a_case_is_scored_on(machine_file):
+    machine = load_machine(machine_file)
+    settings = contour_settings(machine)
+    objective = ContourObjectiveSpec(machine, settings, cases_of(settings, None)).build()
+    try:
+        own = objective.record(None, 1)
+        assert contour_metrics(own)["contour_error_max_um"] == objective.reference_of(1)["contour"]
+        stiffer = machine_vector(machine).copy()
+        stiffer[0] = stiffer[6] = 120.0  # Kp_pos of both axes
+        tuned = objective.record(stiffer, 1)
+        assert contour_metrics(tuned)["contour_error_max_um"] != pytest.approx(
+            contour_metrics(own)["contour_error_max_um"]
+        )
     finally:
         objective.close()
 

@@ -40,6 +40,14 @@ def test_valid_candidate_scores_its_epk(objective, plant):
     assert result["fitness"] == compute_metrics(record).E_pk_um
 
 
+def test_the_record_of_a_run_is_the_run_a_candidate_is_scored_on(objective, plant):
+    own = objective.record(None)
+    assert compute_metrics(own).E_pk_um == objective.reference_of(0)["E_pk_um"]
+    record = objective.record(TABLE3["ga"].as_array())
+    expected = run_scenario(plant, load_scenario(REFERENCE1), TABLE3["ga"])
+    assert compute_metrics(record).E_pk_um == compute_metrics(expected).E_pk_um
+
+
 def test_a_worse_candidate_of_the_same_generation_stops_at_the_better_ones_value(objective):
     better = objective(EvaluationTask(TABLE3["ga"].as_array(), math.inf, "g", 1))
     worse = objective(EvaluationTask(TABLE3["ft"].as_array(), math.inf, "g", 1))
