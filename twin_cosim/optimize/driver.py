@@ -40,6 +40,7 @@ from twin_cosim.optimize.early_stop import (
 )
 from twin_cosim.optimize.evaluators import (
     Evaluator,
+    ReferenceRuns,
     SchedulerError,
     check_scheduler,
     make_evaluator,
@@ -396,31 +397,6 @@ def _record(
     record = problem.new_record([answered[case] for case in range(problem.case_count)], found)
     write_record(out_dir, record)
     return record
-
-
-@dataclass(frozen=True)
-class ReferenceRuns:
-    """The recipe of a worker answering the reference run of a case (its index) of the
-    objective that ``objective`` builds (:meth:`Problem.objective`)."""
-
-    objective: WorkerFactory
-
-    def build(self) -> _CaseReferences:
-        """The worker, in the process that runs it."""
-        return _CaseReferences(self.objective.build())
-
-
-class _CaseReferences:
-    """A worker answering ``objective.reference_of(case)``."""
-
-    def __init__(self, objective: ProblemObjective) -> None:
-        self.objective = objective
-
-    def __call__(self, index: int) -> dict[str, Any]:
-        return self.objective.reference_of(index)
-
-    def close(self) -> None:
-        self.objective.close()
 
 
 class AskTellLoop:

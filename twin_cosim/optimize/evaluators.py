@@ -25,6 +25,7 @@ import queue
 import threading
 from collections.abc import Iterable, Iterator
 from concurrent.futures import CancelledError
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
 from twin_cosim.interrupts import deferred_signals, wait_interruptibly
@@ -33,6 +34,7 @@ from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, WorkerFactory
 if TYPE_CHECKING:
     from distributed import Client, Future, WorkerPlugin
 
+    from twin_cosim.optimize.driver import ProblemObjective
     from twin_cosim.workers import Worker
 
 LOG = logging.getLogger(__name__)
@@ -104,6 +106,32 @@ def make_evaluator(
     if scheduler:
         return DaskEvaluator(recipe, scheduler, scheduler_timeout)
     return BoundPool(pool, recipe)
+
+
+@dataclass(frozen=True)
+class ReferenceRuns:
+    """The recipe of a worker answering the reference run of a case (its index) of the
+    objective that ``objective`` builds (a campaign's cases are run on its evaluators' workers
+    before its candidates, :meth:`twin_cosim.optimize.driver.Problem.objective`)."""
+
+    objective: WorkerFactory
+
+    def build(self) -> _CaseReferences:
+        """The worker, in the process that runs it."""
+        return _CaseReferences(self.objective.build())
+
+
+class _CaseReferences:
+    """A worker answering ``objective.reference_of(case)``."""
+
+    def __init__(self, objective: ProblemObjective) -> None:
+        self.objective = objective
+
+    def __call__(self, index: int) -> dict[str, Any]:
+        return self.objective.reference_of(index)
+
+    def close(self) -> None:
+        self.objective.close()
 
 
 class ThreadObjectives:
