@@ -32,12 +32,7 @@ import numpy as np
 from twin_cosim.optimize.algorithms import make_optimizer, method_label
 from twin_cosim.optimize.algorithms.base import Optimizer
 from twin_cosim.optimize.config import OptimizeConfig, within_bounds
-from twin_cosim.optimize.early_stop import (
-    EXACT_METHODS,
-    EarlyStop,
-    EvaluationTask,
-    GenerationValues,
-)
+from twin_cosim.optimize.early_stop import EXACT_METHODS, EarlyStop, GenerationValues
 from twin_cosim.optimize.evaluators import (
     Evaluator,
     ReferenceRuns,
@@ -60,36 +55,6 @@ from twin_cosim.optimize.store import (
 from twin_cosim.workers import ProcessPool, SerialPool, WorkerFactory, check_workers, make_pool
 
 LOG = logging.getLogger(__name__)
-
-
-class ProblemObjective(Protocol):
-    """What a worker builds from a problem's recipe (:meth:`Problem.objective`): its plants,
-    loaded once and reset for every run."""
-
-    def __call__(self, task: EvaluationTask | np.ndarray) -> dict[str, Any]:
-        """The result of a candidate (physical units), or of a task: :meth:`evaluate` with the
-        task's cutoff, lowered by this worker's own complete evaluations of the task's
-        generation (:class:`~twin_cosim.optimize.early_stop.OwnEvaluations`)."""
-        ...
-
-    def evaluate(self, x: np.ndarray, cutoff: float) -> dict[str, Any]:
-        """The result (:func:`~twin_cosim.optimize.evaluators.evaluation_result`) of candidate
-        ``x``; once its fitness is certain to exceed ``cutoff`` (um) it may stop, with status
-        ``stopped`` and a lower bound above the cutoff as its fitness."""
-        ...
-
-    def reference_of(self, index: int) -> dict[str, Any]:
-        """The values of case ``index`` run with the problem's own sets."""
-        ...
-
-    def record(self, x: np.ndarray | None, index: int = 0) -> Any:
-        """The record of case ``index`` run with candidate ``x`` (None: the own sets), for
-        figures."""
-        ...
-
-    def close(self) -> None:
-        """Free the plants."""
-        ...
 
 
 class Problem(Protocol):
@@ -135,7 +100,8 @@ class Problem(Protocol):
         ...
 
     def objective(self, record: dict[str, Any] | None) -> WorkerFactory:
-        """The picklable recipe of the :class:`ProblemObjective` a worker builds (``build()``);
+        """The picklable recipe of the
+        :class:`~twin_cosim.optimize.evaluators.ProblemObjective` a worker builds (``build()``);
         ``record`` is the campaign's record (its cases' references: IAU caps, scales), None for
         the reference runs."""
         ...
@@ -509,7 +475,7 @@ class AskTellLoop:
             firsts[k] for k in self.early_stop.order(candidates[firsts], self.log, self.config)
         ]
         tasks = self.early_stop.tasks(candidates[firsts], values, guess)
-        in_flight = self.early_stop.in_flight(self.evaluator)
+        in_flight = self.early_stop.in_flight(self.evaluator.workers, self.evaluator.ahead)
         for j, result in self.evaluator.imap(tasks, in_flight):
             entry = self.log.append(candidates[firsts[j]], result, self.optimizer.generation)
             if result["status"] != "ok":

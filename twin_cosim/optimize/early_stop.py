@@ -66,7 +66,6 @@ from twin_cosim.optimize.algorithms.base import ceil_count
 if TYPE_CHECKING:
     from twin_cosim.optimize.algorithms.base import Optimizer
     from twin_cosim.optimize.config import OptimizeConfig
-    from twin_cosim.optimize.evaluators import Evaluator
     from twin_cosim.optimize.store import EvaluationLog
 
 EXACT_METHODS = ("ce",)
@@ -307,10 +306,10 @@ class EarlyStop:
         for x in candidates:
             yield EvaluationTask(x, min(self.cutoff(values), guess), generation, elite)
 
-    def in_flight(self, evaluator: Evaluator) -> int | None:
-        """Tasks out at a time: one per worker and the evaluator's ``ahead`` when on, else the
-        whole generation at once (None)."""
-        return evaluator.workers + evaluator.ahead if self.on else None
+    def in_flight(self, workers: int, ahead: int) -> int | None:
+        """Tasks out at a time on an evaluator of ``workers`` that keeps ``ahead`` more waiting:
+        that many when on, else the whole generation at once (None)."""
+        return workers + ahead if self.on else None
 
 
 class OwnEvaluations:

@@ -1,10 +1,12 @@
 """Evaluators of candidates: serially, on a local process pool (:mod:`twin_cosim.workers`), or on a
 Dask distributed cluster (the ``[dask]`` extra), all behind one protocol, :class:`Evaluator`.
 
-Every worker builds its problem's objective once from a picklable recipe (``recipe.build()``:
-one plant instance per worker) and resets the plant for every run. Results stream back as they
-complete, so a campaign can log each one at once; the order of completion never changes a
-result, so every evaluator gives the same campaign for the same seed.
+Every worker builds its problem's objective (:class:`ProblemObjective`) once from a picklable
+recipe (``recipe.build()``: one plant instance per worker) and resets the plant for every run;
+the same workers run the reference of each case first (:class:`ReferenceRuns`). Results
+(:func:`evaluation_result`) stream back as they complete, so a campaign can log each one at
+once; the order of completion never changes a result, so every evaluator gives the same
+campaign for the same seed.
 
 On Dask, a worker plugin (:func:`objective_plugin`, holding only the recipe, so it pickles)
 gives every thread of every Dask worker its own objective, built on the thread's first task (an
@@ -32,9 +34,10 @@ from twin_cosim.interrupts import deferred_signals, wait_interruptibly
 from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, WorkerFactory, tasks_to_give
 
 if TYPE_CHECKING:
+    import numpy as np
     from distributed import Client, Future, WorkerPlugin
 
-    from twin_cosim.optimize.driver import ProblemObjective
+    from twin_cosim.optimize.early_stop import EvaluationTask
     from twin_cosim.workers import Worker
 
 LOG = logging.getLogger(__name__)
@@ -73,6 +76,37 @@ class Evaluator(Protocol):
 
     def close(self) -> None:
         """Free the workers."""
+        ...
+
+
+class ProblemObjective(Protocol):
+    """What a worker builds from a problem's recipe
+    (:meth:`~twin_cosim.optimize.driver.Problem.objective`): its plants, loaded once and reset
+    for every run."""
+
+    def __call__(self, task: EvaluationTask | np.ndarray) -> dict[str, Any]:
+        """The result of a candidate (physical units), or of a task: :meth:`evaluate` with the
+        task's cutoff, lowered by this worker's own complete evaluations of the task's
+        generation (:class:`~twin_cosim.optimize.early_stop.OwnEvaluations`)."""
+        ...
+
+    def evaluate(self, x: np.ndarray, cutoff: float) -> dict[str, Any]:
+        """The result (:func:`evaluation_result`) of candidate
+        ``x``; once its fitness is certain to exceed ``cutoff`` (um) it may stop, with status
+        ``stopped`` and a lower bound above the cutoff as its fitness."""
+        ...
+
+    def reference_of(self, index: int) -> dict[str, Any]:
+        """The values of case ``index`` run with the problem's own sets."""
+        ...
+
+    def record(self, x: np.ndarray | None, index: int = 0) -> Any:
+        """The record of case ``index`` run with candidate ``x`` (None: the own sets), for
+        figures."""
+        ...
+
+    def close(self) -> None:
+        """Free the plants."""
         ...
 
 
