@@ -17,10 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from twin_cosim.optimize.campaign import run_campaign
-from twin_cosim.optimize.campaign_spec import CampaignSpec
+from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec, ObjectiveSpec
 from twin_cosim.optimize.config import load_config
-from twin_cosim.optimize.objective import ObjectiveSpec
+from twin_cosim.optimize.driver import run_campaign
 from twin_cosim.scenario import load_scenario
 from twin_cosim.workers import ProcessPool, SerialPool
 
@@ -60,9 +59,8 @@ def main() -> None:
     print(f"  pool of {workers}: {t_pool:.2f} s; worker start-up {startup:.2f} s")
     print(f"  parallel efficiency {t_serial / (workers * t_pool):.1%}")
     with tempfile.TemporaryDirectory() as tmp:
-        result = run_campaign(
-            CampaignSpec(SCENARIO, "ce", seed=0), Path(tmp) / "ce", progress=False
-        )
+        problem = AxisProblem.resolve(CampaignSpec(SCENARIO, "ce", seed=0))
+        result = run_campaign(problem, Path(tmp) / "ce", progress=False)
     print(
         f"CE campaign, paper settings (Table 2), seed 0, pool of {workers}: "
         f"{result.wall_s:.1f} s wall, "

@@ -34,6 +34,7 @@ are raised between two of those steps instead.
 
 from __future__ import annotations
 
+import abc
 import multiprocessing
 import multiprocessing.util
 import os
@@ -49,7 +50,7 @@ from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Protocol, Self
 
 from twin_cosim.interrupts import deferred_signals, wait_interruptibly
 
@@ -122,7 +123,47 @@ def command_temp_folder() -> Iterator[str]:
         shutil.rmtree(folder, ignore_errors=True)
 
 
-class SerialPool:
+class LocalPool(abc.ABC):
+    """What both local pools offer: tasks streamed through the workers of a factory, and a
+    context manager that closes the pool at its end."""
+
+    def imap(
+        self,
+        tasks: Iterable[Any],
+        factory: WorkerFactory | None = None,
+        in_flight: int | None = None,
+    ) -> Iterator[tuple[int, Any]]:
+        """Yield (task index, result) on ``factory``'s workers (None: the last factory's), in
+        order of completion.
+
+        ``in_flight`` tasks at most are given out at a time (None: all at once); the next task
+        is taken from ``tasks`` once a result was yielded and its consumer asks for the next
+        one, so a task made then may use every result before it.
+        """
+        if factory is not None:
+            self._use(factory)
+        return self._results(tasks, in_flight)
+
+    @abc.abstractmethod
+    def _use(self, factory: WorkerFactory) -> None:
+        """Tasks from now on run on ``factory``'s workers."""
+
+    @abc.abstractmethod
+    def _results(self, tasks: Iterable[Any], in_flight: int | None) -> Iterator[tuple[int, Any]]:
+        """The tasks' (index, result) pairs on the last factory's workers (:meth:`imap`)."""
+
+    @abc.abstractmethod
+    def close(self) -> None:
+        """Free the workers and remove the pool's temp folder."""
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+
+class SerialPool(LocalPool):
     """Runs the tasks one after the other in this process, on one worker at a time.
 
     Parameters
@@ -156,17 +197,9 @@ class SerialPool:
             self._worker = factory.build()
         self._factory = factory
 
-    def imap(
-        self,
-        tasks: Iterable[Any],
-        factory: WorkerFactory | None = None,
-        in_flight: int | None = None,
-    ) -> Iterator[tuple[int, Any]]:
-        """Yield (task index, result) for each task, in order, on ``factory``'s worker (None:
-        the last factory's); each task is taken from ``tasks`` after the result before it was
-        consumed (``in_flight`` is 1 whatever it is given as)."""
-        if factory is not None:
-            self._use(factory)
+    def _results(self, tasks: Iterable[Any], in_flight: int | None) -> Iterator[tuple[int, Any]]:
+        """Each task's result in turn, on the last factory's worker (``in_flight`` is 1 whatever
+        it is given as)."""
         if self._worker is None:
             raise RuntimeError("the pool has no worker yet: give imap a factory")
         for index, task in enumerate(tasks):
@@ -179,12 +212,6 @@ class SerialPool:
                 self._worker.close()
         finally:
             shutil.rmtree(self.folder, ignore_errors=True)
-
-    def __enter__(self) -> SerialPool:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
 
 
 _PROCESS_WORKER: Worker | None = None
@@ -323,7 +350,7 @@ def _run_in_process(task: Any, factory_file: str | None) -> Any:
     return _PROCESS_WORKER(task)
 
 
-class ProcessPool:
+class ProcessPool(LocalPool):
     """A local pool of spawned processes, one worker (one plant instance) each.
 
     The processes start at once; each runs ``prepare`` and builds ``factory``'s worker before
@@ -385,21 +412,8 @@ class ProcessPool:
         path.write_bytes(pickle.dumps(factory))
         self._factory, self._factory_file = factory, str(path)
 
-    def imap(
-        self,
-        tasks: Iterable[Any],
-        factory: WorkerFactory | None = None,
-        in_flight: int | None = None,
-    ) -> Iterator[tuple[int, Any]]:
-        """Yield (task index, result) in order of completion, on ``factory``'s workers (None:
-        the last factory's).
-
-        ``in_flight`` tasks at most are given out at a time (None: all at once); the next task
-        is taken from ``tasks`` once a result was yielded and its consumer asks for the next
-        one, so a task made then may use every result before it.
-        """
-        if factory is not None:
-            self._use(factory)
+    def _results(self, tasks: Iterable[Any], in_flight: int | None) -> Iterator[tuple[int, Any]]:
+        """The tasks' results in order of completion, on the last factory's workers."""
         self._used = True
         pending = enumerate(tasks)
         futures: dict[Future, int] = {}
@@ -447,12 +461,6 @@ class ProcessPool:
             finally:
                 shutil.rmtree(self.folder, ignore_errors=True)
 
-    def __enter__(self) -> ProcessPool:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
 
 class BoundPool:
     """A pool seen as the evaluator of one factory: its tasks run on that factory's workers.
@@ -467,7 +475,7 @@ class BoundPool:
         self.ahead = pool.ahead
 
     def imap(self, tasks: Iterable[Any], in_flight: int | None = None) -> Iterator[tuple[int, Any]]:
-        """Yield (task index, result) as :meth:`ProcessPool.imap` does."""
+        """Yield (task index, result) as :meth:`LocalPool.imap` does."""
         return self.pool.imap(tasks, self.factory, in_flight)
 
     def close(self) -> None:

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from scenario_texts import scenario_text
 
-from twin_cosim.optimize.objective import ObjectiveSpec
+from twin_cosim.optimize.axis_problem import ObjectiveSpec
 from twin_cosim.scenario import load_scenario
 from twin_cosim.workers import ProcessPool, command_temp_folder, make_pool, tasks_to_give
 

@@ -20,10 +20,11 @@ from twin_cosim.commands.options import (
     plant_path,
     whole_number,
 )
-from twin_cosim.optimize.methods import METHOD_NAMES, method_label, method_list
+from twin_cosim.optimize.algorithms import METHOD_NAMES, method_label, method_list
 
 if TYPE_CHECKING:
-    from twin_cosim.optimize.campaign_spec import CampaignResult, CampaignSpec
+    from twin_cosim.optimize.axis_problem import CampaignSpec
+    from twin_cosim.optimize.driver import CampaignResult
     from twin_cosim.painter import Painter
     from twin_cosim.workers import ProcessPool, SerialPool
 
@@ -163,25 +164,24 @@ def _run_on(
 ) -> int:
     """The campaign and its result with ``pool`` running the plant; its plots drawn by
     ``painter`` (None: no plots). 1 when the plots could not be drawn."""
-    from twin_cosim.optimize.campaign import run_campaign
-    from twin_cosim.optimize.cases import campaign_scenarios
+    from twin_cosim.optimize.axis_problem import AxisProblem
+    from twin_cosim.optimize.driver import run_campaign
 
     spec, out = _spec_and_folder(args)
-    scenarios = campaign_scenarios(spec)
-    if painter is not None:  # the painter resolves them as this process did
+    problem = AxisProblem.resolve(spec)
+    if painter is not None:  # the painter resolves it as this process did
         from twin_cosim.optimize.outputs import start_campaign_plots
 
         start_campaign_plots(spec, painter)
     if not args.resume:
-        warn_plant_mismatch(scenarios[0], plant_path(args))
+        warn_plant_mismatch(problem.scenarios[0], plant_path(args))
     try:
         result = run_campaign(
-            spec,
+            problem,
             out,
             scheduler=args.scheduler,
             resume=bool(args.resume),
             progress=not args.quiet,
-            scenarios=scenarios,
             pool=pool,
         )
     except KeyboardInterrupt as exc:
@@ -225,13 +225,12 @@ def _spec_and_folder(args: argparse.Namespace) -> tuple[CampaignSpec, Path]:
 
     On a resume, the campaign refuses given options that differ from the stored ones.
     """
-    from twin_cosim.optimize.campaign_folder import load_spec
-    from twin_cosim.optimize.campaign_spec import CampaignSpec
+    from twin_cosim.optimize.axis_problem import CampaignSpec, load_campaign_spec
 
     given = _given(args)
     if args.resume:
         out = Path(args.resume)
-        stored = load_spec(out)
+        stored = load_campaign_spec(out)
         fmu = args.plant or stored.fmu
         return dataclasses.replace(stored, scenario=args.scenario[0], fmu=fmu, **given), out
     if args.method is None:

@@ -1,17 +1,22 @@
 """``twin optimize MACHINE``: every axis' parameters tuned on circles or a part program.
 
 The machine branch of :mod:`twin_cosim.commands.optimize` (a scenario with ``axes:``); the
-campaign is :mod:`twin_cosim.contour.tuning_campaign`.
+problem is :class:`twin_cosim.contour.tuning.MachineProblem`, run by the campaign driver.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from twin_cosim.commands.options import out_folder
-from twin_cosim.optimize.methods import method_label
+from twin_cosim.optimize.algorithms import method_label
+
+if TYPE_CHECKING:
+    from twin_cosim.workers import ProcessPool, SerialPool
 
 _SINGLE_AXIS_OPTIONS = (
     "plant",
@@ -25,68 +30,67 @@ _SINGLE_AXIS_OPTIONS = (
 
 
 def run_machine_campaign(args: argparse.Namespace) -> int:
-    """Run (or resume) the machine's campaign; print its result."""
-    from twin_cosim.contour.tuning_campaign import ContourCampaignSpec, run_contour_campaign
+    """Run (or resume) the machine's campaign; print its result.
+
+    The pool's processes start first, so that they load the co-simulation while this process
+    reads the machine.
+    """
+    from twin_cosim.contour.tuning import prepare_machine_worker
+    from twin_cosim.workers import make_pool
 
     for option in _SINGLE_AXIS_OPTIONS:
         if getattr(args, option, None):
             raise ValueError(f"--{option.replace('_', '-')}: for single-axis scenarios only")
     if len(args.scenario) > 1:
         raise ValueError("a machine's campaign takes one machine scenario (its circles grid)")
+    with make_pool(None, args.workers, prepare_machine_worker) as pool:
+        return _run_on(args, pool)
+
+
+def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
+    """The campaign and its result with ``pool`` running the plants."""
+    from twin_cosim.contour.tuning import ContourCampaignSpec, MachineProblem, load_contour_spec
+    from twin_cosim.optimize.driver import run_campaign
+
+    given = {
+        "method": args.method,
+        "seed": args.seed,
+        "budget": args.budget,
+        "program": args.program,
+        "target": args.target,
+        "start": args.start,
+        "early_stop": False if args.no_early_stop else None,
+    }
+    given = {k: v for k, v in given.items() if v is not None}
     if args.resume:
         out = Path(args.resume)
-        header = out / "campaign.json"
-        if not header.is_file():
-            raise ValueError(f"--resume {out}: no campaign.json to resume from")
-        stored = json.loads(header.read_text())["spec"]
-        given = {
-            k: v
-            for k, v in {
-                "method": args.method,
-                "seed": args.seed,
-                "budget": args.budget,
-                "program": args.program,
-                "target": args.target,
-                "start": args.start,
-            }.items()
-            if v is not None
-        }
-        spec = ContourCampaignSpec(**{**stored, **given, "scenario": args.scenario[0]})
-        if args.no_early_stop:
-            spec = ContourCampaignSpec(**{**spec.__dict__, "early_stop": False})
+        spec = dataclasses.replace(load_contour_spec(out), scenario=args.scenario[0], **given)
     else:
         if args.method is None:
             raise ValueError("--method is required unless --resume is given")
-        spec = ContourCampaignSpec(
-            scenario=args.scenario[0],
-            method=args.method,
-            seed=args.seed or 0,
-            budget=args.budget,
-            program=args.program,
-            target=args.target,
-            early_stop=not args.no_early_stop,
-            start=args.start,
-        )
+        spec = ContourCampaignSpec(scenario=args.scenario[0], **given)
         out = out_folder(args.out, Path("out") / f"optimize-machine-{spec.method}-seed{spec.seed}")
+    problem = MachineProblem.load(spec)
     try:
-        result = run_contour_campaign(
-            spec, out, workers=args.workers, resume=bool(args.resume), progress=not args.quiet
+        result = run_campaign(
+            problem, out, resume=bool(args.resume), progress=not args.quiet, pool=pool
         )
     except KeyboardInterrupt as exc:
         if (out / "campaign.json").exists():
             exc.hint = f"; the log is intact: twin optimize {args.scenario[0]} --resume {out}"
         raise
     if args.json:
-        print(json.dumps(result))
+        print(json.dumps(result.as_dict()))
         return 0
-    metrics = result["metrics"] or {}
+    metrics = result.metrics or {}
+    target = result.details["target"]
     print(
-        f"{method_label(spec.method)}: fitness {result['fitness']:.3f} um (reference sets: "
-        f"{result['reference_fitness']:.3f} um), largest {result['target']} "
-        f"{metrics.get(result['target'], float('nan')):.3f} um, after {result['evaluations']} "
-        f"evaluations in {result['wall_s']:.1f} s; {result['stop_reason']}"
+        f"{method_label(spec.method)}: fitness {result.fitness:.3f} um (reference sets: "
+        f"{result.details['reference_fitness']:.3f} um), largest {target} "
+        f"{metrics.get(target, float('nan')):.3f} um, after {result.evaluations} "
+        f"evaluations in {result.wall_s:.1f} s; {result.stop_reason}"
     )
-    for axis, params in result["best_params"]["axes"].items():
+    for axis, params in result.best_params["axes"].items():
         print(f"  {axis}: " + ", ".join(f"{k}={v:.6g}" for k, v in params.items()))
     print(f"wrote {out}/result.json (twin circle ... --params {out}/result.json)")
     return 0

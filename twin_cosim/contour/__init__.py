@@ -9,7 +9,7 @@
   figures and signatures, the polar plot, ``twin circle``'s files;
 - :mod:`~twin_cosim.contour.measured_circle`, :mod:`~twin_cosim.contour.circle_diagnosis`:
   measured circular tests, their replay and per-axis diagnosis, virtual X-Y machines;
-- :mod:`~twin_cosim.contour.tuning`, :mod:`~twin_cosim.contour.tuning_campaign`: tuning every
-  axis for contours;
+- :mod:`~twin_cosim.contour.tuning`: tuning every axis for contours (a problem of the campaign
+  driver);
 - :mod:`~twin_cosim.contour.ssp`: the multi-axis plant as an SSP package.
 """

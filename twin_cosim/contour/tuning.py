@@ -1,4 +1,5 @@
-"""Tuning for contours: the objective of a machine's campaign and its ``optimize`` section.
+"""Tuning for contours: a machine's tuning problem, every axis' parameters on circles or a part
+program, run by the campaign driver (:mod:`twin_cosim.optimize.driver`).
 
 A candidate is every axis' six parameters, [X.Kp_pos, ..., X.f_H, Y.Kp_pos, ..., Y.f_H]. Its
 cases are circles (a grid of radii x feeds x directions) or a part program; on each case the
@@ -26,19 +27,26 @@ The machine scenario's ``optimize`` section::
       abort_error_um: 1000
       penalty_um: 1.0e6
       methods: {ce: {...}}
+
+A campaign's folder (:mod:`twin_cosim.optimize.store`) holds ``campaign.json`` (spec, bounds,
+fingerprints of the machine file, the program, the start sets and the FMUs, each case's
+reference values), ``evaluations.jsonl``, ``progress.json`` and ``result.json`` (``best_params``
+with ``axes``: ``twin circle --params result.json`` takes it).
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec, run_circle
-from twin_cosim.contour.gcode import Program
+from twin_cosim.contour.gcode import Program, read_program
 from twin_cosim.contour.machine_run import (
     MachinePlants,
     MachineRecord,
@@ -48,10 +56,26 @@ from twin_cosim.contour.machine_run import (
 from twin_cosim.controller import TUNED_NAMES, TunedParameters
 from twin_cosim.cosim import RunAborted
 from twin_cosim.metrics import compute_metrics
+from twin_cosim.optimize.algorithms import method_settings
 from twin_cosim.optimize.config import DEFAULT_BOUNDS, OptimizeConfig
-from twin_cosim.optimize.early_stop import OwnEvaluations, lower_bound_above
-from twin_cosim.optimize.objective import EvaluationTask, evaluation_result
+from twin_cosim.optimize.early_stop import (
+    CaseOrder,
+    EvaluationTask,
+    OwnEvaluations,
+    least_fitness,
+    lower_bound_above,
+)
+from twin_cosim.optimize.evaluators import evaluation_result
+from twin_cosim.optimize.store import (
+    CampaignError,
+    check_same_inputs,
+    fmu_fingerprint,
+    load_spec,
+    settings_fingerprint,
+)
 from twin_cosim.plant import PlantError
+from twin_cosim.pool_runs import prepare_worker
+from twin_cosim.scenario import load_axes_parameters, load_machine
 from twin_cosim.scenario.machine import MachineScenario
 from twin_cosim.schema import Checker
 
@@ -62,13 +86,51 @@ GRID_DEFAULT = {"radii_mm": [10.0], "feeds_mm_min": [1000.0], "directions": ["cc
 
 
 @dataclass(frozen=True)
+class ContourCampaignSpec:
+    """What a machine's campaign optimizes and how (stored in ``campaign.json``).
+
+    Attributes
+    ----------
+    scenario : str
+        Machine scenario file (``axes:``; its ``optimize`` section sets the target, the circles
+        and the bounds).
+    method : str
+        Optimizer name.
+    seed : int
+        Its seed.
+    budget : int or None
+        Most evaluations; the method's default when None.
+    program : str or None
+        Part program to tune on instead of the circles.
+    target : str or None
+        ``G``, ``spike`` or ``contour``; the scenario's when None.
+    early_stop : bool
+        Stop candidates early where that is exact.
+    start : str or None
+        Sets the search starts from (a Table 3 set or a file, as ``--params``: one set or one
+        per axis); the scenario's own when None. The reference of the relative scores and of
+        the IAU caps stays the scenario's own sets.
+    """
+
+    scenario: str
+    method: str
+    seed: int = 0
+    budget: int | None = None
+    program: str | None = None
+    target: str | None = None
+    early_stop: bool = True
+    start: str | None = None
+
+
+@dataclass(frozen=True)
 class ContourSettings:
     """The checked ``optimize`` section of a machine scenario.
 
     Attributes
     ----------
     target : str
-        ``G``, ``spike`` or ``contour``.
+        What a case's value is: ``G`` (circular deviation), ``spike`` (the largest reversal
+        spike) or ``contour`` (the largest contour error), um.
     relative : bool
         Score each case against the reference sets' value on it.
     circles : tuple of CircleSpec
@@ -187,25 +249,191 @@ def cases_of(settings: ContourSettings, program: Program | None) -> tuple[Case, 
     )
 
 
+def run_case(
+    machine: MachineScenario, plants: MachinePlants, case: Case, abort_error: float
+) -> tuple[MachineRecord, dict[str, float]]:
+    """Run one case: its record, and for a circle its G and largest spike |height| (um).
+
+    ``abort_error`` (m): stop once an axis' |x_ref - x| exceeds it
+    (:class:`~twin_cosim.cosim.RunAborted`).
+    """
+    if case.circle is not None:
+        run = run_circle(machine, plants, case.circle, abort_error=abort_error)
+        spike = max(abs(s.height_um) for s in run.result.spikes)
+        return run.record, {"G": run.result.G_um, "spike": spike}
+    return run_program(machine, case.program, plants, abort_error=abort_error)[0], {}
+
+
 def case_values(
     machine: MachineScenario, plants: MachinePlants, case: Case, abort_error: float
 ) -> dict[str, Any]:
-    """Run one case: its G, largest spike and contour error (um), each axis' IAU (A.s)."""
-    if case.circle is not None:
-        run = run_circle(machine, plants, case.circle, abort_error=abort_error)
-        record: MachineRecord = run.record
-        values = {
-            "G": run.result.G_um,
-            "spike": max(abs(s.height_um) for s in run.result.spikes),
-        }
-    else:
-        record = run_program(machine, case.program, plants, abort_error=abort_error)[0]
-        values = {}
+    """Run one case: its G, largest spike and contour error (um), each axis' IAU (A.s) and the
+    speed-loop steps simulated (all axes)."""
+    record, values = run_case(machine, plants, case, abort_error)
     values["contour"] = contour_metrics(record)["contour_error_max_um"]
     values["IAU"] = {name: compute_metrics(frame).IAU for name, frame in record.axes.items()}
     ratio = machine.axes[0].settings.speed_steps_per_position_step
     values["steps"] = sum(len(f) for f in record.axes.values()) * ratio
     return values
+
+
+# What a machine's campaign.json holds besides its spec (and the type of each)
+RECORD_KEYS: Mapping[str, type] = {
+    "target": str,
+    "relative": bool,
+    "cases": list,
+    "references": list,
+}
+
+
+def load_contour_spec(out_dir: Path) -> ContourCampaignSpec:
+    """The spec of the machine's campaign stored in ``out_dir`` (for ``--resume``)."""
+    return load_spec(out_dir, ContourCampaignSpec, RECORD_KEYS)
+
+
+def prepare_machine_worker() -> None:
+    """What a pool's process of a machine's campaign runs as it starts: the compiled loops
+    loaded, the machine's objective imported."""
+    prepare_worker((__name__,))
+
+
+@dataclass(frozen=True)
+class MachineProblem:
+    """A machine's campaign as the driver runs it (:class:`~twin_cosim.optimize.driver.Problem`).
+
+    Attributes
+    ----------
+    spec : ContourCampaignSpec
+        What was asked (``campaign.json``'s ``spec``): method, seed, budget, program, target.
+    machine : MachineScenario
+        The machine, its own sets the reference.
+    settings : ContourSettings
+        Its ``optimize`` section, the target given on top.
+    runs : tuple of Case
+        The cases every candidate runs: the circles, or the part program.
+    """
+
+    spec: ContourCampaignSpec
+    machine: MachineScenario
+    settings: ContourSettings
+    runs: tuple[Case, ...]
+
+    record_keys = RECORD_KEYS
+    prepare_worker = staticmethod(prepare_machine_worker)
+
+    @classmethod
+    def load(cls, spec: ContourCampaignSpec) -> MachineProblem:
+        """The problem of ``spec``: its machine, ``optimize`` section and program read now.
+
+        Raises
+        ------
+        CampaignError, ScenarioError
+            On a program with a target other than ``contour``, or a bad file.
+        """
+        machine = load_machine(spec.scenario)
+        settings = contour_settings(machine, spec.target)
+        if spec.program and settings.target != "contour":
+            raise CampaignError(f"target {settings.target}: a part program is tuned on 'contour'")
+        program = read_program(spec.program, machine.axis_names) if spec.program else None
+        return cls(spec, machine, settings, cases_of(settings, program))
+
+    @property
+    def config(self) -> OptimizeConfig:
+        """Bounds of every axis' parameters, the limits and the method settings."""
+        return self.settings.config
+
+    @property
+    def case_count(self) -> int:
+        """The runs of every candidate."""
+        return len(self.runs)
+
+    def start(self) -> np.ndarray:
+        """The sets the search starts from (``spec.start``; else the machine's own) as a
+        candidate."""
+        first = self.machine
+        if self.spec.start:
+            first = first.with_tuned(load_axes_parameters(self.spec.start, first.axis_names))
+        return machine_vector(first)
+
+    def method_settings(self) -> dict[str, Any]:
+        """The method's settings: the scenario's, and the spec's budget."""
+        spec = self.spec
+        configured = self.config.methods.get(spec.method, {})
+        return method_settings(spec.method, spec.start, configured, {}, spec.budget)
+
+    def fingerprints(self, settings: dict[str, Any]) -> dict[str, Any]:
+        """Content fingerprints of the machine file, the program, the start sets' file, each
+        axis' FMU, and the spec with the method settings."""
+        spec = self.spec
+        program = b"" if spec.program is None else Path(spec.program).read_bytes()
+        start = (
+            b""
+            if spec.start is None or not Path(spec.start).is_file()
+            else Path(spec.start).read_bytes()
+        )
+        return {
+            "scenario": hashlib.sha256(Path(self.machine.source).read_bytes()).hexdigest(),
+            "program": hashlib.sha256(program).hexdigest(),
+            "start": hashlib.sha256(start).hexdigest(),
+            "plant_fmus": {a.name: fmu_fingerprint(a.plant_fmu()) for a in self.machine.axes},
+            "settings": settings_fingerprint({"spec": asdict(spec), "settings": settings}),
+        }
+
+    def check_stored(self, out_dir: Path, record: dict[str, Any], found: dict[str, Any]) -> None:
+        """Refuse a resume whose machine file, program, start sets, FMUs or settings differ
+        from the stored campaign's."""
+        spec = self.spec
+        names = {
+            "scenario": f"machine scenario {spec.scenario}",
+            "program": f"part program {spec.program}",
+            "start": f"start sets {spec.start}",
+            "plant_fmus": "plant FMUs",
+            "settings": "optimizer settings",
+        }
+        check_same_inputs(out_dir, record, found, names)
+
+    def objective(self, record: dict[str, Any] | None) -> ContourObjectiveSpec:
+        """What the workers build their objective from; ``record``: the campaign's record (each
+        case's reference values), None for the reference runs."""
+        references = () if record is None else tuple(record["references"])
+        return ContourObjectiveSpec(self.machine, self.settings, self.runs, references)
+
+    def new_record(self, references: list[dict[str, Any]], found: dict[str, Any]) -> dict:
+        """The record of a new campaign: each case's reference values (the machine's own sets)
+        and the fingerprints."""
+        for reference in references:
+            reference.pop("steps")
+        settings = self.settings
+        return {
+            "spec": asdict(self.spec),
+            "config": settings.config.as_dict(),
+            "target": settings.target,
+            "relative": settings.relative,
+            "cases": [c.label for c in self.runs],
+            "references": references,
+            "reference_params": {a.name: a.tuned.as_dict() for a in self.machine.axes},
+            "fingerprints": found,
+        }
+
+    def cutoff_is_exact(self) -> bool:
+        """Always: the worst case over the cases is above a cutoff once one case is."""
+        return True
+
+    def best(self, x: np.ndarray, record: dict[str, Any]) -> dict[str, Any]:
+        """The best candidate's sets per axis (``best_params.axes``), the reference values, the
+        reference sets' fitness (um: the first case's value when relative, else the largest),
+        the cases and the target."""
+        values = [r[record["target"]] for r in record["references"]]
+        axes = {name: t.as_dict() for name, t in axes_tuned(self.machine, x).items()}
+        return {
+            "best_params": {"axes": axes},
+            "reference": record["references"],
+            "details": {
+                "reference_fitness": values[0] if record["relative"] else max(values),
+                "cases": record["cases"],
+                "target": self.settings.target,
+            },
+        }
 
 
 @dataclass(frozen=True)
@@ -215,7 +443,7 @@ class ContourObjectiveSpec:
     Attributes
     ----------
     machine : MachineScenario
-        The machine.
+        The machine: every axis' plant, controller and limits (its own sets the reference).
     settings : ContourSettings
         Target, circles and limits.
     cases : tuple of Case
@@ -241,13 +469,27 @@ class ContourObjective:
     def __init__(self, spec: ContourObjectiveSpec) -> None:
         self.spec = spec
         self.plants = MachinePlants(spec.machine)
-        self._order = list(range(len(spec.cases)))
+        self._order = CaseOrder(len(spec.cases))
         self._own = OwnEvaluations()
 
-    def reference_values(self) -> list[dict[str, Any]]:
-        """Each case's values with the machine's own sets (the reference)."""
+    def reference_of(self, index: int) -> dict[str, Any]:
+        """Case ``index``'s values with the machine's own sets (the reference):
+        :func:`case_values`."""
+        return case_values(self.spec.machine, self.plants, self.spec.cases[index], math.inf)
+
+    def record(self, x: np.ndarray | None, index: int = 0) -> MachineRecord:
+        """The record of case ``index`` run with candidate ``x`` (every axis' parameters; None:
+        the machine's own sets), for figures.
+
+        Raises
+        ------
+        ValueError
+            When the controller refuses the candidate's values.
+        """
         machine = self.spec.machine
-        return [case_values(machine, self.plants, case, math.inf) for case in self.spec.cases]
+        if x is not None:
+            machine = machine.with_tuned(axes_tuned(machine, np.asarray(x)))
+        return run_case(machine, self.plants, self.spec.cases[index], math.inf)[0]
 
     def __call__(self, task: EvaluationTask | np.ndarray) -> dict[str, Any]:
         """Evaluate one candidate (an EvaluationTask, its cutoff lowered by this worker's own
@@ -260,9 +502,9 @@ class ContourObjective:
             ``reason``, ``metrics`` (the worst case's target value and per case the values) and
             ``steps`` (speed-loop steps simulated, all axes).
         """
-        return self._own.evaluate(task, self._evaluate)
+        return self._own.evaluate(task, self.evaluate)
 
-    def _evaluate(self, x: np.ndarray, cutoff: float) -> dict[str, Any]:
+    def evaluate(self, x: np.ndarray, cutoff: float) -> dict[str, Any]:
         """The result of :meth:`__call__` for ``x`` with cutoff ``cutoff`` (um)."""
         settings = self.spec.settings
         config = settings.config
@@ -274,7 +516,8 @@ class ContourObjective:
         scores: dict[int, float] = {}
         runs: dict[int, dict[str, Any]] = {}
         steps = 0
-        for i in list(self._order):
+        count = len(self.spec.cases)
+        for i in self._order:
             case = self.spec.cases[i]
             try:
                 values = case_values(machine, self.plants, case, config.abort_error_um * 1e-6)
@@ -285,14 +528,14 @@ class ContourObjective:
             steps += values.pop("steps")
             scores[i], status, reason = self._score(i, values)
             runs[i] = {"case": case.label, "status": status, "reason": reason, **values}
-            worst = max(scores.values())
-            if worst > cutoff and len(scores) < len(self.spec.cases):
-                self._put_first(i)
+            worst = least_fitness(scores.values(), count, "worst")
+            if worst > cutoff and len(scores) < count:
+                self._order.first(i)
                 reason = f"{case.label}: fitness at least {worst:.6g} um, above the cutoff"
                 return evaluation_result(lower_bound_above(cutoff), "stopped", reason, None, steps)
         ordered = [runs[i] for i in range(len(runs))]
         worst_case = max(range(len(ordered)), key=lambda i: scores[i])
-        self._put_first(worst_case)
+        self._order.first(worst_case)
         status = "ok" if all(r["status"] == "ok" for r in ordered) else "violation"
         reason = "; ".join(r["reason"] for r in ordered if r["reason"])
         metrics = {
@@ -320,10 +563,6 @@ class ContourObjective:
             if over:
                 return settings.config.penalty_um + score, "violation", "; ".join(over)
         return score, "ok", ""
-
-    def _put_first(self, case: int) -> None:
-        self._order.remove(case)
-        self._order.insert(0, case)
 
     def close(self) -> None:
         """Free the plants."""

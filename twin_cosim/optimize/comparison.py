@@ -33,26 +33,31 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from twin_cosim import current_filters
 from twin_cosim.controller import TUNED_NAMES
 from twin_cosim.controller_set import ControllerSet
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.motion_envelope import MARGIN, envelope_of, outside
-from twin_cosim.optimize.campaign import run_campaign
-from twin_cosim.optimize.campaign_spec import CampaignSpec, controller_set_of
+from twin_cosim.optimize.algorithms import METHOD_NAMES, method_label
+from twin_cosim.optimize.axis_problem import (
+    AGGREGATES,
+    AxisProblem,
+    CampaignSpec,
+    controller_set_of,
+)
 from twin_cosim.optimize.config import check_uncertainty
-from twin_cosim.optimize.methods import METHOD_NAMES, method_label
-from twin_cosim.optimize.worker_specs import AGGREGATES
+from twin_cosim.optimize.driver import run_campaign
 from twin_cosim.pool_runs import autotune_summary, prepare_campaign_worker
 from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table
 from twin_cosim.scenario import Scenario, ScenarioError, load_controller_set, resolve_scenario
 from twin_cosim.scenario.loader import find_scenario
 from twin_cosim.schema import load_yaml
 from twin_cosim.workers import ProcessPool, SerialPool, make_pool
+
+if TYPE_CHECKING:
+    from twin_cosim.run_record import RunRecord
 
 KEYS = {
     "name",
@@ -214,6 +219,8 @@ def _compare(
         "AT": load_controller_set(str(out / "autotune.json")),
     } | {method_label(m): controller_set_of(results[m]) for m in methods}
     table, records = evaluate_sets(pool, fmu, scenarios, sets)
+    import pandas as pd  # the tables written below
+
     params = pd.DataFrame({name: s.tuned.as_dict() for name, s in sets.items()}).T[
         list(TUNED_NAMES)
     ]
@@ -299,8 +306,9 @@ def _campaigns(
             **comparison.robust,
         )
         resume = (folder / "campaign.json").exists()
+        problem = AxisProblem.resolve(spec)
         results[method] = run_campaign(
-            spec, folder, None, scheduler, resume, progress, pool=pool
+            problem, folder, None, scheduler, resume, progress, pool=pool
         ).as_dict()
     return results
 
@@ -310,7 +318,7 @@ def _plot(
     methods: list[str],
     scenarios: dict[str, Scenario],
     sets: dict[str, ControllerSet],
-    records: dict[tuple[str, str], pd.DataFrame],
+    records: dict[tuple[str, str], RunRecord],
 ) -> None:
     """``convergence.png`` and the error plots of every scenario (``errors_<label>.png``)."""
     from twin_cosim.optimize.outputs import plot_convergence

@@ -1,4 +1,5 @@
-"""The objective of eq. (12): one closed-loop run per candidate K, scored by E_pk.
+"""The objective of eq. (12) on a worker: one closed-loop run per candidate K and case, scored by
+E_pk.
 
 A candidate's fitness (um) is
 
@@ -16,13 +17,14 @@ reference set's IAU on that scenario and plant sample), its E_pk optionally mult
 case's scale (a relative objective: the first case's reference E_pk over this case's), and the
 fitness is the worst (or the mean) of the runs.
 
-A task may carry a cutoff (:class:`EvaluationTask`): when the candidate's fitness is certain to
-exceed it, the runs stop early and the result has status ``stopped`` with a lower bound as
-fitness (see :mod:`twin_cosim.optimize.early_stop`). The cases of a candidate run in an order
-that puts first the case that stopped, or was the worst of, the previous candidate (cheaper
-stops). The order changes the cost only: a candidate below the cutoff gets the same fitness in
-any order, one above it the same lower bound (or, when a run fails before one stops it, the
-failure's score, also above the cutoff).
+A task may carry a cutoff (:class:`~twin_cosim.optimize.early_stop.EvaluationTask`): when the
+candidate's fitness is certain to exceed it, the runs stop early and the result has status
+``stopped`` with a lower bound as fitness (see :mod:`twin_cosim.optimize.early_stop`, which also
+orders the cases). A candidate below the cutoff gets the same fitness in any case order, one
+above it the same lower bound (or, when a run fails before one stops it, the failure's score,
+also above the cutoff).
+
+Built in a worker from :class:`~twin_cosim.optimize.axis_problem.ObjectiveSpec`.
 """
 
 from __future__ import annotations
@@ -37,11 +39,21 @@ import numpy as np
 from twin_cosim.controller import ControllerSettings
 from twin_cosim.cosim import RunAborted, run_scenario
 from twin_cosim.metrics import compute_metrics
+from twin_cosim.optimize.axis_problem import ObjectiveSpec
 from twin_cosim.optimize.config import OptimizeConfig, load_config
-from twin_cosim.optimize.early_stop import OwnEvaluations, lower_bound_above, window_spans_run
-from twin_cosim.optimize.worker_specs import EvaluationTask, ObjectiveSpec
+from twin_cosim.optimize.early_stop import (
+    CaseOrder,
+    EvaluationTask,
+    OwnEvaluations,
+    allowance,
+    least_fitness,
+    lower_bound_above,
+    window_spans_run,
+)
+from twin_cosim.optimize.evaluators import evaluation_result
 from twin_cosim.oscillation import record_findings
 from twin_cosim.plant import Plant, PlantError
+from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario
 
 
@@ -90,24 +102,15 @@ class Objective:
                 self.cases.append(
                     _Case(label, scenario, window, overrides, limits[i], scales[i], steps)
                 )
-        self._order = list(range(count))
+        self._order = CaseOrder(count)
         self._own = OwnEvaluations()
         self.exact_early_stop = all(
             window_spans_run(c.window, c.scenario.reference.duration) for c in self.cases
         )
 
-    def reference_metrics(self) -> list[dict[str, Any]]:
-        """Metrics of each case run with its scenario's own parameters (Fine-Tune by default).
-
-        Returns
-        -------
-        list of dict
-            Per case (case order): :meth:`reference_of` the case.
-        """
-        return [self.reference_of(i) for i in range(len(self.cases))]
-
     def reference_of(self, index: int) -> dict[str, Any]:
-        """Metrics of case ``index`` run with its scenario's own parameters.
+        """Metrics of case ``index`` run with its scenario's own parameters (Fine-Tune by
+        default).
 
         Returns
         -------
@@ -117,8 +120,24 @@ class Objective:
             (``E_pk_um`` um, ``ITAE`` um.s^2, ``IAU`` A.s, ...).
         """
         case = self.cases[index]
-        record = run_scenario(self.plant, case.scenario, plant_overrides=case.overrides)
-        return {"case": case.label, **compute_metrics(record, case.window).as_dict()}
+        metrics = compute_metrics(self.record(None, index), case.window)
+        return {"case": case.label, **metrics.as_dict()}
+
+    def record(self, x: np.ndarray | None, index: int = 0) -> RunRecord:
+        """The record of case ``index`` run with candidate ``x`` (physical units; None: the
+        scenario's own set), for figures.
+
+        Raises
+        ------
+        ValueError
+            When the controller refuses the candidate's values.
+        """
+        case = self.cases[index]
+        if x is None:
+            return run_scenario(self.plant, case.scenario, plant_overrides=case.overrides)
+        tuned, settings = self.config.candidate(x, case.scenario.settings)
+        scenario = _with_settings(case.scenario, settings)
+        return run_scenario(self.plant, scenario, tuned, plant_overrides=case.overrides)
 
     def __call__(self, task: np.ndarray | EvaluationTask) -> dict[str, Any]:
         """Evaluate one candidate [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H, filter dimensions...]
@@ -132,9 +151,9 @@ class Objective:
             ``metrics`` (None when the run did not complete; with several runs the aggregate
             and ``runs``) and ``steps`` (speed-loop steps simulated).
         """
-        return self._own.evaluate(task, self._evaluate)
+        return self._own.evaluate(task, self.evaluate)
 
-    def _evaluate(self, x: np.ndarray, cutoff: float) -> dict[str, Any]:
+    def evaluate(self, x: np.ndarray, cutoff: float) -> dict[str, Any]:
         """The result of :meth:`__call__` for candidate ``x`` with cutoff ``cutoff`` (um)."""
         if not self.exact_early_stop:
             cutoff = math.inf
@@ -144,13 +163,13 @@ class Objective:
         except ValueError as exc:
             return evaluation_result(failure, "failed", str(exc), None, 0)
         n = len(self.cases)
-        worst_case = self.spec.aggregate == "worst"
+        aggregate = self.spec.aggregate
         scores: dict[int, float] = {}
         runs: dict[int, dict[str, Any]] = {}
         steps = 0
-        for i in list(self._order):
+        for i in self._order:
             case = self.cases[i]
-            allowed = cutoff if worst_case else n * cutoff - sum(scores.values())
+            allowed = allowance(cutoff, scores.values(), n, aggregate)
             abort_um = min(self.config.abort_error_um, max(allowed, 0.0) / case.scale)
             tuned, settings = candidates[i]
             try:
@@ -164,7 +183,7 @@ class Objective:
             except RunAborted as exc:
                 steps += _steps_until(case, exc.time_s)
                 if abort_um < self.config.abort_error_um:
-                    self._put_first(i)
+                    self._order.first(i)
                     reason = f"{case.label}: {exc}; fitness above the cutoff {cutoff:.6g} um"
                     return evaluation_result(
                         lower_bound_above(cutoff), "stopped", reason, None, steps
@@ -181,9 +200,9 @@ class Objective:
             metrics = compute_metrics(record, case.window).as_dict()
             scores[i], status, reason = self._score(metrics, case)
             runs[i] = {"case": case.label, "status": status, "reason": reason, **metrics}
-            bound = max(scores.values()) if worst_case else sum(scores.values()) / n
+            bound = least_fitness(scores.values(), n, aggregate)
             if bound > cutoff and len(scores) < n:
-                self._put_first(i)
+                self._order.first(i)
                 reason = f"{case.label}: fitness at least {bound:.6g} um, above the cutoff"
                 return evaluation_result(lower_bound_above(cutoff), "stopped", reason, None, steps)
         if n == 1:
@@ -193,8 +212,8 @@ class Objective:
         ordered = [runs[i] for i in range(n)]
         values = [scores[i] for i in range(n)]
         worst = int(np.argmax(values))
-        self._put_first(worst)
-        combine = max if worst_case else (lambda v: sum(v) / len(v))
+        self._order.first(worst)
+        combine = max if aggregate == "worst" else (lambda v: sum(v) / len(v))
         metrics = {
             name: float(combine([r[name] for r in ordered])) for name in ("E_pk_um", "ITAE", "IAU")
         }
@@ -208,11 +227,6 @@ class Objective:
             metrics,
             steps,
         )
-
-    def _put_first(self, case: int) -> None:
-        """Run ``case`` first for the next candidate (the likeliest to stop it early)."""
-        self._order.remove(case)
-        self._order.insert(0, case)
 
     def _score(self, metrics: dict[str, float], case: _Case) -> tuple[float, str, str]:
         """Fitness (um), status and reason of one completed run of ``case``."""
@@ -243,36 +257,3 @@ def _steps_until(case: _Case, time_s: float) -> int:
         return case.steps
     ratio = case.steps // len(case.scenario.reference.position)
     return int(round(time_s / case.scenario.reference.period)) * ratio
-
-
-def evaluation_result(
-    fitness: float, status: str, reason: str, metrics: dict[str, Any] | None, steps: int
-) -> dict[str, Any]:
-    """What a worker answers for a candidate: its fitness (um), status (``ok``, ``violation``,
-    ``stopped``, ``unstable``, ``failed``), the reason, the metrics of its worst case and the
-    speed-loop steps simulated."""
-    return {
-        "fitness": float(fitness),
-        "status": status,
-        "reason": reason,
-        "metrics": metrics,
-        "steps": steps,
-    }
-
-
-class ReferenceRuns:
-    """A worker answering the reference metrics of a case (its index) of an objective.
-
-    Built in a worker process from :class:`~twin_cosim.optimize.worker_specs.ReferenceSpec`.
-    """
-
-    def __init__(self, spec: ObjectiveSpec) -> None:
-        self.objective = Objective(spec)
-
-    def __call__(self, case: int) -> dict[str, Any]:
-        """The metrics of case ``case``: :meth:`Objective.reference_of`."""
-        return self.objective.reference_of(case)
-
-    def close(self) -> None:
-        """Free the plant."""
-        self.objective.close()

@@ -18,13 +18,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from twin_cosim.metrics import compute_metrics
-from twin_cosim.optimize.campaign_folder import logged_fitness
-from twin_cosim.optimize.campaign_spec import CampaignSpec, controller_set_of
-from twin_cosim.optimize.methods import method_label
+from twin_cosim.optimize.algorithms import method_label
+from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec
+from twin_cosim.optimize.store import logged_fitness
 from twin_cosim.paper import set_name
-from twin_cosim.scenario import Scenario, with_controller_set
+from twin_cosim.scenario import Scenario
 
 if TYPE_CHECKING:
+    from twin_cosim.optimize.objective import Objective
     from twin_cosim.painter import Painter
     from twin_cosim.run_record import RunRecord
 
@@ -104,11 +105,12 @@ def plot_convergence(campaigns: Mapping[str, Path], path: Path) -> Path:
 @dataclass(frozen=True)
 class OwnSetRun:
     """What both figures of a campaign start from, made by the painter while the campaign
-    runs (:func:`start_campaign_plots`): the campaign's first scenario (resolved), the plant
-    FMU it runs on, and the run of the scenario's own set."""
+    runs (:func:`start_campaign_plots`): the campaign's first scenario (resolved), its objective
+    on a plant of the painter's (whose runs are the figures' records), and the run of the
+    scenario's own set."""
 
     scenario: Scenario
-    fmu: str
+    objective: Objective
     record: RunRecord
 
 
@@ -119,13 +121,12 @@ def start_campaign_plots(spec: CampaignSpec, painter: Painter) -> None:
 
 
 def run_own_set(spec: CampaignSpec) -> OwnSetRun:
-    """The campaign's first scenario, resolved as the campaign resolves it
-    (:func:`~twin_cosim.optimize.cases.campaign_scenarios`), run with its own set."""
-    from twin_cosim.optimize.cases import campaign_scenarios
-
-    scenario = campaign_scenarios(spec)[0]
-    fmu = str(scenario.plant_fmu(spec.fmu))
-    return OwnSetRun(scenario, fmu, _run_record(fmu, scenario))
+    """The campaign's problem, resolved as the campaign resolves it
+    (:meth:`~twin_cosim.optimize.axis_problem.AxisProblem.resolve`), its first case run with its
+    scenario's own set."""
+    problem = AxisProblem.resolve(spec)
+    objective = problem.objective(None).build()
+    return OwnSetRun(problem.scenarios[0], objective, objective.record(None))
 
 
 def write_campaign_plots(out_dir: Path, spec: CampaignSpec, painter: Painter) -> bool:
@@ -161,32 +162,27 @@ def draw_campaign_figures(own: OwnSetRun, out_dir: Path, spec: CampaignSpec) -> 
     from twin_cosim.painter import draw_side_by_side
 
     result = json.loads((out_dir / "result.json").read_text())
-    best = with_controller_set(own.scenario, controller_set_of(result))
+    best = np.array([result["best_params"][name] for name in own.objective.config.names])
     label = method_label(spec.method)
     title = f"{own.scenario.name}: {label} campaign, seed {spec.seed}"
-    draw_side_by_side(
-        partial(plot_convergence, {label: out_dir}, out_dir / "convergence.png"),
-        partial(plot_best_run, own, best, label, title, out_dir / "best_run.png"),
-    )
+    try:
+        draw_side_by_side(
+            partial(plot_convergence, {label: out_dir}, out_dir / "convergence.png"),
+            partial(plot_best_run, own, best, label, title, out_dir / "best_run.png"),
+        )
+    finally:
+        own.objective.close()
 
 
-def plot_best_run(own: OwnSetRun, best: Scenario, label: str, title: str, path: Path) -> Path:
-    """The best set's run against the scenario's own set (its run ``own``), close-up on the own
-    set's peak error, written to ``path`` (``label``: the method's label)."""
+def plot_best_run(own: OwnSetRun, best: np.ndarray, label: str, title: str, path: Path) -> Path:
+    """The run of the best candidate ``best`` (physical units) against the scenario's own set
+    (its run ``own``), close-up on the own set's peak error, written to ``path`` (``label``: the
+    method's label)."""
     from twin_cosim.plots import plot_error_comparison  # where figures are drawn only
 
     runs = {
         set_name(own.scenario.tuned): own.record,
-        f"best {label}": _run_record(own.fmu, best),
+        f"best {label}": own.objective.record(best),
     }
     peak = compute_metrics(own.record, own.scenario.metrics_window).t_E_pk
     return plot_error_comparison(runs, peak, title, path)
-
-
-def _run_record(fmu: str, scenario: Scenario) -> RunRecord:
-    """The run of ``scenario`` on a plant of ``fmu``."""
-    from twin_cosim.cosim import run_scenario  # where figures are drawn only
-    from twin_cosim.plant import Plant
-
-    with Plant(fmu) as plant:
-        return run_scenario(plant, scenario)

@@ -5,7 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from twin_cosim.commands.optimize import _report
-from twin_cosim.optimize.campaign_spec import CampaignResult, CampaignSpec
+from twin_cosim.optimize.axis_problem import CampaignSpec
+from twin_cosim.optimize.driver import CampaignResult
 
 SPEC = CampaignSpec("reference1", "ce", seed=1)
 
@@ -24,7 +25,7 @@ def result(status: str, fitness: float, metrics: dict | None) -> CampaignResult:
         wall_s=0.4,
         reference={"E_pk_um": 13.139},
         out_dir="c",
-        settings={},
+        details={"settings": {}},
     )
 
 

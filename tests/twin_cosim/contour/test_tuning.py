@@ -9,15 +9,18 @@ import textwrap
 import numpy as np
 import pytest
 
+from twin_cosim.contour.machine_run import contour_metrics
 from twin_cosim.contour.tuning import (
+    ContourCampaignSpec,
     ContourObjectiveSpec,
+    MachineProblem,
     cases_of,
     contour_settings,
     machine_vector,
 )
-from twin_cosim.contour.tuning_campaign import ContourCampaignSpec, run_contour_campaign
-from twin_cosim.optimize.campaign_spec import CampaignError
-from twin_cosim.optimize.objective import EvaluationTask
+from twin_cosim.optimize.driver import run_campaign
+from twin_cosim.optimize.early_stop import EvaluationTask
+from twin_cosim.optimize.store import CampaignError
 from twin_cosim.scenario import ScenarioError, load_machine
 
 MACHINE = """
@@ -50,7 +53,7 @@ def test_the_objective_scores_the_reference_at_its_own_value_and_caps_iau(machin
     machine = load_machine(machine_file)
     settings = contour_settings(machine)
     probe = ContourObjectiveSpec(machine, settings, cases_of(settings, None)).build()
-    references = tuple(probe.reference_values())
+    references = tuple(probe.reference_of(case) for case in range(len(probe.spec.cases)))
     probe.close()
     objective = ContourObjectiveSpec(machine, settings, probe.spec.cases, references).build()
     try:
@@ -69,23 +72,44 @@ def test_the_objective_scores_the_reference_at_its_own_value_and_caps_iau(machin
         objective.close()
 
 
+def test_the_record_of_a_run_is_the_run_a_case_is_scored_on(machine_file):
+    machine = load_machine(machine_file)
+    settings = contour_settings(machine)
+    objective = ContourObjectiveSpec(machine, settings, cases_of(settings, None)).build()
+    try:
+        own = objective.record(None, 1)
+        assert contour_metrics(own)["contour_error_max_um"] == objective.reference_of(1)["contour"]
+        stiffer = machine_vector(machine).copy()
+        stiffer[0] = stiffer[6] = 120.0  # Kp_pos of both axes
+        tuned = objective.record(stiffer, 1)
+        assert contour_metrics(tuned)["contour_error_max_um"] != pytest.approx(
+            contour_metrics(own)["contour_error_max_um"]
+        )
+    finally:
+        objective.close()
+
+
+def run_contour_campaign(spec, out, **options):
+    return run_campaign(MachineProblem.load(spec), out, **options)
+
+
 def test_a_campaign_resumes_to_the_same_result_and_refuses_another(machine_file, tmp_path):
     spec = ContourCampaignSpec(str(machine_file), "ce", seed=1, budget=8)
     first = run_contour_campaign(spec, tmp_path / "a", workers=1, progress=False)
-    assert set(first["best_params"]["axes"]) == {"X", "Y"}
-    assert first["evaluations"] == 8 and first["reference_fitness"] > 0
+    assert set(first.best_params["axes"]) == {"X", "Y"}
+    assert first.evaluations == 8 and first.details["reference_fitness"] > 0
     log = (tmp_path / "a" / "evaluations.jsonl").read_text().splitlines()
     (tmp_path / "b").mkdir()
     (tmp_path / "b" / "campaign.json").write_text((tmp_path / "a" / "campaign.json").read_text())
     (tmp_path / "b" / "evaluations.jsonl").write_text("\n".join(log[:3]) + "\n")
     again = run_contour_campaign(spec, tmp_path / "b", workers=1, resume=True, progress=False)
-    assert again["best_params"] == first["best_params"]
-    assert again["evaluations_reused"] == 3
+    assert again.best_params == first.best_params
+    assert again.evaluations_reused == 3
     other = ContourCampaignSpec(str(machine_file), "ce", seed=2, budget=8)
     with pytest.raises(CampaignError, match="different campaign"):
         run_contour_campaign(other, tmp_path / "b", workers=1, resume=True, progress=False)
     result = json.loads((tmp_path / "a" / "result.json").read_text())
-    assert result["best_params"] == first["best_params"]
+    assert result["best_params"] == first.best_params
 
 
 def test_a_campaign_may_start_from_other_sets_and_a_resume_keeps_them(machine_file, tmp_path):

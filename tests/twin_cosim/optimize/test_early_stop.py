@@ -1,4 +1,5 @@
-"""Exact early stopping: the same campaign, fewer simulated steps."""
+"""Exact early stopping: the same campaign, fewer simulated steps; the order of a generation,
+the likeliest best first."""
 
 from __future__ import annotations
 
@@ -8,21 +9,24 @@ import math
 
 import numpy as np
 import pytest
+import tqdm
 from scenario_texts import scenario_text
 
-from twin_cosim.optimize import campaign_loop
+from twin_cosim.optimize import early_stop
 from twin_cosim.optimize.algorithms import make_optimizer
-from twin_cosim.optimize.campaign import run_campaign
-from twin_cosim.optimize.campaign_spec import CampaignSpec
+from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec
+from twin_cosim.optimize.driver import run_campaign
 from twin_cosim.optimize.early_stop import (
     MISS_FACTOR,
+    NEIGHBOURS,
+    EvaluationTask,
     OwnEvaluations,
     elite_cutoff,
     kth_best,
+    likeliest_best_first,
     lower_bound_above,
     window_spans_run,
 )
-from twin_cosim.optimize.worker_specs import EvaluationTask
 from twin_cosim.workers import BoundPool
 
 SHORT = scenario_text(optimize="methods: {ce: {population_size: 10, elite_fraction: 0.2}}")
@@ -99,7 +103,9 @@ def test_early_stop_changes_nothing_but_the_cost(short_scenario, tmp_path):
     results = {}
     for name, early, workers in (("full", False, 1), ("early", True, 1), ("pool", True, 2)):
         spec = CampaignSpec(short_scenario, "ce", seed=5, budget=60, early_stop=early)
-        results[name] = run_campaign(spec, tmp_path / name, workers=workers, progress=False)
+        results[name] = run_campaign(
+            AxisProblem.resolve(spec), tmp_path / name, workers=workers, progress=False
+        )
     full, early = results["full"], results["early"]
     for other in (early, results["pool"]):
         assert other.best_params == full.best_params
@@ -126,11 +132,14 @@ def test_a_process_pool_has_one_candidate_waiting_beyond_its_workers(
 
     monkeypatch.setattr(BoundPool, "imap", recorded)
     spec = CampaignSpec(short_scenario, "ce", seed=5, budget=20)
-    run_campaign(spec, tmp_path / "pool", workers=2, progress=False)
+    run_campaign(AxisProblem.resolve(spec), tmp_path / "pool", workers=2, progress=False)
     assert set(asked) == {3}
     asked.clear()
     run_campaign(
-        dataclasses.replace(spec, early_stop=False), tmp_path / "all", workers=2, progress=False
+        AxisProblem.resolve(dataclasses.replace(spec, early_stop=False)),
+        tmp_path / "all",
+        workers=2,
+        progress=False,
     )
     assert set(asked) == {None}  # without early stopping a generation goes out at once
 
@@ -140,12 +149,15 @@ def test_a_guess_too_low_costs_runs_again_and_changes_nothing(
 ):
     spec = CampaignSpec(short_scenario, "ce", seed=5, budget=60)
     full = run_campaign(
-        dataclasses.replace(spec, early_stop=False), tmp_path / "full", progress=False, workers=1
+        AxisProblem.resolve(dataclasses.replace(spec, early_stop=False)),
+        tmp_path / "full",
+        progress=False,
+        workers=1,
     )
-    monkeypatch.setattr(campaign_loop, "guess_above", lambda cutoff: 0.01 * cutoff)
+    monkeypatch.setattr(early_stop, "guess_above", lambda cutoff: 0.01 * cutoff)
     counted = []
-    monkeypatch.setattr(campaign_loop.tqdm, "update", lambda bar, n=1: counted.append(n))
-    low = run_campaign(spec, tmp_path / "low", workers=2, progress=False)
+    monkeypatch.setattr(tqdm.tqdm, "update", lambda bar, n=1: counted.append(n))
+    low = run_campaign(AxisProblem.resolve(spec), tmp_path / "low", workers=2, progress=False)
     assert (low.best_params, low.fitness, low.evaluations) == (
         full.best_params,
         full.fitness,
@@ -170,14 +182,41 @@ def test_a_guess_too_low_costs_runs_again_and_changes_nothing(
 
 def test_a_resumed_generation_runs_a_lower_bound_below_its_cutoff_again(short_scenario, tmp_path):
     spec = CampaignSpec(short_scenario, "ce", seed=5, budget=60)
-    done = run_campaign(spec, tmp_path / "c", workers=1, progress=False)
+    done = run_campaign(AxisProblem.resolve(spec), tmp_path / "c", workers=1, progress=False)
     log = tmp_path / "c" / "evaluations.jsonl"
     logged = entries(tmp_path / "c")
     stopped = next(i for i, e in enumerate(logged) if e["status"] == "stopped")
     logged[stopped]["fitness"] = 0.0  # a lower bound that cannot rule the candidate out
     log.write_text("".join(json.dumps(e) + "\n" for e in logged))
-    resumed = run_campaign(spec, tmp_path / "c", workers=1, resume=True, progress=False)
+    resumed = run_campaign(
+        AxisProblem.resolve(spec), tmp_path / "c", workers=1, resume=True, progress=False
+    )
     assert (resumed.best_params, resumed.fitness) == (done.best_params, done.fitness)
     again = entries(tmp_path / "c")[len(logged) :]
     assert [e["key"] for e in again] == [logged[stopped]["key"]]
     assert again[0]["fitness"] > 0.0
+
+
+def test_without_evaluations_the_order_is_the_one_asked_in():
+    assert likeliest_best_first(np.zeros((4, 2)), np.empty((0, 2)), np.empty(0)).tolist() == [
+        0,
+        1,
+        2,
+        3,
+    ]
+
+
+def test_candidates_near_good_evaluations_go_first():
+    # a valley at the origin: fitness grows with the distance from it
+    rng = np.random.default_rng(0)
+    evaluated = rng.uniform(-1.0, 1.0, size=(200, 2))
+    fitness = 1.0 + np.linalg.norm(evaluated, axis=1)
+    candidates = np.array([[0.9, 0.9], [0.05, 0.0], [-0.5, 0.4], [0.0, -0.2]])
+    order = likeliest_best_first(candidates, evaluated, fitness)
+    assert order.tolist() == [1, 3, 2, 0]
+
+
+def test_equal_predictions_keep_the_order_asked_in():
+    evaluated = np.zeros((NEIGHBOURS, 3))
+    order = likeliest_best_first(np.ones((5, 3)), evaluated, np.full(NEIGHBOURS, 2.0))
+    assert order.tolist() == [0, 1, 2, 3, 4]

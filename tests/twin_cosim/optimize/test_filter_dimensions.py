@@ -9,9 +9,9 @@ from scenario_texts import scenario_text
 
 from twin_cosim.controller_set import ControllerSet
 from twin_cosim.current_filters import Notch
-from twin_cosim.optimize.campaign import run_campaign
-from twin_cosim.optimize.campaign_spec import CampaignSpec
+from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec
 from twin_cosim.optimize.config import load_config
+from twin_cosim.optimize.driver import run_campaign
 from twin_cosim.paper import TABLE3
 from twin_cosim.scenario import ScenarioError, load_controller_set, load_scenario
 
@@ -62,9 +62,9 @@ def test_bad_filter_bounds_are_named(tmp_path, bounds, message):
 def test_a_campaign_tunes_the_notch_and_its_result_is_a_controller_set(tmp_path):
     path = scenario_file(tmp_path, "filter1.frequency_hz: [60, 200]")
     spec = CampaignSpec(str(path), "ce", seed=1, budget=40)
-    result = run_campaign(spec, tmp_path / "run", workers=1, progress=False)
+    result = run_campaign(AxisProblem.resolve(spec), tmp_path / "run", workers=1, progress=False)
     assert set(result.best_params) == {*TABLE3["ft"].as_dict(), "filter1.frequency_hz"}
-    (notch,) = result.settings["filters"]
+    (notch,) = result.details["settings"]["filters"]
     assert notch["frequency_hz"] == result.best_params["filter1.frequency_hz"]
     best = load_controller_set(str(tmp_path / "run" / "result.json"))
     assert best.overrides["filters"][0].frequency_hz == notch["frequency_hz"]
@@ -78,7 +78,7 @@ def test_a_campaign_starts_from_a_controller_set(tmp_path):
     set_file = tmp_path / "set.json"
     set_file.write_text(json.dumps(start.as_dict()))
     spec = CampaignSpec(str(path), "ce", seed=2, budget=20, start=str(set_file))
-    result = run_campaign(spec, tmp_path / "run", workers=1, progress=False)
+    result = run_campaign(AxisProblem.resolve(spec), tmp_path / "run", workers=1, progress=False)
     header = json.loads((tmp_path / "run" / "campaign.json").read_text())
     assert header["reference"]["params"] == TABLE3["ga"].as_dict()
     assert header["spec"]["start"] == str(set_file)
@@ -89,7 +89,12 @@ def test_a_campaign_stored_before_start_existed_resumes(tmp_path, twin_cli):
     path = tmp_path / "short.yaml"
     path.write_text(scenario_text())
     out = tmp_path / "old"
-    run_campaign(CampaignSpec(str(path), "ce", seed=2, budget=10), out, workers=1, progress=False)
+    run_campaign(
+        AxisProblem.resolve(CampaignSpec(str(path), "ce", seed=2, budget=10)),
+        out,
+        workers=1,
+        progress=False,
+    )
     header = json.loads((out / "campaign.json").read_text())
     del header["spec"]["start"]
     (out / "campaign.json").write_text(json.dumps(header))

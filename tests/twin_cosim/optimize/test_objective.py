@@ -12,8 +12,9 @@ from scenario_texts import scenario_text
 from twin_cosim.controller import TunedParameters
 from twin_cosim.cosim import run_scenario
 from twin_cosim.metrics import compute_metrics
-from twin_cosim.optimize.early_stop import lower_bound_above
-from twin_cosim.optimize.objective import EvaluationTask, Objective, ObjectiveSpec
+from twin_cosim.optimize.axis_problem import ObjectiveSpec
+from twin_cosim.optimize.early_stop import EvaluationTask, lower_bound_above
+from twin_cosim.optimize.objective import Objective
 from twin_cosim.paper import TABLE3
 from twin_cosim.scenario import load_scenario
 
@@ -37,6 +38,14 @@ def test_valid_candidate_scores_its_epk(objective, plant):
     record = run_scenario(plant, load_scenario(REFERENCE1), TABLE3["ga"])
     assert result["status"] == "ok"
     assert result["fitness"] == compute_metrics(record).E_pk_um
+
+
+def test_the_record_of_a_run_is_the_run_a_candidate_is_scored_on(objective, plant):
+    own = objective.record(None)
+    assert compute_metrics(own).E_pk_um == objective.reference_of(0)["E_pk_um"]
+    record = objective.record(TABLE3["ga"].as_array())
+    expected = run_scenario(plant, load_scenario(REFERENCE1), TABLE3["ga"])
+    assert compute_metrics(record).E_pk_um == compute_metrics(expected).E_pk_um
 
 
 def test_a_worse_candidate_of_the_same_generation_stops_at_the_better_ones_value(objective):
@@ -153,7 +162,7 @@ def test_a_case_count_mismatch_is_refused(two_scenarios):
 def test_each_case_has_its_own_iau_limit(two_scenarios):
     first, second = two_scenarios
     probe = Objective(ObjectiveSpec(loaded(first, second), None, None, (), SAMPLES))
-    references = probe.reference_metrics()
+    references = [probe.reference_of(case) for case in range(len(probe.cases))]
     probe.close()
     iau = [r["IAU"] for r in references]
     assert max(iau) > 1.02 * min(iau)  # the samples and scenarios need different currents

@@ -1,4 +1,4 @@
-"""Campaign figures: convergence with penalised evaluations apart; one spelling per method."""
+"""Campaign figures: convergence with penalised evaluations apart."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ import matplotlib
 matplotlib.use("Agg")
 
 from twin_cosim.optimize import outputs  # noqa: E402
-from twin_cosim.optimize.methods import LABELS, METHOD_NAMES, method_label  # noqa: E402
 
 
 def _campaign(folder, fitness_status):
@@ -35,12 +34,6 @@ def test_penalised_evaluations_are_shown_apart(tmp_path, saved_figure):
     marked = sorted(x for line in apart.lines for x in line.get_xdata())
     assert marked == [1, 3, 5, 6]  # failed, violation, stopped, unstable (evaluation numbers)
     assert [t.get_text() for t in apart.get_yticklabels()] == ["CMA-ES (4 of 7)"]
-
-
-def test_every_method_has_one_label_for_people():
-    assert set(LABELS) == set(METHOD_NAMES)
-    assert method_label("cmaes") == "CMA-ES"
-    assert [method_label(m) for m in ("ce", "ga", "sa", "de")] == ["CE", "GA", "SA", "DE"]
 
 
 def test_a_campaign_without_a_valid_run_is_drawn_and_says_so(tmp_path):

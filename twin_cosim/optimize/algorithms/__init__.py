@@ -1,10 +1,13 @@
-"""Batch ask/tell optimizers in the normalised unit box, and a registry by short name.
+"""Batch ask/tell optimizers in the normalised unit box, and the registry of the methods by short
+name: their names, the labels people read (``cmaes`` on the command line, ``CMA-ES`` in tables,
+plots and messages) and their classes.
 
 See ``docs/optimizers.md`` for the algorithms and the reading of the paper's Table 2.
 
-Each algorithm's module is imported when it is first asked for (:func:`make_optimizer`, or
-:data:`ALGORITHMS`, which imports them all): a CE campaign does not load SciPy's optimizers or
-pycma.
+Light to import (no numerical library): the command line lists the names without loading the
+algorithms. Each algorithm's module is imported when it is first asked for
+(:func:`make_optimizer`, or :data:`ALGORITHMS`, which imports them all): a CE campaign does not
+load SciPy's optimizers or pycma.
 """
 
 from __future__ import annotations
@@ -12,14 +15,24 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from twin_cosim.optimize.methods import METHOD_NAMES
-
 if TYPE_CHECKING:
     import numpy as np
 
     from twin_cosim.optimize.algorithms.base import Optimizer
 
-# Where each class lives: method name -> (module of this package, class name).
+METHODS: dict[str, str] = {
+    "ce": "cross-entropy method (paper, Table 2)",
+    "ga": "genetic algorithm (paper, Table 2)",
+    "sa": "simulated annealing (paper, Table 2)",
+    "cmaes": "CMA-ES (pycma), baseline",
+    "de": "differential evolution (scipy), baseline",
+}
+METHOD_NAMES = tuple(METHODS)
+# How tables, plots and messages name each method (the keys above stay the command line's)
+LABELS: dict[str, str] = {"ce": "CE", "ga": "GA", "sa": "SA", "cmaes": "CMA-ES", "de": "DE"}
+
+# Where each class lives: method name -> (module of this package, class name); each class's
+# ``name`` is its key (tested).
 _CLASSES = {
     "ce": ("cross_entropy", "CrossEntropy"),
     "ga": ("genetic", "GeneticAlgorithm"),
@@ -27,6 +40,40 @@ _CLASSES = {
     "cmaes": ("cmaes", "CMAES"),
     "de": ("differential_evolution", "DifferentialEvolution"),
 }
+
+
+def method_label(method: str) -> str:
+    """The name people read for a method key: ``cmaes`` -> ``CMA-ES``."""
+    return LABELS.get(method, method)
+
+
+def method_list() -> str:
+    """The names for a message: ``ce, ga, sa, cmaes or de``."""
+    return ", ".join(METHOD_NAMES[:-1]) + f" or {METHOD_NAMES[-1]}"
+
+
+def method_settings(
+    method: str,
+    start: str | None,
+    configured: dict[str, Any],
+    given: dict[str, Any],
+    budget: int | None,
+) -> dict[str, Any]:
+    """A campaign's settings of its method: ``configured`` (a scenario's
+    ``optimize.methods.<method>``), ``given`` on top, then ``budget`` (None: the method's own).
+
+    A campaign that refines a given ``start`` set has CMA-ES evaluate the start point with its
+    first generation (``inject_start``), so the search ranks it with the others and never ends
+    worse than where it started; the paper's methods keep their own start.
+    """
+    settings = {
+        **({"inject_start": True} if start is not None and method == "cmaes" else {}),
+        **configured,
+        **given,
+    }
+    if budget is not None:
+        settings["budget"] = budget
+    return settings
 
 
 def algorithm(name: str) -> type[Optimizer]:
@@ -54,7 +101,7 @@ def make_optimizer(
     Parameters
     ----------
     name
-        A method name of :data:`~twin_cosim.optimize.methods.METHOD_NAMES`.
+        A method name of :data:`METHOD_NAMES`.
     dim, seed, x0, **settings
         Passed to the optimizer's constructor.
 
@@ -75,4 +122,15 @@ def __getattr__(attribute: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {attribute!r}")
 
 
-__all__ = ["ALGORITHMS", "Optimizer", "algorithm", "make_optimizer"]
+__all__ = [
+    "ALGORITHMS",
+    "LABELS",
+    "METHODS",
+    "METHOD_NAMES",
+    "Optimizer",
+    "algorithm",
+    "make_optimizer",
+    "method_label",
+    "method_list",
+    "method_settings",
+]

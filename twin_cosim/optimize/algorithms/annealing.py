@@ -67,11 +67,6 @@ class AnnealingSettings:
         check_int("chains", self.chains, 1)
         check_int("budget", self.budget, 1)
 
-    @property
-    def max_evaluations(self) -> int:
-        """The evaluation budget."""
-        return self.budget
-
 
 def redraw_out_of_bounds(
     rng: np.random.Generator, trial: np.ndarray, previous: np.ndarray

@@ -150,7 +150,9 @@ class Optimizer(abc.ABC):
         self.seed = int(seed)
         self.x0 = None if x0 is None else self._validated_x0(x0)
         self.settings = build_settings(self.settings_type, settings)
-        self.budget: int = self.settings.max_evaluations
+        # a budget given, else the method's own (CE and GA: from the population and generations)
+        given = self.settings.budget
+        self.budget: int = self.settings.max_evaluations if given is None else given
         self.evaluations = 0
         self.generation = 0
         self._rng = np.random.default_rng(self.seed)

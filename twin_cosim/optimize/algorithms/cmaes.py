@@ -48,11 +48,6 @@ class CMAESSettings:
         check_int("max_flat_generations", self.max_flat_generations, 1)
         check_int("budget", self.budget, 1)
 
-    @property
-    def max_evaluations(self) -> int:
-        """The evaluation budget."""
-        return self.budget
-
 
 def pycma_seed(seed: int) -> int:
     """Map a non-negative seed to pycma's: pycma reads 0 as "seed from the clock"."""

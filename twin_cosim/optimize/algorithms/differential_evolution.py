@@ -95,11 +95,6 @@ class DifferentialEvolutionSettings:
         check_real("atol", self.atol, 0.0)
         check_int("budget", self.budget, 1)
 
-    @property
-    def max_evaluations(self) -> int:
-        """The evaluation budget."""
-        return self.budget
-
 
 def _run_scipy(kwargs: dict[str, Any], requests: queue.Queue, replies: queue.Queue) -> None:
     """Thread body: run SciPy, posting ``("batch", x)``, then ``("done", msg)`` or ``("error",

@@ -6,8 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from twin_cosim.optimize.algorithms import ALGORITHMS, Optimizer, make_optimizer
-from twin_cosim.optimize.methods import METHOD_NAMES
+from twin_cosim.optimize.algorithms import (
+    ALGORITHMS,
+    LABELS,
+    METHOD_NAMES,
+    Optimizer,
+    make_optimizer,
+    method_label,
+)
 
 DIM = 6
 SHIFT = np.array([0.3, 0.7, 0.45, 0.62, 0.2, 0.81])
@@ -40,6 +46,12 @@ def test_registry_names_match_classes():
     for name, cls in ALGORITHMS.items():
         assert cls.name == name
         assert isinstance(make_optimizer(name, DIM, 0), cls)
+
+
+def test_every_method_has_one_label_for_people():
+    assert set(LABELS) == set(METHOD_NAMES)
+    assert method_label("cmaes") == "CMA-ES"
+    assert [method_label(m) for m in ("ce", "ga", "sa", "de")] == ["CE", "GA", "SA", "DE"]
 
 
 def test_unknown_algorithm_lists_valid_names():

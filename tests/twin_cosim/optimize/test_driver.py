@@ -1,4 +1,5 @@
-"""Campaigns: evaluators agree, kill -9 and resume loses nothing, Dask, comparison tables."""
+"""The campaign driver: evaluators agree, kill -9 and resume loses nothing, Dask, comparison
+tables."""
 
 from __future__ import annotations
 
@@ -14,9 +15,10 @@ import pytest
 from scenario_texts import scenario_text
 
 from twin_cosim import paper
-from twin_cosim.optimize.campaign import run_campaign
-from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
+from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec
 from twin_cosim.optimize.comparison import load_comparison, run_comparison
+from twin_cosim.optimize.driver import run_campaign
+from twin_cosim.optimize.store import CampaignError
 
 ROOT = Path(__file__).resolve().parents[3]
 SHORT = scenario_text(
@@ -34,7 +36,13 @@ def short_scenario(tmp_path_factory) -> str:
 
 def campaign(short_scenario, tmp_path, name, workers, method="ce", budget=60, scheduler=None):
     spec = CampaignSpec(short_scenario, method, seed=3, budget=budget)
-    return run_campaign(spec, tmp_path / name, workers=workers, scheduler=scheduler, progress=False)
+    return run_campaign(
+        AxisProblem.resolve(spec),
+        tmp_path / name,
+        workers=workers,
+        scheduler=scheduler,
+        progress=False,
+    )
 
 
 def test_serial_and_pool_give_the_same_campaign(short_scenario, tmp_path):
@@ -50,10 +58,10 @@ def test_serial_and_pool_give_the_same_campaign(short_scenario, tmp_path):
 def test_the_log_is_synced_once_per_generation(short_scenario, tmp_path, monkeypatch):
     """Every evaluation is flushed as it completes; the disk sync comes once per generation
     (and at the close), not once per evaluation."""
-    import twin_cosim.optimize.evaluation_log as evaluation_log
+    import twin_cosim.optimize.store as store
 
     synced = []
-    monkeypatch.setattr(evaluation_log.os, "fsync", lambda fd: synced.append(fd))
+    monkeypatch.setattr(store.os, "fsync", lambda fd: synced.append(fd))
     result = campaign(short_scenario, tmp_path, "synced", workers=1, budget=40)
     progress = json.loads((tmp_path / "synced" / "progress.json").read_text())
     lines = (tmp_path / "synced" / "evaluations.jsonl").read_text().splitlines()
@@ -65,7 +73,7 @@ def test_a_cmaes_refinement_evaluates_its_start_first(short_scenario, tmp_path):
     """``--start`` with CMA-ES: the start set is the first evaluation, so the campaign's best
     is never worse than the set it refines."""
     spec = CampaignSpec(short_scenario, "cmaes", seed=3, budget=12, start="ga")
-    result = run_campaign(spec, tmp_path / "refine", workers=1, progress=False)
+    result = run_campaign(AxisProblem.resolve(spec), tmp_path / "refine", workers=1, progress=False)
     first = json.loads((tmp_path / "refine" / "evaluations.jsonl").read_text().splitlines()[0])
     assert first["x"] == pytest.approx(list(paper.TABLE3["ga"].as_array()), rel=1e-12)
     assert result.fitness <= first["fitness"]
@@ -76,10 +84,11 @@ def test_a_pool_campaign_leaves_the_plant_to_its_workers(short_scenario, tmp_pat
     parent loads neither numba nor fmpy (it prepares while they start)."""
     code = (
         "import sys\n"
-        "from twin_cosim.optimize.campaign import run_campaign\n"
-        "from twin_cosim.optimize.campaign_spec import CampaignSpec\n"
+        "from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec\n"
+        "from twin_cosim.optimize.driver import run_campaign\n"
         f"spec = CampaignSpec({short_scenario!r}, 'ce', seed=3, budget=8)\n"
-        f"run_campaign(spec, {str(tmp_path / 'c')!r}, workers=2, progress=False)\n"
+        "problem = AxisProblem.resolve(spec)\n"
+        f"run_campaign(problem, {str(tmp_path / 'c')!r}, workers=2, progress=False)\n"
         "print(sorted({'numba', 'fmpy', 'matplotlib'} & set(sys.modules)))\n"
     )
     result = subprocess.run(

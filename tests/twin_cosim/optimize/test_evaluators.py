@@ -14,9 +14,10 @@ from pathlib import Path
 import pytest
 from scenario_texts import scenario_text
 
-from twin_cosim.optimize.campaign import run_campaign
-from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
-from twin_cosim.optimize.evaluator_protocol import SchedulerError
+from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec
+from twin_cosim.optimize.driver import run_campaign
+from twin_cosim.optimize.evaluators import SchedulerError
+from twin_cosim.optimize.store import CampaignError
 from twin_cosim.scenario import load_scenario
 
 distributed = pytest.importorskip("distributed")
@@ -49,10 +50,13 @@ def statuses(out: Path) -> list[tuple[str, str, float]]:
 
 def test_a_multi_thread_worker_gives_the_serial_campaign(scenario, tmp_path):
     spec = CampaignSpec(scenario, "ce", seed=2, budget=40)
-    serial = run_campaign(spec, tmp_path / "serial", workers=1, progress=False)
+    serial = run_campaign(AxisProblem.resolve(spec), tmp_path / "serial", workers=1, progress=False)
     with local_cluster(1, 3) as cluster:
         threaded = run_campaign(
-            spec, tmp_path / "dask", scheduler=cluster.scheduler_address, progress=False
+            AxisProblem.resolve(spec),
+            tmp_path / "dask",
+            scheduler=cluster.scheduler_address,
+            progress=False,
         )
     assert statuses(tmp_path / "dask") == statuses(tmp_path / "serial")
     assert threaded.best_params == serial.best_params
@@ -62,7 +66,7 @@ def test_nothing_listening_fails_fast_naming_the_option():
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    from twin_cosim.optimize.dask_evaluator import connect
+    from twin_cosim.optimize.evaluators import connect
 
     start = time.monotonic()
     with pytest.raises(SchedulerError, match=f"--scheduler tcp://127.0.0.1:{port}: no Dask"):
@@ -75,7 +79,7 @@ def test_a_scheduler_without_workers_says_so(scenario, tmp_path):
         spec = CampaignSpec(scenario, "ce", seed=2, budget=40)
         with pytest.raises(SchedulerError, match="the scheduler has no worker"):
             run_campaign(
-                spec,
+                AxisProblem.resolve(spec),
                 tmp_path / "c",
                 scheduler=cluster.scheduler_address,
                 progress=False,
@@ -103,7 +107,7 @@ def test_a_scheduler_lost_mid_run_is_an_error_and_the_log_resumes(scenario, tmp_
     try:
         with pytest.raises(CampaignError, match="lost the scheduler mid-run.*--resume"):
             run_campaign(
-                spec,
+                AxisProblem.resolve(spec),
                 out,
                 scheduler=cluster.scheduler_address,
                 progress=False,
@@ -113,8 +117,10 @@ def test_a_scheduler_lost_mid_run_is_an_error_and_the_log_resumes(scenario, tmp_
         stopper.join(timeout=60)
         cluster.close()
     before = statuses(out)
-    resumed = run_campaign(spec, out, workers=1, resume=True, progress=False)
-    uninterrupted = run_campaign(spec, tmp_path / "u", workers=1, progress=False)
+    resumed = run_campaign(AxisProblem.resolve(spec), out, workers=1, resume=True, progress=False)
+    uninterrupted = run_campaign(
+        AxisProblem.resolve(spec), tmp_path / "u", workers=1, progress=False
+    )
     assert resumed.best_params == uninterrupted.best_params
     assert set(before) <= set(statuses(out))
 
@@ -129,12 +135,12 @@ reference:
 
 
 def test_teardown_waits_for_the_running_task(tmp_path):
-    from twin_cosim.optimize.dask_evaluator import ObjectivePlugin
-    from twin_cosim.optimize.objective import ObjectiveSpec
+    from twin_cosim.optimize.axis_problem import ObjectiveSpec
+    from twin_cosim.optimize.evaluators import objective_plugin
 
     path = tmp_path / "long.yaml"
     path.write_text(LONG)
-    plugin = ObjectivePlugin(ObjectiveSpec((load_scenario(path),), None, None))
+    plugin = objective_plugin(ObjectiveSpec((load_scenario(path),), None, None))
     plugin.setup(worker=None)
     results = []
     fine_tune = [66.667, 0.5, 0.01, 1.0, 0.01, 0.1]

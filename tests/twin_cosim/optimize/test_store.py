@@ -1,4 +1,5 @@
-"""The evaluation log keeps every completed evaluation, survives a torn last line."""
+"""A campaign's folder: the evaluation log keeps every completed evaluation and survives a torn
+last line."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from twin_cosim.optimize.evaluation_log import EvaluationLog, candidate_key
+from twin_cosim.optimize.store import EvaluationLog, candidate_key
 
 
 def test_append_reload_and_lookup(tmp_path):

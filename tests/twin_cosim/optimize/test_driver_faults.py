@@ -1,4 +1,5 @@
-"""Campaigns refuse to mix inputs, to share a folder, or to store arguments they cannot run."""
+"""The campaign driver refuses to mix inputs, to share a folder, or to store arguments it cannot
+run."""
 
 from __future__ import annotations
 
@@ -13,10 +14,9 @@ import pytest
 from scenario_texts import scenario_text
 
 from twin_cosim.cli import main
-from twin_cosim.optimize.campaign import run_campaign
-from twin_cosim.optimize.campaign_folder import load_spec
-from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
-from twin_cosim.optimize.folder_lock import FolderLock
+from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec, load_campaign_spec
+from twin_cosim.optimize.driver import run_campaign
+from twin_cosim.optimize.store import CampaignError, FolderLock
 
 SHORT = scenario_text(move=0.2, back=False, optimize="abort_error_um: 50.0")
 
@@ -30,15 +30,17 @@ def scenario(tmp_path) -> Path:
 
 def run(scenario: Path, out: Path, budget: int = 10, **options) -> object:
     spec = CampaignSpec(str(scenario), "cmaes", seed=1, budget=budget, fmu=options.pop("fmu", None))
-    return run_campaign(spec, out, workers=1, progress=False, **options)
+    return run_campaign(AxisProblem.resolve(spec), out, workers=1, progress=False, **options)
 
 
 def test_resume_refuses_an_edited_scenario(scenario, tmp_path):
     run(scenario, tmp_path / "c")
     scenario.write_text(scenario_text(move=0.2, back=False, optimize="abort_error_um: 60.0"))
-    spec = load_spec(tmp_path / "c")
+    spec = load_campaign_spec(tmp_path / "c")
     with pytest.raises(CampaignError, match=r"scenario .*short.yaml.* changed"):
-        run_campaign(spec, tmp_path / "c", workers=1, resume=True, progress=False)
+        run_campaign(
+            AxisProblem.resolve(spec), tmp_path / "c", workers=1, resume=True, progress=False
+        )
 
 
 def test_resume_refuses_another_plant_fmu(scenario, tmp_path, fmu_path):
@@ -47,9 +49,9 @@ def test_resume_refuses_another_plant_fmu(scenario, tmp_path, fmu_path):
     shutil.copy(fmu_path, other)
     with open(other, "ab") as file:  # same members, another archive: still the same plant
         file.write(b"")
-    spec = load_spec(tmp_path / "c")
+    spec = load_campaign_spec(tmp_path / "c")
     same = CampaignSpec(**{**spec.__dict__, "fmu": str(other)})
-    run_campaign(same, tmp_path / "c", workers=1, resume=True, progress=False)
+    run_campaign(AxisProblem.resolve(same), tmp_path / "c", workers=1, resume=True, progress=False)
     emps = Path(__file__).resolve().parents[3] / "build" / "emps.fmu"
     if not emps.exists():
         from fmu_build.build import build_fmu
@@ -57,7 +59,9 @@ def test_resume_refuses_another_plant_fmu(scenario, tmp_path, fmu_path):
         emps = build_fmu("emps")
     changed = CampaignSpec(**{**spec.__dict__, "fmu": str(emps)})
     with pytest.raises(CampaignError, match="plant FMU .*emps.fmu.* changed"):
-        run_campaign(changed, tmp_path / "c", workers=1, resume=True, progress=False)
+        run_campaign(
+            AxisProblem.resolve(changed), tmp_path / "c", workers=1, resume=True, progress=False
+        )
 
 
 def test_cli_resume_checks_the_given_scenario(scenario, tmp_path, capsys):
@@ -127,12 +131,12 @@ def test_an_unreachable_scheduler_writes_nothing(scenario, tmp_path):
     with socket.socket() as probe:  # a loopback port with nothing listening
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    from twin_cosim.optimize import dask_evaluator
+    from twin_cosim.optimize import evaluators
 
     spec = CampaignSpec(str(scenario), "cmaes", seed=1, budget=10)
-    with pytest.raises(dask_evaluator.SchedulerError, match=f"--scheduler tcp://127.0.0.1:{port}"):
+    with pytest.raises(evaluators.SchedulerError, match=f"--scheduler tcp://127.0.0.1:{port}"):
         run_campaign(
-            spec,
+            AxisProblem.resolve(spec),
             tmp_path / "c",
             scheduler=f"tcp://127.0.0.1:{port}",
             progress=False,

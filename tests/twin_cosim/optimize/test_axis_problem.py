@@ -8,8 +8,9 @@ import shutil
 import pytest
 from scenario_texts import scenario_text
 
-from twin_cosim.optimize.campaign import run_campaign
-from twin_cosim.optimize.campaign_spec import CampaignError, CampaignSpec
+from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec
+from twin_cosim.optimize.driver import run_campaign
+from twin_cosim.optimize.store import CampaignError
 from twin_cosim.scenario.plant_file import PlantParameters, write_plant_parameters
 
 SMALL_CE = "methods: {ce: {population_size: 10, elite_fraction: 0.2}}"
@@ -39,7 +40,7 @@ def robust_spec(files, **changes) -> CampaignSpec:
 @pytest.mark.parametrize("relative", [False, True])
 def test_robust_campaign_resumes_to_the_same_result(files, tmp_path, relative):
     spec = robust_spec(files, relative=relative)
-    whole = run_campaign(spec, tmp_path / "whole", workers=1, progress=False)
+    whole = run_campaign(AxisProblem.resolve(spec), tmp_path / "whole", workers=1, progress=False)
     header = json.loads((tmp_path / "whole" / "campaign.json").read_text())
     assert header["robust"]["plant_parameters"]["backlash"] == 15e-6
     assert len(header["robust"]["samples"]) == 2 and header["robust"]["samples"][0] == {}
@@ -51,7 +52,7 @@ def test_robust_campaign_resumes_to_the_same_result(files, tmp_path, relative):
     lines = (cut / "evaluations.jsonl").read_text().splitlines(keepends=True)
     (cut / "evaluations.jsonl").write_text("".join(lines[:15]))
     (cut / "result.json").unlink()
-    resumed = run_campaign(spec, cut, workers=1, resume=True, progress=False)
+    resumed = run_campaign(AxisProblem.resolve(spec), cut, workers=1, resume=True, progress=False)
     assert resumed.best_params == whole.best_params
     assert resumed.fitness == whole.fitness
     assert resumed.evaluations == whole.evaluations
@@ -59,20 +60,32 @@ def test_robust_campaign_resumes_to_the_same_result(files, tmp_path, relative):
 
 
 def test_resume_refuses_a_changed_plant_file(files, tmp_path):
-    run_campaign(robust_spec(files, budget=10), tmp_path / "c", workers=1, progress=False)
+    run_campaign(
+        AxisProblem.resolve(robust_spec(files, budget=10)),
+        tmp_path / "c",
+        workers=1,
+        progress=False,
+    )
     write_plant_parameters(files[2], PlantParameters("drive2mass", {"backlash": 16e-6}))
     with pytest.raises(CampaignError, match="plant_parameters"):
-        run_campaign(robust_spec(files, budget=10), tmp_path / "c", workers=1, resume=True)
+        run_campaign(
+            AxisProblem.resolve(robust_spec(files, budget=10)),
+            tmp_path / "c",
+            workers=1,
+            resume=True,
+        )
 
 
 def test_samples_need_a_tolerance(files, tmp_path):
     with pytest.raises(ValueError, match="--tolerance"):
-        run_campaign(robust_spec(files, tolerance=0.0), tmp_path / "d", workers=1)
+        run_campaign(
+            AxisProblem.resolve(robust_spec(files, tolerance=0.0)), tmp_path / "d", workers=1
+        )
 
 
 def test_each_case_is_judged_against_its_own_reference_run(files, tmp_path):
     spec = robust_spec(files, budget=10, relative=True)
-    result = run_campaign(spec, tmp_path / "rel", workers=1, progress=False)
+    result = run_campaign(AxisProblem.resolve(spec), tmp_path / "rel", workers=1, progress=False)
     cases = json.loads((tmp_path / "rel" / "campaign.json").read_text())["cases"]
     labels = ["short/sample0", "short/sample1", "b/sample0", "b/sample1"]
     assert [c["case"] for c in cases] == labels
@@ -88,8 +101,16 @@ def test_each_case_is_judged_against_its_own_reference_run(files, tmp_path):
 
 
 def test_resume_refuses_a_change_of_relative(files, tmp_path):
-    run_campaign(robust_spec(files, budget=10), tmp_path / "r", workers=1, progress=False)
+    run_campaign(
+        AxisProblem.resolve(robust_spec(files, budget=10)),
+        tmp_path / "r",
+        workers=1,
+        progress=False,
+    )
     with pytest.raises(CampaignError, match="different campaign"):
         run_campaign(
-            robust_spec(files, budget=10, relative=True), tmp_path / "r", workers=1, resume=True
+            AxisProblem.resolve(robust_spec(files, budget=10, relative=True)),
+            tmp_path / "r",
+            workers=1,
+            resume=True,
         )
