@@ -11,6 +11,7 @@ from twin_cosim.commands.options import (
     command_parser,
     data_option,
     fraction,
+    no_plots_option,
     number_above,
     out_folder,
     plant_option,
@@ -37,7 +38,8 @@ def add_arguments(subparsers) -> None:
         "--phase-margin",
         type=number_above(0.0),
         default=50.0,
-        help="the speed loop's phase-margin target, degrees",
+        help="the speed loop's phase-margin target, degrees: the integral time is set so that "
+        "the loop has it (within 0.5 deg), or the command says why none can",
     )
     parser.add_argument(
         "--coherence-floor",
@@ -51,6 +53,7 @@ def add_arguments(subparsers) -> None:
         "--out", metavar="DIR", help="output folder (default: out/autotune-<scenario name>)"
     )
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    no_plots_option(parser)
     data_option(parser)
     parser.set_defaults(handler=run)
 
@@ -76,13 +79,14 @@ def run(args: argparse.Namespace) -> int:
         **proposal.summary(),
         **ran,
         "scenario": str(scenario.source),
-        "phase_margin_target_deg": args.phase_margin,
         "warnings": mismatch,
         "versions": versions(),
     }
     write_json(out / "autotune.json", summary)
     command = command_line("autotune")
-    plot = plot_design(proposal, scenario, out / "speed_loop.png", command)
+    plot = None
+    if not args.no_plots:
+        plot = plot_design(proposal, scenario, out / "speed_loop.png", command)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -90,24 +94,35 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_text(summary: dict, out: Path, plot: Path) -> None:
-    """The set, its margins and its metrics beside the scenario's own set's."""
+def _print_text(summary: dict, out: Path, plot: Path | None) -> None:
+    """The set, its loops' margins and closed-loop figures, and its metrics beside the
+    scenario's own set's."""
+    from twin_cosim.frequency.bode import margins_text
+    from twin_cosim.frequency.margins import Margins
+
     for note in summary["notes"]:
         print(f"twin autotune: {note}")
     print("params: " + ", ".join(f"{k}={v:.6g}" for k, v in summary["params"].items()))
     settings = summary["settings"]
     filters = settings["filters"] or "none"
     print(f"current filters: {filters}; feedforward inertia {settings['inertia']:.4g} kg.m2")
-    for label, key in (("speed", "margins"), ("position", "position_margins")):
-        m = summary[key]
+    speed = Margins(**summary["margins"])
+    position = Margins(**summary["position_margins"])
+    print(
+        f"speed loop: {margins_text(speed)} (target phase margin "
+        f"{summary['phase_margin_target_deg']:g} deg)"
+    )
+    print(f"position loop: {margins_text(position)}")
+    print(f"Kp_pos limited by the position loop's {summary['position_gain_limited_by']}")
+    if (position.bandwidth_hz or 0.0) > (speed.bandwidth_hz or float("inf")):
         print(
-            f"{label} loop: phase margin {m['phase_margin_deg']:.1f} deg at "
-            f"{m['crossover_hz']:.1f} Hz, gain margin {m['gain_margin_db']:.1f} dB, "
-            f"bandwidth {m['bandwidth_hz']:.1f} Hz"
+            f"twin autotune: note: the position loop's bandwidth ({position.bandwidth_hz:.3g} Hz) "
+            f"lies above the speed loop's ({speed.bandwidth_hz:.3g} Hz)"
         )
     new, own = summary["metrics"], summary["scenario_metrics"]
     print(
         f"E_pk {new['E_pk_um']:.3f} um (scenario's set {own['E_pk_um']:.3f} um), IAU "
         f"{new['IAU']:.4g} A.s ({own['IAU']:.4g}); {summary['wall_s']:.2f} s"
     )
-    print(f"wrote {out / 'autotune.json'} (a controller set: --params, --start), {plot}")
+    plotted = "" if plot is None else f", {plot}"
+    print(f"wrote {out / 'autotune.json'} (a controller set: --params, --start){plotted}")

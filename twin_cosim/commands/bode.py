@@ -10,6 +10,8 @@ from twin_cosim.commands.console import command_line, warn_plant_mismatch, write
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
+    fraction,
+    no_plots_option,
     number_above,
     out_folder,
     params_option,
@@ -19,7 +21,7 @@ from twin_cosim.commands.options import (
     whole_number,
 )
 
-LOOP_CHOICES = ("plant", "current", "speed", "position")  # current: the plant, injected there
+LOOP_CHOICES = ("plant", "current", "speed", "position", "disturbance")  # current: the plant
 
 
 def add_arguments(subparsers) -> None:
@@ -33,16 +35,32 @@ def add_arguments(subparsers) -> None:
         required=True,
         choices=LOOP_CHOICES,
         help="plant (or current: the excitation at the current command, the response the "
-        "mechanics, eq. (3)), speed or position (required, no default)",
+        "mechanics, eq. (3)), speed, position, or disturbance (a torque at the load, the "
+        "dynamic stiffness in N/um) (required, no default)",
     )
     kind = parser.add_mutually_exclusive_group()
     kind.add_argument(
-        "--open", dest="kind", action="store_const", const="open", help="the open loop (default)"
+        "--open",
+        dest="kind",
+        action="store_const",
+        const="open",
+        help="the open loop L (default; the disturbance response is the closed cascade's)",
     )
     kind.add_argument(
-        "--closed", dest="kind", action="store_const", const="closed", help="the closed loop"
+        "--closed",
+        dest="kind",
+        action="store_const",
+        const="closed",
+        help="the closed loop T = L / (1 + L)",
     )
-    parser.set_defaults(kind="open")
+    kind.add_argument(
+        "--sensitivity",
+        dest="kind",
+        action="store_const",
+        const="sensitivity",
+        help="the sensitivity S = 1 / (1 + L): the loop's error over its setpoint",
+    )
+    parser.set_defaults(kind=None)
     parser.add_argument(
         "--nonlinear",
         choices=("on", "off"),
@@ -57,6 +75,7 @@ def add_arguments(subparsers) -> None:
         "--out", metavar="DIR", help="output folder (default: out/bode-<scenario>-<loop>-<kind>)"
     )
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    no_plots_option(parser)
     data_option(parser)
     parser.set_defaults(handler=run)
 
@@ -66,8 +85,9 @@ def _excitation_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--amplitude",
         type=number_above(0.0),
-        help="RMS of the multisine: A (plant), rad/s (speed), m (position) (default: what "
-        "commands 5 %% of the current limit at high frequency)",
+        help="RMS of the multisine: A (plant), rad/s (speed), m (position), N.m (disturbance) "
+        "(default: what commands 2 %% of the current limit at high frequency; a disturbance of "
+        "20 %% of the drive's friction torque)",
     )
     parser.add_argument(
         "--averages", type=whole_number(2), default=8, help="multisine realisations averaged"
@@ -75,8 +95,9 @@ def _excitation_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--speed",
         type=float,
-        default=0.0,
-        help="carriage speed of the operating point, m/s (0: standstill)",
+        help="carriage speed of the operating point, m/s (0: standstill) (default: 20 rad/s at "
+        "the motor, 0.0212 m/s on drive2mass: friction slides one way, the backlash stays "
+        "closed, the loop responds as the linearised one)",
     )
     parser.add_argument(
         "--low", type=number_above(0.0), default=1.0, help="lowest excited frequency, Hz"
@@ -88,10 +109,17 @@ def _excitation_options(parser: argparse.ArgumentParser) -> None:
         help="white noise on the measured motor speed, rad/s RMS",
     )
     parser.add_argument("--seed", type=whole_number(0), default=0, help="seed of phases and noise")
+    parser.add_argument(
+        "--coherence-floor",
+        type=fraction(0.0, 1.0),
+        default=0.9,
+        help="a margin or figure read at or above a line of lower coherence is withheld",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
-    """Measure, write frf.csv, bode.png (nyquist.png) and bode.json; print the summary."""
+    """Measure, write frf.csv, bode.png (nyquist.png; stiffness.png) and bode.json; print the
+    summary."""
     from twin_cosim.frequency.bode import bode, describe, write_bode
     from twin_cosim.frequency.measurement import MeasurementSettings
     from twin_cosim.scenario import load_controller_set, resolve_scenario, with_controller_set
@@ -112,10 +140,10 @@ def run(args: argparse.Namespace) -> int:
         speed_noise=args.noise,
         seed=args.seed,
     )
-    out = out_folder(args.out, Path("out") / f"bode-{scenario.name}-{loop}-{args.kind}")
-    result = bode(scenario, how, args.nonlinear == "on", plant_path(args))
+    out = out_folder(args.out, Path("out") / f"bode-{scenario.name}-{loop}-{how.kind}")
+    result = bode(scenario, how, args.nonlinear == "on", plant_path(args), args.coherence_floor)
     command = command_line("bode")
-    files = write_bode(result, out, command)
+    files = write_bode(result, out, command, plots=not args.no_plots)
     summary = {
         **result.summary(),
         "command": command,

@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
         fit = calibration.fit
         print(
             f"fit: {fit.lines} lines, RMS error {fit.rms_db:.3g} dB, {fit.rms_deg:.3g} deg, "
-            f"delay {fit.delay_s * 1e6:.3g} us, current lag {fit.lag_s * 1e6:.3g} us"
+            f"{fit.drive_text()}"
         )
         print(f"wrote {', '.join(files.values())}, {out / 'calibration.json'}")
     return 0

@@ -5,12 +5,16 @@ The measurement (:mod:`twin_cosim.frequency.measurement`) runs the scenario's pl
 controller with the nonlinearities on (as a drive measures a machine) or off (the plant model's
 card says which parameter values switch them off); the linearised response
 (:mod:`twin_cosim.frequency.linear`) comes from the card's linear two-mass model at the same
-plant parameters. Open loops get their margins from the measured data and, by python-control,
-from the linearised loop.
+plant parameters. Every response of the speed and position loops (open, closed, sensitivity)
+gets its loop's margins and closed-loop figures from the measured data (those read where the
+coherence is below the floor withheld, :mod:`twin_cosim.frequency.margins`) and, by
+python-control, from the linearised loop. The disturbance response gets the dynamic stiffness'
+figures: its value at the lowest line and its minimum (:class:`StiffnessFigures`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import textwrap
 import time
@@ -23,7 +27,14 @@ import numpy as np
 
 from twin_cosim.frequency.calibration import coherence_drops, describe_drops, write_frf
 from twin_cosim.frequency.linear import LinearLoops, TwoMass, speed_loop_of_plant
-from twin_cosim.frequency.margins import Margins, margins_of_data, margins_of_system
+from twin_cosim.frequency.margins import (
+    COHERENCE_FLOOR,
+    Margins,
+    dense_grid,
+    margins_of_data,
+    margins_of_system,
+    open_loop_of,
+)
 from twin_cosim.frequency.measurement import (
     PLANT_BAND,
     UNITS,
@@ -36,14 +47,78 @@ from twin_cosim.plant import Plant
 from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario import Scenario
 
-COHERENCE_FLOOR = 0.9  # where the report says the coherence drops
 DEVIATION_BAND_HZ = (10.0, 500.0)  # measured against linearised, the plant's resonances within
-EXCITATION_UNITS = {"plant": "A", "speed": "rad/s", "position": "m"}
+EXCITATION_UNITS = {"plant": "A", "speed": "rad/s", "position": "m", "disturbance": "N.m"}
+
+
+@dataclass(frozen=True)
+class StiffnessFigures:
+    """What a servo engineer reads from a dynamic stiffness curve.
+
+    Attributes
+    ----------
+    low_frequency_n_per_um : float or None
+        |K| at the lowest line, N/um (an integral speed loop makes it grow without bound as
+        the frequency falls); None when withheld.
+    low_frequency_hz : float
+        That line, Hz.
+    minimum_n_per_um : float or None
+        The smallest |K|, N/um (near the mechanical resonance); None when withheld.
+    minimum_hz : float or None
+        Where it lies, Hz.
+    withheld : dict
+        Figures read at or above a line whose coherence is below the floor (as
+        :class:`~twin_cosim.frequency.margins.Margins`).
+    """
+
+    low_frequency_n_per_um: float | None
+    low_frequency_hz: float
+    minimum_n_per_um: float | None
+    minimum_hz: float | None
+    withheld: dict[str, dict[str, float]]
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return dataclasses.asdict(self)
+
+
+def stiffness_figures(
+    frequency_hz: np.ndarray,
+    stiffness: np.ndarray,
+    coherence: np.ndarray | None = None,
+    floor: float = COHERENCE_FLOOR,
+) -> StiffnessFigures:
+    """The figures of a dynamic stiffness (N/um, complex) at increasing frequencies (Hz); with
+    ``coherence``, a figure read at or above a line below ``floor`` is withheld."""
+    f = np.asarray(frequency_hz, dtype=np.float64)
+    magnitude = np.abs(stiffness)
+    i = int(np.argmin(magnitude))
+    read = {"low_frequency_n_per_um": (0, magnitude[0]), "minimum_n_per_um": (i, magnitude[i])}
+    withheld = {}
+    if coherence is not None:
+        for name, (line, value) in read.items():
+            lowest = float(np.min(coherence[: line + 1]))
+            if lowest < floor:
+                withheld[name] = {
+                    "value": float(value),
+                    "frequency_hz": float(f[line]),
+                    "lowest_coherence": lowest,
+                    "floor": floor,
+                }
+    return StiffnessFigures(
+        low_frequency_n_per_um=None
+        if "low_frequency_n_per_um" in withheld
+        else float(magnitude[0]),
+        low_frequency_hz=float(f[0]),
+        minimum_n_per_um=None if "minimum_n_per_um" in withheld else float(magnitude[i]),
+        minimum_hz=None if "minimum_n_per_um" in withheld else float(f[i]),
+        withheld=withheld,
+    )
 
 
 @dataclass(frozen=True)
 class BodeResult:
-    """A measured response, its linearised counterpart and their margins.
+    """A measured response, its linearised counterpart and their figures.
 
     Attributes
     ----------
@@ -58,13 +133,19 @@ class BodeResult:
     linearised : FrequencyResponse or None
         The linearised response at the measured lines; None when the card gives no linear model.
     margins : Margins or None
-        Of the measured open loop; for the plant, of the speed loop made of the measured plant
-        (all its lines, up to the Nyquist frequency) and the speed controller; None for a closed
-        loop.
+        Of the measured loop (its open loop from any of its responses); for the plant, of the
+        speed loop made of the measured plant (all its lines, up to the Nyquist frequency) and
+        the speed controller; None for the disturbance response.
     linearised_margins : Margins or None
-        The same of the linearised loop; None for a closed loop or without a linear model.
+        The same of the linearised loop; None without a linear model.
+    stiffness : StiffnessFigures or None
+        The dynamic stiffness' figures, measured (disturbance response only).
+    linearised_stiffness : StiffnessFigures or None
+        The same of the linearised cascade (its minimum on a dense grid).
     amplitude : float
         RMS of the excitation, unit :data:`EXCITATION_UNITS` of the loop.
+    coherence_floor : float
+        Figures read where the coherence is below it are withheld.
     wall_s : float
         Wall time of the measurement, s.
     """
@@ -76,7 +157,10 @@ class BodeResult:
     linearised: FrequencyResponse | None
     margins: Margins | None
     linearised_margins: Margins | None
+    stiffness: StiffnessFigures | None
+    linearised_stiffness: StiffnessFigures | None
     amplitude: float
+    coherence_floor: float
     wall_s: float
 
     def deviation(self) -> dict[str, float] | None:
@@ -94,10 +178,11 @@ class BodeResult:
         }
 
     def summary(self) -> dict[str, Any]:
-        """The JSON summary: measured lists, margins, the linearised response, the set-up."""
+        """The JSON summary: measured lists, figures, the linearised response, the set-up."""
         m = self.measured
         linear = self.linearised
-        return {
+        floor = self.coherence_floor
+        summary = {
             "scenario": str(self.scenario.source),
             "loop": m.loop,
             "kind": m.kind,
@@ -120,25 +205,36 @@ class BodeResult:
                 else self.linearised_margins.as_dict(),
             },
             "deviation": self.deviation(),
-            "coherence_floor": COHERENCE_FLOOR,
-            "coherence_drops": coherence_drops(m.frequency_hz, m.coherence, COHERENCE_FLOOR),
+            "coherence_floor": floor,
+            "coherence_drops": coherence_drops(m.frequency_hz, m.coherence, floor),
             "excitation": {
                 "signal": "multisine, random phases, log-spaced lines",
                 "rms": self.amplitude,
                 "unit": EXCITATION_UNITS[m.loop],
                 "lines": len(m.frequency_hz),
                 "realisations": self.how.averages,
-                "operating_speed_m_s": self.how.speed,
+                "operating_speed_m_s": self.how.operating_speed(self.scenario.settings),
                 "speed_noise_rad_s": self.how.speed_noise,
                 "seed": self.how.seed,
             },
             "params": self.scenario.tuned.as_dict(),
             "wall_s": self.wall_s,
         }
+        if self.stiffness is not None:
+            summary["stiffness_n_per_um"] = np.abs(m.response).tolist()
+            summary["stiffness"] = self.stiffness.as_dict()
+            if linear is not None and self.linearised_stiffness is not None:
+                summary["linearised"]["stiffness_n_per_um"] = np.abs(linear.response).tolist()
+                summary["linearised"]["stiffness"] = self.linearised_stiffness.as_dict()
+        return summary
 
 
 def bode(
-    scenario: Scenario, how: MeasurementSettings, nonlinear: bool, fmu: Path | None = None
+    scenario: Scenario,
+    how: MeasurementSettings,
+    nonlinear: bool,
+    fmu: Path | None = None,
+    coherence_floor: float = COHERENCE_FLOOR,
 ) -> BodeResult:
     """Measure a loop of ``scenario`` on its plant (or ``fmu``) and linearise it.
 
@@ -168,7 +264,7 @@ def bode(
             float(scenario.reference.position[0]),
         )
         wall = time.perf_counter() - start
-    margins = _measured_margins(scenario, measured)
+    margins = _measured_margins(scenario, measured, coherence_floor)
     if how.loop == "plant":  # the continuous plant, where the hold is divided out exactly enough
         measured = measured.below(PLANT_BAND * 0.5 / scenario.settings.speed_period)
     linear = None
@@ -176,6 +272,7 @@ def bode(
         linear_plant = TwoMass.of_plant(model.name, parameters)
         linear = LinearLoops(linear_plant, scenario.tuned, scenario.settings)
     f = measured.frequency_hz
+    disturbance = how.loop == "disturbance"
     return BodeResult(
         scenario=scenario,
         how=how,
@@ -186,11 +283,26 @@ def bode(
         else FrequencyResponse(how.loop, how.kind, f, linear.response(how.loop, how.kind, f)),
         margins=margins,
         linearised_margins=None
-        if linear is None or how.kind == "closed"
+        if linear is None or disturbance
         else margins_of_system(linear.open_loop(_margins_loop(how.loop)), how.low_hz),
+        stiffness=stiffness_figures(f, measured.response, measured.coherence, coherence_floor)
+        if disturbance
+        else None,
+        linearised_stiffness=None
+        if linear is None or not disturbance
+        else linearised_stiffness(linear, f),
         amplitude=amplitude,
+        coherence_floor=coherence_floor,
         wall_s=wall,
     )
+
+
+def linearised_stiffness(linear: LinearLoops, frequency_hz: np.ndarray) -> StiffnessFigures:
+    """The linearised cascade's stiffness figures: at the lowest measured line (Hz) and its
+    minimum on a dense grid over the measured band."""
+    low = float(frequency_hz[0])
+    grid = np.concatenate([[low], dense_grid(low, float(frequency_hz[-1]))[1:]])
+    return stiffness_figures(grid, linear.dynamic_stiffness(grid))
 
 
 def _margins_loop(loop: str) -> str:
@@ -198,20 +310,24 @@ def _margins_loop(loop: str) -> str:
     return "speed" if loop == "plant" else loop
 
 
-def _measured_margins(scenario: Scenario, measured: FrequencyResponse) -> Margins | None:
-    """Margins of a measured open loop (of the speed loop built on a measured plant)."""
-    if measured.kind == "closed":
+def _measured_margins(
+    scenario: Scenario, measured: FrequencyResponse, floor: float
+) -> Margins | None:
+    """Margins of a measured loop (of the speed loop built on a measured plant); figures read
+    where the coherence is below ``floor`` withheld."""
+    if measured.loop == "disturbance":
         return None
-    loop = measured.response
+    loop = open_loop_of(measured.kind, measured.response)
     if measured.loop == "plant":
         loop = speed_loop_of_plant(
             scenario.tuned, scenario.settings, measured.frequency_hz, measured.response
         )
-    return margins_of_data(measured.frequency_hz, loop)
+    return margins_of_data(measured.frequency_hz, loop, measured.coherence, floor)
 
 
-def write_bode(result: BodeResult, out: Path, command: str) -> dict[str, str]:
-    """Write ``frf.csv``, ``bode.png`` and, for an open loop, ``nyquist.png`` into ``out``.
+def write_bode(result: BodeResult, out: Path, command: str, plots: bool = True) -> dict[str, str]:
+    """Write ``frf.csv`` and (``plots``) ``bode.png`` and, for an open loop, ``nyquist.png``
+    into ``out``; for the disturbance response ``stiffness.png`` in place of ``bode.png``.
 
     ``command`` is the command line that made the measurement (the files say it).
     """
@@ -220,12 +336,24 @@ def write_bode(result: BodeResult, out: Path, command: str) -> dict[str, str]:
     state = "nonlinearities " + ("on" if result.nonlinear else "off")
     comment = f"{command}: {m.description}, {UNITS[m.loop]} ({state})"
     files = {"frf": str(write_frf(out / "frf.csv", m, comment))}
+    if not plots:
+        return files
     responses = {f"measured ({state})": m}
     if result.linearised is not None:
         responses["linearised"] = result.linearised
     title = f"{result.scenario.name}: {m.description}\n{command}"
+    if m.loop == "disturbance":
+        files["stiffness"] = str(plot_stiffness(result, title, out / "stiffness.png"))
+        return files
     files["bode"] = str(
-        plot_bode(responses, title, out / "bode.png", result.margins, COHERENCE_FLOOR)
+        plot_bode(
+            responses,
+            title,
+            out / "bode.png",
+            result.margins,
+            result.coherence_floor,
+            f"{_margins_loop(m.loop)} loop, measured: ",
+        )
     )
     if m.loop != "plant" and m.kind == "open":  # the plant is no loop: no -1 point
         files["nyquist"] = str(plot_nyquist(responses, title, out / "nyquist.png"))
@@ -235,6 +363,7 @@ def write_bode(result: BodeResult, out: Path, command: str) -> dict[str, str]:
 def describe(result: BodeResult) -> list[str]:
     """The result in a few lines for a reader."""
     m = result.measured
+    floor = result.coherence_floor
     lines = [f"{m.description} ({m.unit}), {len(m.frequency_hz)} lines, {result.wall_s:.2f} s"]
     deviation = result.deviation()
     if deviation is not None:
@@ -242,27 +371,83 @@ def describe(result: BodeResult) -> list[str]:
             f"measured against linearised, {deviation['from_hz']:g}-{deviation['to_hz']:g} Hz: "
             f"within {deviation['max_db']:.3g} dB and {deviation['max_deg']:.3g} deg"
         )
-    lines.append(
-        describe_drops(
-            coherence_drops(m.frequency_hz, m.coherence, COHERENCE_FLOOR), COHERENCE_FLOOR
-        )
-    )
+    lines.append(describe_drops(coherence_drops(m.frequency_hz, m.coherence, floor), floor))
     loop = _margins_loop(m.loop)
     for label, margins in (("measured", result.margins), ("linearised", result.linearised_margins)):
         if margins is not None:
-            lines.append(f"{loop} loop margins ({label}): {_margins_text(margins)}")
+            lines.append(f"{loop} loop ({label}): {margins_text(margins)}")
+            lines.extend(f"  {note}" for note in withheld_notes(margins.withheld))
+    for label, figures in (
+        ("measured", result.stiffness),
+        ("linearised", result.linearised_stiffness),
+    ):
+        if figures is not None:
+            lines.append(f"dynamic stiffness ({label}): {stiffness_text(figures)}")
+            lines.extend(f"  {note}" for note in withheld_notes(figures.withheld))
     return lines
 
 
-def _margins_text(m: Margins) -> str:
-    def number(value: float | None, unit: str) -> str:
-        return "none" if value is None or not math.isfinite(value) else f"{value:.3g} {unit}"
+def _number(value: float | None, unit: str, digits: int = 3) -> str:
+    """A figure with its unit, or 'withheld' / 'none'."""
+    if value is None or not math.isfinite(value):
+        return "none"
+    return f"{value:.{digits}g} {unit}"
+
+
+def margins_text(m: Margins) -> str:
+    """Margins and closed-loop figures on one line (withheld ones named so)."""
+
+    def figure(name: str, value: float | None, at: float | None = None) -> str:
+        if name in m.withheld:
+            return "withheld"
+        text = _number(value, FIGURE_NAMES[name][1])
+        return text if at is None or value is None else f"{text} at {_number(at, 'Hz', 4)}"
 
     return (
-        f"gain {number(m.gain_margin_db, 'dB')}, phase {number(m.phase_margin_deg, 'deg')} at "
-        f"{number(m.crossover_hz, 'Hz')}, bandwidth {number(m.bandwidth_hz, 'Hz')}, "
-        f"peak sensitivity {m.peak_sensitivity_db:.3g} dB"
+        f"gain margin {figure('gain_margin_db', m.gain_margin_db, m.phase_crossover_hz)}, "
+        f"phase margin {figure('phase_margin_deg', m.phase_margin_deg, m.crossover_hz)}, "
+        f"bandwidth {figure('bandwidth_hz', m.bandwidth_hz)}, resonance peak "
+        f"{figure('resonance_peak_db', m.resonance_peak_db, m.resonance_peak_hz)}, peak "
+        f"sensitivity {figure('peak_sensitivity_db', m.peak_sensitivity_db, m.peak_sensitivity_hz)}"
     )
+
+
+def stiffness_text(s: StiffnessFigures) -> str:
+    """The stiffness figures on one line."""
+    low = (
+        "withheld"
+        if s.low_frequency_n_per_um is None
+        else _number(s.low_frequency_n_per_um, "N/um", 4)
+    )
+    minimum = (
+        "withheld"
+        if s.minimum_n_per_um is None
+        else (f"{_number(s.minimum_n_per_um, 'N/um', 4)} at {_number(s.minimum_hz, 'Hz', 4)}")
+    )
+    return f"{low} at {s.low_frequency_hz:.3g} Hz, minimum {minimum}"
+
+
+FIGURE_NAMES = {  # field: (what a reader calls it, unit)
+    "gain_margin_db": ("gain margin", "dB"),
+    "phase_margin_deg": ("phase margin", "deg"),
+    "bandwidth_hz": ("bandwidth", "Hz"),
+    "resonance_peak_db": ("resonance peak", "dB"),
+    "peak_sensitivity_db": ("peak sensitivity", "dB"),
+    "low_frequency_n_per_um": ("low-frequency stiffness", "N/um"),
+    "minimum_n_per_um": ("minimum stiffness", "N/um"),
+}
+
+
+def withheld_notes(withheld: Mapping[str, Mapping[str, float]]) -> list[str]:
+    """Why each withheld figure is withheld, one line each."""
+    notes = []
+    for name, w in withheld.items():
+        label, unit = FIGURE_NAMES[name]
+        notes.append(
+            f"{label} withheld: read as {w['value']:.3g} {unit} at {w['frequency_hz']:.4g} Hz, "
+            f"above a line of coherence {w['lowest_coherence']:.2f} (floor {w['floor']:g})"
+        )
+    return notes
 
 
 def plot_bode(
@@ -271,12 +456,14 @@ def plot_bode(
     path: Path,
     margins: Margins | None = None,
     coherence_floor: float | None = None,
+    margins_label: str = "",
 ) -> Path:
     """Magnitude, phase and (where measured) coherence against frequency; returns ``path``.
 
     ``responses`` by label: measured ones (with a coherence) drawn as points, computed ones as
-    lines; ``margins`` marks the crossover and phase margin; ``coherence_floor`` draws that
-    level.
+    lines; ``margins`` are written above the phase (withheld ones said so) and marked: the
+    crossover of an open loop, the bandwidth of a closed one, the peak of a sensitivity;
+    ``coherence_floor`` draws that level; ``margins_label`` says whose the margins are.
     """
     plt = _pyplot()
     measured = any(r.coherence is not None for r in responses.values())
@@ -299,21 +486,9 @@ def plot_bode(
         axes[2].set_ylim(-0.05, 1.05)
     if measured and coherence_floor is not None:
         axes[2].axhline(coherence_floor, color="tab:red", lw=0.8, ls="--", label="floor")
-    if margins is not None and margins.crossover_hz is not None:
-        for ax in axes[:2]:
-            ax.axvline(margins.crossover_hz, color="grey", lw=0.8, ls=":")
-        axes[0].axhline(0.0, color="grey", lw=0.8, ls=":")
-        axes[1].set_title(
-            f"phase margin {margins.phase_margin_deg:.1f} deg at {margins.crossover_hz:.1f} Hz"
-            + (
-                ""
-                if margins.gain_margin_db is None
-                else f", gain margin {margins.gain_margin_db:.1f} dB at "
-                f"{margins.phase_crossover_hz:.0f} Hz"
-            ),
-            fontsize=9,
-        )
-    axes[0].set_title(_wrapped(title), fontsize=9)
+    if margins is not None:
+        _mark_margins(axes, margins, first.kind, margins_label)
+    fig.suptitle(_wrapped(title), fontsize=9)
     axes[0].legend(fontsize=8)
     for ax in axes:
         ax.grid(True, which="both", lw=0.3)
@@ -321,6 +496,38 @@ def plot_bode(
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def _mark_margins(axes, margins: Margins, kind: str, label: str) -> None:  # type: ignore[no-untyped-def]
+    """The figures as the magnitude axis' title, and the frequency they are read at marked on the
+    magnitude and phase axes: the crossover (open), the bandwidth (closed) or the peak
+    sensitivity (sensitivity)."""
+    level, at = {
+        "open": (0.0, margins.crossover_hz),
+        "closed": (-3.0103, margins.bandwidth_hz),
+        "sensitivity": (margins.peak_sensitivity_db, margins.peak_sensitivity_hz),
+    }[kind]
+    if at is not None:
+        for ax in axes[:2]:
+            ax.axvline(at, color="grey", lw=0.8, ls=":")
+        axes[0].axhline(level, color="grey", lw=0.8, ls=":")
+    text = label + margins_text(margins) + withheld_line(margins.withheld)
+    axes[0].set_title(
+        _wrapped(text, 130), fontsize=8, color="tab:red" if margins.withheld else "black"
+    )
+
+
+def withheld_line(withheld: Mapping[str, Mapping[str, float]]) -> str:
+    """The withheld figures as read, on a line of their own for a figure ('' when none)."""
+    if not withheld:
+        return ""
+    floor = next(iter(withheld.values()))["floor"]
+    read = ", ".join(
+        f"{FIGURE_NAMES[name][0]} {w['value']:.3g} {FIGURE_NAMES[name][1]} at "
+        f"{w['frequency_hz']:.3g} Hz ({w['lowest_coherence']:.2f})"
+        for name, w in withheld.items()
+    )
+    return f"\nwithheld, read above a line of coherence below {floor:g} (lowest): {read}"
 
 
 def _pyplot():  # type: ignore[no-untyped-def]
@@ -346,6 +553,54 @@ def _phases(responses: list[FrequencyResponse]) -> list[np.ndarray]:
         turns = np.round(np.median(phases[1] - phases[0]) / 360.0)
         phases[0] = phases[0] + 360.0 * turns
     return phases
+
+
+def plot_stiffness(result: BodeResult, title: str, path: Path) -> Path:
+    """The dynamic stiffness |K| (N/um, log scale), its phase and the coherence against
+    frequency, measured (points) and linearised (line), the minima marked; returns ``path``."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True, height_ratios=[3, 2, 1])
+    state = "nonlinearities " + ("on" if result.nonlinear else "off")
+    curves = [(f"measured ({state})", result.measured, result.stiffness)]
+    if result.linearised is not None:
+        curves.append(("linearised", result.linearised, result.linearised_stiffness))
+    phases = _phases([r for _, r, _ in curves])
+    for (label, r, figures), phase in zip(curves, phases, strict=True):
+        measured = r.coherence is not None
+        style = {"marker": ".", "ms": 3, "lw": 0.6} if measured else {"lw": 1.2}
+        (line,) = axes[0].loglog(r.frequency_hz, np.abs(r.response), label=label, **style)
+        axes[1].semilogx(r.frequency_hz, phase, **style)
+        if measured:
+            axes[2].semilogx(r.frequency_hz, r.coherence, **style)
+        if figures is not None and figures.minimum_n_per_um is not None:
+            axes[0].plot(
+                [figures.minimum_hz],
+                [figures.minimum_n_per_um],
+                "v",
+                color=line.get_color(),
+                ms=8,
+                label=f"minimum, {label}: {figures.minimum_n_per_um:.3g} N/um at "
+                f"{figures.minimum_hz:.3g} Hz",
+            )
+    axes[2].axhline(result.coherence_floor, color="tab:red", lw=0.8, ls="--", label="floor")
+    axes[0].set_ylabel("dynamic stiffness |K| [N/um]")
+    axes[1].set_ylabel("phase [deg]")
+    axes[2].set_ylabel("coherence")
+    axes[2].set_ylim(-0.05, 1.05)
+    axes[2].set_xlabel("frequency [Hz]")
+    fig.suptitle(_wrapped(title), fontsize=9)
+    if result.stiffness is not None:
+        withheld = result.stiffness.withheld
+        text = "measured: " + stiffness_text(result.stiffness) + withheld_line(withheld)
+        axes[0].set_title(_wrapped(text, 130), fontsize=8, color="tab:red" if withheld else "black")
+    axes[0].legend(fontsize=8)
+    axes[2].legend(fontsize=8, loc="lower left")
+    for ax in axes:
+        ax.grid(True, which="both", lw=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 def plot_nyquist(responses: Mapping[str, FrequencyResponse], title: str, path: Path) -> Path:

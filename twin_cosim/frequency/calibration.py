@@ -40,8 +40,17 @@ the ratio model / measurement, whose real part is the magnitude error (in nepers
 part the phase error (rad), so that every line counts alike at any level; each line is weighted
 by its coherence gamma^2 / (1 - gamma^2) (its signal-to-noise ratio, capped), or equally
 without one. The parameters are fitted in logarithms (J_M, J_L, f_1, D_1) and in natural
-scales (F_V over J w_01, tau and tau_i in ms), with bounds; the fit starts from what the curve
-shows (:func:`first_guess`) with several damping ratios and keeps the best.
+scales (F_V over J w_01, tau and tau_i in ms), with bounds that keep them physical (the delay
+and the lag are not negative); the fit starts from what the curve shows (:func:`first_guess`)
+with several damping ratios and keeps the best.
+
+The delay and the lag are reported only where the data identify them: a value counts when it
+is more than twice its standard error (from the fit's Jacobian and residual, the other
+parameters held) and the phase it
+adds at the highest fitted line exceeds twice the fit's RMS phase error (what the data can
+tell from a misfit). Otherwise it is "not identified" (null in the JSON, with the bound below
+which it lies), whatever tiny number the optimiser stopped at; the design model uses it as
+fitted (a small value changes nothing there).
 """
 
 from __future__ import annotations
@@ -80,8 +89,9 @@ AGREEMENT_DB, AGREEMENT_DEG = 0.1, 1.0
 DEFAULT_COHERENCE_FLOOR = 0.8
 MAX_WEIGHT = 1.0e3  # the largest coherence weight, gamma^2 / (1 - gamma^2)
 DAMPING_STARTS = (0.05, 0.15, 0.4)
-DELAY_BOUNDS_MS = (-0.5, 20.0)
+DELAY_BOUND_MS = 20.0
 LAG_BOUND_MS = 20.0
+DRIVE_TERMS = ("delay_s", "current_lag_s")  # what the measurement holds of the drive
 FITTED = (
     "motor_inertia",
     "load_inertia",
@@ -341,6 +351,10 @@ class TwoMassFit:
         Weighted RMS phase error, degrees.
     lines : int
         Lines fitted.
+    resolution_s : dict
+        Per drive term (``delay_s``, ``current_lag_s``): the smallest value the data identify,
+        s (twice the standard error, or what adds twice the RMS phase error at the highest
+        line, whichever is larger).
     """
 
     plant: TwoMass
@@ -349,6 +363,7 @@ class TwoMassFit:
     rms_db: float
     rms_deg: float
     lines: int
+    resolution_s: dict[str, float]
 
     def response(self, frequency_hz: np.ndarray) -> np.ndarray:
         """The fitted model at ``frequency_hz`` (Hz), delay included, rad/s per N.m."""
@@ -363,6 +378,35 @@ class TwoMassFit:
             "damping_ratio": float(self.plant.damping_ratio),
             "viscous_friction": float(self.plant.viscous_friction),
         }
+
+    def drive_terms(self) -> dict[str, float | None]:
+        """The delay and the current lag (s) where identified, else None."""
+        fitted = {"delay_s": self.delay_s, "current_lag_s": self.lag_s}
+        return {
+            name: value if value > self.resolution_s[name] else None
+            for name, value in fitted.items()
+        }
+
+    def not_identified(self) -> dict[str, str]:
+        """Why each unidentified drive term is not reported, in words."""
+        return {
+            name: f"below {self.resolution_s[name] * 1e6:.3g} us, what these data resolve"
+            for name, value in self.drive_terms().items()
+            if value is None
+        }
+
+    def drive_text(self) -> str:
+        """The delay and the current lag for a reader (us, or not identified)."""
+        names = {"delay_s": "delay", "current_lag_s": "current lag"}
+        words = []
+        for name, value in self.drive_terms().items():
+            if value is None:
+                words.append(
+                    f"{names[name]} not identified (below {self.resolution_s[name] * 1e6:.3g} us)"
+                )
+            else:
+                words.append(f"{names[name]} {value * 1e6:.3g} us")
+        return ", ".join(words)
 
 
 def _plant(theta: np.ndarray, scale: float) -> tuple[TwoMass, float, float]:
@@ -429,9 +473,9 @@ def fit_two_mass(
         return np.concatenate([root * error.real, root * error.imag])
 
     lower = np.log([j_m / 20, j_l / 20, f[0] / 2, 1e-3]).tolist()
-    lower += [0.0, DELAY_BOUNDS_MS[0], 0.0]
+    lower += [0.0, 0.0, 0.0]
     upper = np.log([j_m * 20, j_l * 20, f[-1] * 2, 5.0]).tolist()
-    upper += [10.0, DELAY_BOUNDS_MS[1], LAG_BOUND_MS]
+    upper += [10.0, DELAY_BOUND_MS, LAG_BOUND_MS]
     best = None
     for damping in DAMPING_STARTS:
         start = np.array([*np.log([j_m, j_l, f_1, damping]), 0.0, 0.0, 0.0])
@@ -441,14 +485,33 @@ def fit_two_mass(
             best = found
     plant, delay, lag = _plant(best.x, scale)
     error = np.log(_model(best.x, scale, f) / h)
+    rms_deg = float(np.degrees(np.sqrt(np.average(error.imag**2, weights=weights))))
     return TwoMassFit(
         plant=plant,
         delay_s=delay,
         lag_s=lag,
         rms_db=float(np.sqrt(np.average(error.real**2, weights=weights)) * 20 / math.log(10)),
-        rms_deg=float(np.degrees(np.sqrt(np.average(error.imag**2, weights=weights)))),
+        rms_deg=rms_deg,
         lines=len(f),
+        resolution_s=_drive_resolution(best, float(f[-1]), rms_deg),
     )
+
+
+def _drive_resolution(found: Any, top_hz: float, rms_deg: float) -> dict[str, float]:
+    """The smallest delay and current lag (s) the fit resolves: twice the standard error of
+    each (the others held: near zero a delay and a lag change the phase alike, so only their
+    sum is defined and the joint covariance is singular), or the value that adds twice the
+    fit's RMS phase error at the highest line (``top_hz``), whichever is larger."""
+    jacobian = found.jac
+    dof = max(jacobian.shape[0] - jacobian.shape[1], 1)
+    curvature = np.sum(jacobian**2, axis=0)
+    standard_ms = np.sqrt(2.0 * found.cost / dof / np.maximum(curvature, 1e-300))
+    phase = math.radians(2.0 * rms_deg)  # rad at the highest line
+    w_top = 2 * math.pi * top_hz
+    return {
+        "delay_s": max(2.0 * standard_ms[5] * 1e-3, phase / w_top),
+        "current_lag_s": max(2.0 * standard_ms[6] * 1e-3, math.tan(min(phase, 1.5)) / w_top),
+    }
 
 
 @dataclass(frozen=True)
@@ -496,8 +559,8 @@ class Calibration:
         return {
             "frf": str(self.frf.source),
             "parameters": self.plant.parameters,
-            "delay_s": self.fit.delay_s,
-            "current_lag_s": self.fit.lag_s,
+            **self.fit.drive_terms(),
+            "not_identified": self.fit.not_identified(),
             "rms_db": self.fit.rms_db,
             "rms_deg": self.fit.rms_deg,
             "lines_fitted": self.fit.lines,
@@ -577,8 +640,7 @@ def calibrate(
             "command": command,
             "version": versions()["twin-cosim"],
             "frf": str(frf.source),
-            "delay_s": fit.delay_s,
-            "current_lag_s": fit.lag_s,
+            **fit.drive_terms(),
             "masked_bands_hz": [list(band[:2]) for band in frf.masked_bands],
         },
     )

@@ -150,8 +150,12 @@ class TwoMass:
         s = 2j * np.pi * np.asarray(frequency_hz, dtype=np.float64)
         return self.torque_constant * np.exp(-s * self.dead_time) / (1.0 + s * self.current_lag)
 
-    def state_space(self, with_position: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Continuous (A, B, C) from the current command (A, without the dead time).
+    def state_space(
+        self, with_position: bool, with_disturbance: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Continuous (A, B, C) from the current command (A, without the dead time), and from the
+        disturbance torque M_D at the load (N.m, motor-referred, opposing positive motion: the
+        plant contract's ``disturbance_torque``) ``with_disturbance``.
 
         States: twist d [rad], w_M [rad/s], w_L [rad/s], then q_L [rad] ``with_position``, then
         the current i_a [A] when there is a lag. Outputs: w_M [rad/s], then x [m]
@@ -167,7 +171,9 @@ class TwoMass:
         n = 3 + with_position + (self.current_lag > 0)
         a = np.zeros((n, n))
         a[:3, :3] = rows
-        b_in = np.zeros((n, 1))
+        b_in = np.zeros((n, 1 + with_disturbance))
+        if with_disturbance:
+            b_in[2, 1] = -1.0 / j_l
         c = np.zeros((1 + with_position, n))
         c[0, 1] = 1.0
         if with_position:
@@ -227,14 +233,29 @@ def series(first: Discrete, second: Discrete) -> Discrete:
 
 
 def closed(loop: Discrete) -> Discrete:
-    """Unity negative feedback of the first output around a strictly proper ``loop``.
+    """Unity negative feedback of the first output around the first input of ``loop`` (its
+    first output strictly proper: no direct feedthrough).
 
-    Input: the setpoint r (e = r - y_0); outputs: those of ``loop``.
+    Inputs: the setpoint r (the first input becomes e = r - y_0), then the loop's other inputs
+    (disturbances) as they are; outputs: those of ``loop``.
     """
     if np.any(loop.d[0] != 0.0):
         raise ValueError("closed: the loop must be strictly proper (no direct feedthrough)")
-    a = loop.a - loop.b[:, :1] @ loop.c[:1]
-    return Discrete(a, loop.b[:, :1], loop.c, np.zeros((loop.c.shape[0], 1)), loop.dt)
+    feedback = loop.b[:, :1] @ loop.c[:1]
+    c = loop.c - loop.d[:, :1] @ loop.c[:1]
+    return Discrete(loop.a - feedback, loop.b, c, loop.d, loop.dt)
+
+
+def with_passthrough(system: Discrete, count: int) -> Discrete:
+    """``system`` with ``count`` more inputs passed unchanged to ``count`` more outputs (a
+    disturbance carried past a controller to the plant's input)."""
+    n, inputs, outputs = system.a.shape[0], system.b.shape[1], system.c.shape[0]
+    b = np.hstack([system.b, np.zeros((n, count))])
+    c = np.vstack([system.c, np.zeros((count, n))])
+    d = np.zeros((outputs + count, inputs + count))
+    d[:outputs, :inputs] = system.d
+    d[outputs:, inputs:] = np.eye(count)
+    return Discrete(system.a, b, c, d, system.dt)
 
 
 def lifted(system: Discrete, ratio: int) -> Discrete:
@@ -249,28 +270,33 @@ def lifted(system: Discrete, ratio: int) -> Discrete:
 
 
 @functools.cache
-def hold_discretised(plant: TwoMass, period: float, with_position: bool) -> Discrete:
+def hold_discretised(
+    plant: TwoMass, period: float, with_position: bool, with_disturbance: bool = False
+) -> Discrete:
     """The plant discretised with a zero-order hold at ``period`` (s), its dead time included
-    (computed once per plant and period).
+    (on the current; computed once per plant and period). Inputs: the current, then the
+    disturbance torque ``with_disturbance`` (both held over each period).
 
     Raises
     ------
     ValueError
         When the dead time is not a whole number of periods.
     """
-    a, b, c = plant.state_space(with_position)
-    n = a.shape[0]
-    block = np.zeros((n + 1, n + 1))
+    a, b, c = plant.state_space(with_position, with_disturbance)
+    n, inputs = a.shape[0], b.shape[1]
+    block = np.zeros((n + inputs, n + inputs))
     block[:n, :n], block[:n, n:] = a, b
     exact = expm(block * period)
-    held = Discrete(exact[:n, :n], exact[:n, n:], c, np.zeros((c.shape[0], 1)), period)
+    held = Discrete(exact[:n, :n], exact[:n, n:], c, np.zeros((c.shape[0], inputs)), period)
     steps = plant.dead_time / period
     if abs(steps - round(steps)) > 1e-6:
         raise ValueError(
             f"dead time {plant.dead_time:g} s: the linearised loop needs a whole number of "
             f"speed-loop periods ({period:g} s)"
         )
-    return series(delay(round(steps), period), held) if round(steps) else held
+    if not round(steps):
+        return held
+    return series(with_passthrough(delay(round(steps), period), inputs - 1), held)
 
 
 def delay(steps: int, period: float) -> Discrete:
@@ -352,27 +378,55 @@ class LinearLoops:
         plant = hold_discretised(self.plant, self.settings.speed_period, with_position=False)
         return series(speed_controller(self.tuned, self.settings), plant)
 
-    def position_open(self) -> Discrete:
-        """L_x: position error -> scale reading, at the position-loop period (lifted)."""
-        plant = hold_discretised(self.plant, self.settings.speed_period, with_position=True)
-        speed_loop = closed(series(speed_controller(self.tuned, self.settings), plant))
-        inner = lifted(speed_loop, self.ratio)
-        gain = self.tuned.Kp_pos / self.settings.travel_per_rad
+    def position_open(self, with_disturbance: bool = False) -> Discrete:
+        """L_x: position error -> scale reading, at the position-loop period (lifted).
+
+        ``with_disturbance``: a second input, the disturbance torque at the load (N.m, held over
+        each position period, as the measurement injects it).
+        """
+        period = self.settings.speed_period
+        plant = hold_discretised(self.plant, period, True, with_disturbance)
+        controller = with_passthrough(
+            speed_controller(self.tuned, self.settings), int(with_disturbance)
+        )
+        inner = lifted(closed(series(controller, plant)), self.ratio)
+        gain = np.ones((1, inner.b.shape[1]))
+        gain[0, 0] = self.tuned.Kp_pos / self.settings.travel_per_rad
         return Discrete(inner.a, inner.b * gain, inner.c[1:], inner.d[1:] * gain, inner.dt)
 
     def open_loop(self, loop: str) -> Discrete:
         """The open loop of ``speed`` or ``position``."""
         return self.speed_open() if loop == "speed" else self.position_open()
 
+    def compliance(self, frequency_hz: np.ndarray) -> np.ndarray:
+        """The closed cascade's scale reading per disturbance torque at the load, m/N.m,
+        complex (negative at low frequency: the torque opposes positive motion)."""
+        cascade = closed(self.position_open(with_disturbance=True))
+        return cascade.response(frequency_hz)[:, 0, 1]
+
+    def dynamic_stiffness(self, frequency_hz: np.ndarray) -> np.ndarray:
+        """Force at the carriage per position deviation, N/um, complex: the disturbance torque
+        over the drive's travel per motor radian, against the reading it causes, with the sign
+        that makes it positive where the axis yields to the force."""
+        force_per_torque = 1.0 / self.settings.travel_per_rad  # N per N.m
+        return -force_per_torque / self.compliance(frequency_hz) * 1e-6
+
     def response(self, loop: str, kind: str, frequency_hz: np.ndarray) -> np.ndarray:
         """The linearised counterpart of a measured response, complex.
 
-        ``loop``: plant, speed or position; ``kind``: open or closed.
+        ``loop``: plant, speed, position or disturbance; ``kind``: open, closed (T = L / (1 + L))
+        or sensitivity (S = 1 / (1 + L)); a disturbance response is the dynamic stiffness.
         """
         if loop == "plant":
             return self.plant_response(frequency_hz)
-        system = self.open_loop(loop) if kind == "open" else closed(self.open_loop(loop))
-        return system.siso(frequency_hz)
+        if loop == "disturbance":
+            return self.dynamic_stiffness(frequency_hz)
+        open_loop = self.open_loop(loop).siso(frequency_hz)
+        if kind == "open":
+            return open_loop
+        if kind == "sensitivity":
+            return 1.0 / (1.0 + open_loop)
+        return closed(self.open_loop(loop)).siso(frequency_hz)
 
 
 def speed_loop_of_plant(

@@ -11,11 +11,19 @@ The loops a drive measures and what each response is:
 - ``speed``: the speed loop, open L_v (speed error -> motor speed) or closed T_v (speed
   setpoint -> motor speed), 1;
 - ``position``: the position loop, open L_x (position error -> scale reading) or closed T_x
-  (position setpoint -> scale reading), 1.
+  (position setpoint -> scale reading), 1;
+- the sensitivity S = 1 / (1 + L) of the speed or position loop (``kind`` sensitivity): the
+  loop's error over the excitation, 1;
+- ``disturbance``: the dynamic stiffness of the closed cascade, the force at the carriage of a
+  disturbance torque at the load (:data:`~twin_cosim.cosim.Injections` ``load_torque``, the plant
+  contract's ``disturbance_torque``) over the position deviation it causes, N/um (the torque in
+  N.m over the drive's travel per motor radian is the force in N).
 
-The measurement: the axis holds an operating point (standstill, or a constant carriage speed
-reached on a ramp with the feedforwards on), the controller runs as in every run, and a
-multisine is added at one point at that loop's sample rate:
+The measurement: the axis holds an operating point (by default a constant carriage speed of
+:data:`OPERATING_MOTOR_SPEED` at the motor, reached on a ramp with the feedforwards on, so that
+friction slides in one direction and the backlash stays closed; or standstill, or another
+speed), the controller runs as in every run, and a multisine is added at one point at that
+loop's sample rate:
 
 - ``plant``: to the current (torque) command, after the speed controller; u is the current the
   plant receives, y the motor speed: P = G_dy / G_du (indirect method), over the torque constant
@@ -23,7 +31,12 @@ multisine is added at one point at that loop's sample rate:
 - ``speed``: to the speed setpoint of the speed controller; e the speed error, y the motor
   speed: L_v = G_dy / G_de, T_v = G_dy / G_dr (r the setpoint with the excitation);
 - ``position``: to the position setpoint of the position controller; e the position error,
-  y the scale reading's deviation from the reference: L_x = G_dy / G_de, T_x = G_dy / G_dd.
+  y the scale reading's deviation from the reference: L_x = G_dy / G_de, T_x = G_dy / G_dd;
+- the sensitivities: S_v = G_de / G_dr, S_x = G_de / G_dd;
+- ``disturbance``: to the plant's disturbance torque, held over each position-loop period (the
+  multisine runs at the position-loop rate, so that the response is time-invariant there); y
+  the scale reading's deviation from the reference: the compliance G_dy / G_dd (m per N.m),
+  whose inverse over the travel per radian is the dynamic stiffness.
 
 Each realisation of the multisine runs two periods: the first lets the loop settle into its
 periodic steady state, the second is recorded. The measurement is a run of the master
@@ -71,31 +84,52 @@ from twin_cosim.frequency.linear import hold_factor
 from twin_cosim.plant import Plant
 from twin_cosim.reference import ReferenceGrid
 
-LOOPS = ("plant", "speed", "position")
+LOOPS = ("plant", "speed", "position", "disturbance")
+KINDS = ("open", "closed", "sensitivity")
 PLANT_BAND = 1 / 8  # of the Nyquist frequency: the continuous plant response is given below
-UNITS = {"plant": "rad/s per N.m", "speed": "1", "position": "1"}
+UNITS = {"plant": "rad/s per N.m", "speed": "1", "position": "1", "disturbance": "N/um"}
 DESCRIPTIONS = {
     ("plant", "open"): "motor speed over torque setpoint (eq. (3))",
     ("speed", "open"): "speed loop, open: speed error -> motor speed",
     ("speed", "closed"): "speed loop, closed: speed setpoint -> motor speed",
+    ("speed", "sensitivity"): "speed loop, sensitivity: speed setpoint -> speed error",
     ("position", "open"): "position loop, open: position error -> scale reading",
     ("position", "closed"): "position loop, closed: position setpoint -> scale reading",
+    ("position", "sensitivity"): "position loop, sensitivity: position setpoint -> position error",
+    ("disturbance", "closed"): "dynamic stiffness: force at the load -> position deviation",
 }
 LINES_PER_DECADE = 100
-EXCITATION_SHARE = 0.05  # default excitation: a current of this share of the current limit (RMS)
+EXCITATION_SHARE = 0.02  # default excitation: a current of this share of the current limit (RMS)
+OPERATING_MOTOR_SPEED = 20.0  # rad/s: the default operating point, friction sliding one way
+DISTURBANCE_SHARE = 0.2  # default disturbance: this share of the friction torque (RMS)
 SETTLE_S = 0.25  # s at the operating point before the first realisation
 RAMP_ACCELERATION = 0.5  # m/s^2 up to the operating speed
+# Where each loop's excitation goes (an Injections field of the master)
+INJECTED_AT = {
+    "plant": "current",
+    "speed": "speed",
+    "position": "position",
+    "disturbance": "load_torque",
+}
 
 
 def check_loop(loop: str, kind: str) -> None:
     """ValueError unless (loop, kind) is a response a drive measures."""
     if loop not in LOOPS:
         raise ValueError(f"loop {loop!r}: expected one of {list(LOOPS)}")
+    if kind not in KINDS:
+        raise ValueError(f"kind {kind!r}: expected one of {list(KINDS)}")
     if (loop, kind) not in DESCRIPTIONS:
         raise ValueError(
             f"--loop {loop} --{kind}: the plant is measured open (the mechanics, through the "
-            "closed loops); --closed applies to the speed and position loops"
+            "closed loops), the disturbance response of the closed cascade; --closed and "
+            "--sensitivity apply to the speed and position loops"
         )
+
+
+def default_kind(loop: str) -> str:
+    """The kind a loop is measured as when none is asked: open, the disturbance closed."""
+    return "closed" if loop == "disturbance" else "open"
 
 
 @dataclass(frozen=True)
@@ -271,16 +305,17 @@ class MeasurementSettings:
     Attributes
     ----------
     loop : str
-        plant, speed or position.
-    kind : str
-        open or closed.
+        plant, speed, position or disturbance (:data:`LOOPS`).
+    kind : str or None
+        open, closed or sensitivity (:data:`KINDS`); None: :func:`default_kind` of the loop.
     amplitude : float or None
-        RMS of the excitation: A (plant), rad/s (speed) or m (position); None: the default,
-        a current of 5 % of the current limit at high frequency (:func:`default_amplitude`).
+        RMS of the excitation: A (plant), rad/s (speed), m (position) or N.m (disturbance);
+        None: the default (:func:`default_amplitude`).
     averages : int
         Multisine realisations averaged.
-    speed : float
-        Carriage speed of the operating point, m/s (0: standstill).
+    speed : float or None
+        Carriage speed of the operating point, m/s (0: standstill); None: the default,
+        :data:`OPERATING_MOTOR_SPEED` at the motor (:meth:`operating_speed`).
     low_hz : float
         Lowest excited frequency, Hz.
     speed_noise : float
@@ -290,15 +325,17 @@ class MeasurementSettings:
     """
 
     loop: str
-    kind: str = "open"
+    kind: str | None = None
     amplitude: float | None = None
     averages: int = 8
-    speed: float = 0.0
+    speed: float | None = None
     low_hz: float = 1.0
     speed_noise: float = 0.0
     seed: int = 0
 
     def __post_init__(self) -> None:
+        if self.kind is None:
+            object.__setattr__(self, "kind", default_kind(self.loop))
         check_loop(self.loop, self.kind)
         if self.amplitude is not None and not (
             math.isfinite(self.amplitude) and self.amplitude > 0
@@ -310,18 +347,33 @@ class MeasurementSettings:
             raise ValueError(f"lowest frequency: expected a number > 0 Hz, got {self.low_hz}")
         if not (math.isfinite(self.speed_noise) and self.speed_noise >= 0):
             raise ValueError(f"speed noise: expected a number >= 0 rad/s, got {self.speed_noise}")
-        if not math.isfinite(self.speed):
+        if self.speed is not None and not math.isfinite(self.speed):
             raise ValueError(f"operating speed: expected a finite number, got {self.speed}")
+
+    def operating_speed(self, settings: ControllerSettings) -> float:
+        """The carriage speed of the operating point, m/s: the one asked for, else
+        :data:`OPERATING_MOTOR_SPEED` (rad/s) at the motor through the drive's travel."""
+        if self.speed is not None:
+            return self.speed
+        return OPERATING_MOTOR_SPEED * settings.travel_per_rad
 
 
 def default_amplitude(loop: str, tuned: TunedParameters, settings: ControllerSettings) -> float:
-    """The excitation's RMS that commands about 5 % of the current limit at high frequency.
+    """The excitation's default RMS.
 
-    A (plant), rad/s (speed: over Kp_vel) or m (position: over Kp_pos / travel too).
+    A current of :data:`EXCITATION_SHARE` of the current limit at high frequency: A (plant),
+    rad/s (speed: over Kp_vel) or m (position: over Kp_pos / travel too); for the disturbance a
+    torque of :data:`DISTURBANCE_SHARE` of the drive's friction torque (N.m; of the current
+    limit's torque share when the drive compensates no friction), small enough that the
+    friction keeps the backlash closed at the operating speed.
     """
     current = EXCITATION_SHARE * settings.current_limit
     if loop == "plant":
         return current
+    if loop == "disturbance":
+        if settings.friction_torque > 0:
+            return DISTURBANCE_SHARE * settings.friction_torque
+        return current * settings.torque_constant
     speed = current / tuned.Kp_vel
     return speed if loop == "speed" else speed * settings.travel_per_rad / tuned.Kp_pos
 
@@ -394,9 +446,10 @@ def measure(
     rms = how.amplitude or default_amplitude(how.loop, tuned, settings)
     fold = samples // ratio if at_speed_rate and samples % ratio == 0 else samples
     excitation = multisine(samples, period, how.low_hz, rms, fold)
-    lead_s = abs(how.speed) / RAMP_ACCELERATION + max(SETTLE_S, 20 * tuned.PP3)
+    speed = how.operating_speed(settings)
+    lead_s = abs(speed) / RAMP_ACCELERATION + max(SETTLE_S, 20 * tuned.PP3)
     length_s = 2 * how.averages * samples * period
-    x_ref, v_ref, a_ref = _operating_point(how.speed, settings, lead_s, length_s, start_position)
+    x_ref, v_ref, a_ref = _operating_point(speed, settings, lead_s, length_s, start_position)
     n_position = len(x_ref)
     n_speed = n_position * ratio
     layout = _Layout(excitation, math.ceil(lead_s / period))
@@ -406,7 +459,8 @@ def measure(
         signal = excitation.realisation(rng)
         first = layout.start + 2 * m * samples
         injected[first : first + 2 * samples] = np.tile(signal, 2)
-    at = {"plant": "current", "speed": "speed", "position": "position"}[how.loop]
+    at = INJECTED_AT[how.loop]
+    held = np.repeat(injected, ratio) if how.loop == "disturbance" else injected
     noise = rng.normal(0.0, how.speed_noise, n_speed) if how.speed_noise else None
     axis = AxisRun(
         "",
@@ -415,7 +469,7 @@ def measure(
         tuned,
         settings,
         plant_parameters,
-        Injections(speed_noise=noise, **{at: injected}),
+        Injections(speed_noise=noise, **{at: held}),
     )
     recorded = run_axes([axis], speed_loop_record=True)[axis.name]
     return _estimate(how, layout, injected, recorded, settings)
@@ -444,11 +498,16 @@ def _estimate(
         value = value / settings.torque_constant / hold_factor(f, settings.speed_period)
     elif how.loop == "speed":
         setpoint = speeds["speed_setpoint"]
-        y = spectra(speeds["speed"])
-        u = spectra(setpoint - speeds["speed"]) if how.kind == "open" else spectra(setpoint)
+        error = spectra(setpoint - speeds["speed"])
+        y = error if how.kind == "sensitivity" else spectra(speeds["speed"])
+        u = error if how.kind == "open" else spectra(setpoint)
         value, gamma = indirect_ratio(d, y, u)
-    else:  # e: the position setpoint - x; y: the reading's deviation from the reference
-        y = spectra(positions["x"] - positions["x_ref"])
-        u = spectra(positions["error"]) if how.kind == "open" else d
+    elif how.loop == "position":  # e: the position setpoint - x; y: the reading's deviation
+        error = spectra(positions["error"])
+        y = error if how.kind == "sensitivity" else spectra(positions["x"] - positions["x_ref"])
+        u = error if how.kind == "open" else d
         value, gamma = indirect_ratio(d, y, u)
+    else:  # the compliance y / d, m per N.m, as the dynamic stiffness, N/um
+        compliance, gamma = indirect_ratio(d, spectra(positions["x"] - positions["x_ref"]), d)
+        value = -1.0 / (settings.travel_per_rad * compliance) * 1e-6
     return FrequencyResponse(how.loop, how.kind, f, value, gamma)

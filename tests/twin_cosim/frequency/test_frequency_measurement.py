@@ -92,14 +92,18 @@ def test_measured_loop_margins_are_the_linearised_loops(reference1, loop, name):
 
 
 def test_closed_loops_are_the_linearised_closed_loops(reference1):
+    """Closed loops report their bandwidth (issue 35: as open loops do), measured and
+    linearised."""
     for loop in ("speed", "position"):
         result = bode(reference1, MeasurementSettings(loop, "closed"), nonlinear=False)
-        assert result.margins is None
         assert result.deviation()["max_db"] < 1e-3
+        measured, linear = result.margins, result.linearised_margins
+        assert measured.bandwidth_hz == pytest.approx(linear.bandwidth_hz, rel=0.02)
+        assert measured.resonance_peak_db == pytest.approx(linear.resonance_peak_db, abs=0.1)
 
 
 def test_backlash_and_friction_lower_the_coherence_at_low_frequency(reference1):
-    result = bode(reference1, MeasurementSettings("plant"), nonlinear=True)
+    result = bode(reference1, MeasurementSettings("plant", speed=0.0), nonlinear=True)
     drops = result.summary()["coherence_drops"]
     assert drops and drops[0]["from_hz"] < 10.0 and drops[0]["lowest"] < 0.5
     f, gamma = result.measured.frequency_hz, result.measured.coherence
