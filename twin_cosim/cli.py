@@ -1,5 +1,5 @@
 """The ``twin`` command line: build, simulate, circle, optimize, compare, synth, diagnose, table3,
-ssp, bode, calibrate, autotune.
+ssp, bode, calibrate, autotune, step, kv, friction.
 
 Each command is a module of :mod:`twin_cosim.commands` (its arguments and ``run``). Only the
 standard library and the light registries are imported at start, so that ``twin --help`` answers
@@ -23,9 +23,12 @@ from twin_cosim.commands import (
     circle,
     compare,
     diagnose,
+    friction,
+    kv,
     optimize,
     simulate,
     ssp,
+    step,
     synth,
     table3,
 )
@@ -45,6 +48,9 @@ COMMANDS = (
     bode,
     calibrate,
     autotune,
+    step,
+    kv,
+    friction,
 )  # in the help's order
 
 

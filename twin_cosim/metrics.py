@@ -6,7 +6,15 @@ Over samples t_0 < ... < t_n of a window (the twin's position-loop samples, or a
 - ``ITAE``: sum (t - t_0) |e| dt, in um.s^2 (t from the window start);
 - ``IAU``: sum |i| dt, in A.s (i: mean current command of each position period);
 - ``rms_um`` and ``mean_abs_um``: RMS and mean of |e|, um;
-- ``t_E_pk``: time of the peak, s; ``max_current_A``: max |i|, A.
+- ``t_E_pk``: time of the peak, s; ``max_current_A``: max |i|, A;
+- ``settling_ms``: after each reversal or stop of the reference, the time until |e| lies within
+  :data:`SETTLING_BAND_UM` and stays there for :data:`SETTLED_HOLD_S` (or up to the next
+  reversal or stop), ms; the longest over them (None without one, or without the reference
+  speed). A reversal or stop is where the reference speed reaches zero: it changes sign, or
+  falls below :data:`REST_SPEED` (the interpolating spline leaves it only near zero at a dwell,
+  never exactly zero). An error that does not settle before the next reversal or stop counts
+  the whole time to it. E_pk does not see a slow tail after a reversal (friction and the
+  integrator creeping the last microns in); this does.
 
 The dt rule: dt is the median spacing of the samples, median(diff(t)) in s (the sample period of
 a uniform grid; robust to a jittered or gapped time column of a measured run). The sums are
@@ -24,6 +32,9 @@ if TYPE_CHECKING:
     from twin_cosim.run_record import RunRecord
 
 UM_PER_M = 1e6
+SETTLING_BAND_UM = 1.0  # um: the error band of the settling time
+REST_SPEED = 1e-5  # m/s: the reference is at rest below this (0.6 mm/min)
+SETTLED_HOLD_S = 0.02  # s: the error stays within the band this long to count as settled
 
 
 @dataclass(frozen=True)
@@ -37,6 +48,7 @@ class Metrics:
     mean_abs_um: float
     t_E_pk: float
     max_current_A: float
+    settling_ms: float | None = None
 
     def as_dict(self) -> dict[str, float]:
         """The indices by name."""
@@ -48,8 +60,15 @@ def sample_period(t: np.ndarray) -> float:
     return float(np.median(np.diff(t)))
 
 
-def indices(t: np.ndarray, error: np.ndarray, current: np.ndarray) -> Metrics:
-    """The indices of samples at times ``t`` (s) of the position error (m) and current (A).
+def indices(
+    t: np.ndarray,
+    error: np.ndarray,
+    current: np.ndarray,
+    v_ref: np.ndarray | None = None,
+    band_um: float = SETTLING_BAND_UM,
+) -> Metrics:
+    """The indices of samples at times ``t`` (s) of the position error (m) and current (A);
+    the settling time too with the reference speed ``v_ref`` (m/s), to ``band_um`` (um).
 
     Raises
     ------
@@ -77,7 +96,34 @@ def indices(t: np.ndarray, error: np.ndarray, current: np.ndarray) -> Metrics:
         mean_abs_um=float(np.mean(error)),
         t_E_pk=float(t[peak]),
         max_current_A=float(current.max()),
+        settling_ms=None if v_ref is None else settling_time_ms(t, error, v_ref, band_um),
     )
+
+
+def settling_time_ms(
+    t: np.ndarray, error_um: np.ndarray, v_ref: np.ndarray, band_um: float = SETTLING_BAND_UM
+) -> float | None:
+    """The longest time (ms) from a reversal or stop of the reference until |error| (um) lies
+    within ``band_um`` for :data:`SETTLED_HOLD_S` (or up to the next one); None when the
+    reference never reverses nor stops (module docstring)."""
+    v = np.asarray(v_ref, dtype=np.float64)
+    moving = np.abs(v) >= REST_SPEED
+    stops = moving[:-1] & ~moving[1:]
+    reversals = moving[:-1] & moving[1:] & (np.sign(v[:-1]) != np.sign(v[1:]))
+    events = np.flatnonzero(stops | reversals) + 1  # the first sample at or past zero speed
+    inside = np.abs(error_um) <= band_um
+    longest = None
+    for i, start in enumerate(events):
+        end = int(events[i + 1]) if i + 1 < len(events) else len(t)
+        settled = end - 1  # none found: the whole time to the next event, a lower bound
+        for k in np.flatnonzero(inside[start:end]) + start:
+            hold = np.searchsorted(t, t[k] + SETTLED_HOLD_S, side="right")
+            if inside[k : min(hold, end)].all():
+                settled = int(k)
+                break
+        elapsed = (t[settled] - t[start - 1]) * 1e3
+        longest = elapsed if longest is None else max(longest, elapsed)
+    return None if longest is None else float(longest)
 
 
 def compute_metrics(record: RunRecord, window: tuple[float, float | None] = (0.0, None)) -> Metrics:
@@ -94,8 +140,12 @@ def compute_metrics(record: RunRecord, window: tuple[float, float | None] = (0.0
     inside = (t >= t0 - 1e-12) & (t <= t_end + 1e-12)
     if inside.sum() < 2:
         raise ValueError(f"metrics window [{t0}, {t_end}] s holds fewer than two samples")
+    v_ref = np.asarray(record["v_ref"])[inside] if "v_ref" in record.columns else None
     return indices(
-        t[inside], np.asarray(record["error"])[inside], np.asarray(record["current"])[inside]
+        t[inside],
+        np.asarray(record["error"])[inside],
+        np.asarray(record["current"])[inside],
+        v_ref,
     )
 
 

@@ -1,4 +1,5 @@
-"""Tables of results: several parameter sets on several scenarios, as Markdown and CSV."""
+"""Tables of results: several parameter sets on several scenarios, as Markdown and CSV; short
+text tables of a command's figures with their units."""
 
 from __future__ import annotations
 
@@ -34,6 +35,18 @@ def markdown_table(frame: pd.DataFrame, float_format: str = "{:.4g}") -> str:
         cells = [float_format.format(v) if isinstance(v, float) else str(v) for v in row]
         lines.append("| " + " | ".join([str(index), *cells]) + " |")
     return "\n".join(lines) + "\n"
+
+
+def text_table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
+    """Rows of text cells as left-aligned columns under a header and a rule (a command's
+    ``.txt`` table: name each quantity's unit in a column or in its name)."""
+    widths = [max(len(row[i]) for row in (header, *rows)) for i in range(len(header))]
+
+    def line(row: tuple[str, ...]) -> str:
+        return "  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip()
+
+    head = line(header)
+    return "\n".join([head, "-" * len(head), *(line(row) for row in rows)]) + "\n"
 
 
 def evaluate_sets(

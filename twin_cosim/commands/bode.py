@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from twin_cosim.commands.console import command_line, warn_plant_mismatch, write_json
+from twin_cosim.commands.console import command_line, scenario_of, write_json
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
@@ -51,14 +51,15 @@ def add_arguments(subparsers) -> None:
         dest="kind",
         action="store_const",
         const="closed",
-        help="the closed loop T = L / (1 + L)",
+        help="the closed loop T = L / (1 + L) (default: the open loop)",
     )
     kind.add_argument(
         "--sensitivity",
         dest="kind",
         action="store_const",
         const="sensitivity",
-        help="the sensitivity S = 1 / (1 + L): the loop's error over its setpoint",
+        help="the sensitivity S = 1 / (1 + L): the loop's error over its setpoint (default: "
+        "the open loop)",
     )
     parser.set_defaults(kind=None)
     parser.add_argument(
@@ -122,13 +123,9 @@ def run(args: argparse.Namespace) -> int:
     summary."""
     from twin_cosim.frequency.bode import bode, describe, write_bode
     from twin_cosim.frequency.measurement import MeasurementSettings
-    from twin_cosim.scenario import load_controller_set, resolve_scenario, with_controller_set
     from twin_cosim.versions import versions
 
-    scenario = resolve_scenario(args.scenario, args.plant_parameters, args.plant)
-    if args.params:
-        scenario = with_controller_set(scenario, load_controller_set(args.params))
-    mismatch = warn_plant_mismatch(scenario, plant_path(args))
+    scenario, mismatch = scenario_of(args)
     loop = "plant" if args.loop == "current" else args.loop
     how = MeasurementSettings(
         loop,

@@ -97,6 +97,24 @@ def command_line(name: str) -> str:
     return f"twin {name}"
 
 
+def scenario_of(args: Any) -> tuple[Scenario, list[str]]:
+    """The scenario a command's arguments name (``scenario``), with its ``--plant-parameters``,
+    ``--plant`` and ``--params`` applied, and the plant-mismatch warnings (on stderr too)."""
+    from twin_cosim.scenario import load_controller_set, resolve_scenario, with_controller_set
+
+    scenario = resolve_scenario(args.scenario, args.plant_parameters, args.plant)
+    if getattr(args, "params", None):
+        scenario = with_controller_set(scenario, load_controller_set(args.params))
+    fmu = Path(args.plant) if args.plant else None
+    return scenario, warn_plant_mismatch(scenario, fmu)
+
+
+def write_table(path: Path, command: str, table: str) -> Path:
+    """Write a command's text table under a comment line naming the command that made it."""
+    path.write_text(f"# {command}\n{table}")
+    return path
+
+
 def warn_plant_mismatch(scenario: Scenario, fmu: Path | None) -> list[str]:
     """Warn on stderr when ``--plant`` is another model than the scenario's; the warnings."""
     from twin_cosim.scenario import plant_mismatch  # heavy: not at start (twin --help)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -21,6 +22,8 @@ from twin_cosim.commands.options import (
     whole_number,
 )
 from twin_cosim.optimize.algorithms import METHOD_NAMES, method_label, method_list
+
+SETTLING_WEIGHT = 0.05  # um of fitness per ms of settling time: --objective settling
 
 if TYPE_CHECKING:
     from twin_cosim.optimize.axis_problem import CampaignSpec
@@ -115,7 +118,13 @@ def _robust_options(parser: argparse.ArgumentParser) -> None:
         help="plant samples per scenario, the first nominal (default: 1)",
     )
     parser.add_argument(
-        "--objective", choices=["worst", "mean"], help="over scenarios x samples (default: worst)"
+        "--objective",
+        type=objective_terms,
+        metavar="TERMS",
+        help="comma-separated: worst or mean (how the runs over scenarios x samples combine), "
+        "and settling[=W] (add W um per ms of each run's settling time after reversals and "
+        f"stops, W {SETTLING_WEIGHT:g} when not given), e.g. settling, mean,settling=0.1 "
+        "(default: worst, E_pk alone: the paper's objective, eq. (12))",
     )
     parser.add_argument(
         "--relative",
@@ -129,6 +138,31 @@ def _robust_options(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="run every candidate to the end (early stopping is exact; this is for measuring it)",
     )
+
+
+def objective_terms(text: str) -> dict[str, Any]:
+    """An argparse type: ``--objective`` as the campaign options it sets (``aggregate``,
+    ``settling_weight``)."""
+    terms: dict[str, Any] = {}
+    for term in text.split(","):
+        name, _, value = term.strip().partition("=")
+        if name in ("worst", "mean") and not value and "aggregate" not in terms:
+            terms["aggregate"] = name
+        elif name == "settling" and "settling_weight" not in terms:
+            try:
+                weight = float(value) if value else SETTLING_WEIGHT
+            except ValueError:
+                weight = math.nan
+            if not (math.isfinite(weight) and weight >= 0):
+                raise argparse.ArgumentTypeError(
+                    f"settling={value}: expected a weight >= 0 in um per ms, got {value!r}"
+                )
+            terms["settling_weight"] = weight
+        else:
+            raise argparse.ArgumentTypeError(
+                f"expected worst or mean and/or settling[=W], comma-separated, got {text!r}"
+            )
+    return terms
 
 
 def run(args: argparse.Namespace) -> int:
@@ -212,7 +246,7 @@ def _given(args: argparse.Namespace) -> dict[str, Any]:
         "scenarios": list(args.scenario[1:]) or None,
         "tolerance": args.tolerance,
         "samples": args.samples,
-        "aggregate": args.objective,
+        **(args.objective or {}),
         "relative": True if args.relative else None,
         "early_stop": False if args.no_early_stop else None,
         "start": args.start,
@@ -247,6 +281,9 @@ def _best(result: CampaignResult) -> str:
             f"{result.fitness:.4g} um is a penalty; see evaluations.jsonl)"
         )
     best = f"best E_pk {result.metrics['E_pk_um']:.3f} um"
+    settling = result.metrics.get("settling_ms")
+    if settling is not None:
+        best += f", settling {settling:.1f} ms (fitness {result.fitness:.3f} um)"
     return best if result.status == "ok" else f"{best}, above the IAU cap (penalised)"
 
 

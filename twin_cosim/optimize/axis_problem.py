@@ -107,6 +107,9 @@ class CampaignSpec:
     start : str or None
         A controller-set file (e.g. ``twin autotune``'s) the campaign starts from: its set
         becomes every scenario's own (the start point and the reference of the IAU cap).
+    settling_weight : float
+        um of fitness per ms of settling time (:data:`twin_cosim.metrics.Metrics.settling_ms`)
+        added to each run's E_pk; 0: the paper's objective, E_pk alone.
     """
 
     scenario: str
@@ -123,6 +126,7 @@ class CampaignSpec:
     relative: bool = False
     early_stop: bool = True
     start: str | None = None
+    settling_weight: float = 0.0
 
 
 def load_campaign_spec(out_dir: Path) -> CampaignSpec:
@@ -250,6 +254,7 @@ class AxisProblem:
             tuple((record.get("robust") or {}).get("samples") or ()),
             spec.aggregate,
             tuple(c["scale"] for c in cases),
+            spec.settling_weight,
         )
 
     def new_record(self, references: list[dict[str, Any]], found: dict[str, str]) -> dict:
@@ -333,6 +338,10 @@ def robust_settings(spec: CampaignSpec, scenarios: tuple[Scenario, ...]) -> dict
     """
     if spec.aggregate not in AGGREGATES:
         raise CampaignError(f"objective {spec.aggregate!r}: expected one of {AGGREGATES}")
+    if not spec.settling_weight >= 0.0:
+        raise CampaignError(
+            f"objective settling={spec.settling_weight}: expected a weight >= 0 um per ms"
+        )
     check_uncertainty(spec.tolerance, spec.samples)
     if spec.samples > 1 and spec.tolerance == 0.0:
         raise ValueError("--samples above 1 needs a --tolerance above 0 (e.g. 0.03)")
@@ -398,6 +407,8 @@ class ObjectiveSpec:
         ``worst`` or ``mean`` over the runs.
     scales : tuple of float
         Factor on each case's E_pk (case order); empty: 1 for every case.
+    settling_weight : float
+        um of fitness per ms of a run's settling time; 0: E_pk alone.
     """
 
     scenarios: tuple[Scenario, ...]
@@ -407,6 +418,7 @@ class ObjectiveSpec:
     samples: tuple[dict[str, float], ...] = ()
     aggregate: str = "worst"
     scales: tuple[float, ...] = ()
+    settling_weight: float = 0.0
 
     def build(self) -> Worker:
         """The objective (:class:`~twin_cosim.optimize.objective.Objective`, a worker of

@@ -3,7 +3,10 @@ E_pk.
 
 A candidate's fitness (um) is
 
-- E_pk over the objective window when the run is valid;
+- E_pk over the objective window when the run is valid, plus, with a settling weight w
+  (``--objective settling=W``), w times the run's settling time in ms
+  (:data:`twin_cosim.metrics.Metrics.settling_ms`: after each reversal or stop of the reference,
+  the time until the error stays within 1 um); w = 0, the default, is the paper's objective;
 - penalty + E_pk when it violates the control-effort cap (IAU above the limit);
 - 2 x penalty when it fails: parameters the controller refuses, a run stopped because the error
   left the allowed band (unstable loop), a run that oscillates (a limit cycle or a chattering
@@ -231,6 +234,8 @@ class Objective:
     def _score(self, metrics: dict[str, float], case: _Case) -> tuple[float, str, str]:
         """Fitness (um), status and reason of one completed run of ``case``."""
         score = case.scale * metrics["E_pk_um"]
+        if self.spec.settling_weight and metrics["settling_ms"] is not None:
+            score += case.scale * self.spec.settling_weight * metrics["settling_ms"]
         limit = case.iau_limit
         if limit is not None and metrics["IAU"] > limit:
             reason = f"IAU {metrics['IAU']:.4g} A.s above the cap {limit:.4g} A.s"
