@@ -73,7 +73,12 @@ from twin_cosim.frequency.calibration import (
     read_frf,
 )
 from twin_cosim.frequency.linear import Discrete, LinearLoops, TwoMass, hold_discretised
-from twin_cosim.frequency.margins import Margins, dense_grid, margins_of_data
+from twin_cosim.frequency.margins import (
+    Margins,
+    dense_grid,
+    margins_of_data,
+    phase_margin_of,
+)
 from twin_cosim.frequency.margins import bandwidth_hz as bandwidth_of
 from twin_cosim.frequency.measurement import (
     PLANT_BAND,
@@ -93,7 +98,7 @@ POSITION_PHASE_MARGIN_DEG = 60.0
 POSITION_PEAK_DB = 1.0
 POSITION_GAIN_MARGIN_DB = 6.0
 INTEGRAL_FACTOR_RANGE = (0.3, 100.0)  # alpha, T_n = alpha / w_c: where the target is sought
-BISECTIONS = 14  # halvings of log(alpha): alpha within 0.04 % of its value at the target
+BISECTIONS = 12  # halvings of log(alpha): alpha within 0.15 % of its value at the target
 TARGET_TOLERANCE_DEG = 0.5  # the speed loop's phase margin lies within this of its target
 NOTCH_WIDTHS = (0.25, 0.5)  # bandwidth over the resonance frequency f_02
 NOTCH_DEPTH_DB = (-40.0, -6.0)  # the notch's depth is kept within these
@@ -228,7 +233,7 @@ def _acceptable(m: Margins, phase_margin: float) -> bool:
 
 def _phase_margin(grid: np.ndarray, loop: np.ndarray) -> float:
     """The phase margin (deg) of a loop on the design grid; -inf without a gain crossover."""
-    margin = margins_of_data(grid, loop).phase_margin_deg
+    margin = phase_margin_of(grid, loop)
     return -math.inf if margin is None else margin
 
 

@@ -148,6 +148,12 @@ def _crossings(f: np.ndarray, loop: np.ndarray) -> tuple[tuple, tuple]:
     return min(gains, default=(None, None, None)), min(phases, default=(None, None, None))
 
 
+def phase_margin_of(frequency_hz: np.ndarray, loop: np.ndarray) -> float | None:
+    """The phase margin (deg) alone of an open loop given at increasing frequencies, as
+    :func:`margins_of_data` reads it (None without a gain crossover)."""
+    return _crossings(np.asarray(frequency_hz, dtype=np.float64), loop)[1][1]
+
+
 def _peak(f: np.ndarray, values_db: np.ndarray) -> tuple[float, float]:
     """The largest value (dB) and its frequency (Hz)."""
     i = int(np.argmax(values_db))

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
-from twin_cosim.commands.optimize import _report
+import pytest
+
+from twin_cosim.commands.optimize import SETTLING_WEIGHT, _report, objective_terms
 from twin_cosim.optimize.axis_problem import CampaignSpec
 from twin_cosim.optimize.driver import CampaignResult
 
@@ -44,3 +47,18 @@ def test_a_campaign_without_a_valid_run_says_so_without_a_nan(capsys):
 def test_a_penalised_best_run_is_said_to_be(capsys):
     _report(SPEC, result("violation", 1e6 + 3.2, {"E_pk_um": 3.2}), Path("c"), False)
     assert "best E_pk 3.200 um, above the IAU cap (penalised)" in capsys.readouterr().out
+
+
+def test_objective_terms_read_the_aggregate_and_the_settling_weight():
+    assert objective_terms("mean") == {"aggregate": "mean"}
+    assert objective_terms("settling") == {"settling_weight": SETTLING_WEIGHT}
+    assert objective_terms("worst,settling=0.2") == {"aggregate": "worst", "settling_weight": 0.2}
+    for bad in ("best", "settling=-1", "settling=x", "mean,worst", "settling,settling=1"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            objective_terms(bad)
+
+
+def test_the_result_says_the_settling_time_beside_e_pk(capsys):
+    metrics = {"E_pk_um": 2.7, "IAU": 7.9, "settling_ms": 20.7}
+    _report(SPEC, result("ok", 3.735, metrics), Path("c"), as_json=False)
+    assert "best E_pk 2.700 um, settling 20.7 ms (fitness 3.735 um)" in capsys.readouterr().out

@@ -118,11 +118,54 @@ def test_autotune_from_an_frf_file_and_a_bad_one(twin_cli, tmp_path):
     good = tmp_path / "frf.csv"
     good.write_text("f,real,imag\n" + rows + "\n")
     result = twin_cli(
-        "autotune", "reference1", "--frf", str(good), "--out", str(tmp_path), "--json"
-    )
+        "autotune", "reference1", "--frf", str(good), "--out", str(tmp_path), "--json",
+        "--no-plots", "--phase-margin", "60",
+    )  # fmt: skip
     assert result.returncode == 0, result.stderr
-    assert json.loads(result.stdout)["frf"] == str(good)
+    summary = json.loads(result.stdout)
+    assert summary["frf"] == str(good)
+    assert summary["phase_margin_target_deg"] == 60.0
+    assert summary["margins"]["phase_margin_deg"] == pytest.approx(60.0, abs=0.5)
+    assert not (tmp_path / "speed_loop.png").exists()
     bad = tmp_path / "bad.csv"
     bad.write_text("f,real,imag\n" + rows.replace(f"{F[5]},", "nan,", 1) + "\n")
     result = twin_cli("autotune", "reference1", "--frf", str(bad), "--out", str(tmp_path))
     assert result.returncode == 2 and "column f: 'nan', not a finite number" in result.stderr
+
+
+def test_the_phase_margin_is_a_target():
+    """Issue 31, item 4: the set's speed loop has the phase margin asked for (within 0.5 deg),
+    on the design model and on the true plant (python-control), and different targets give
+    different sets."""
+    plant = TwoMass.of_plant("drive2mass")
+    frf = plant.speed_per_torque(F) * plant.torque_per_current(F) / SETTINGS.torque_constant
+    sets = []
+    for target in (40.0, 60.0):
+        proposal = autotune(F, frf, None, FINE_TUNE, SETTINGS, "analytic", phase_margin=target)
+        assert proposal.speed_margins.phase_margin_deg == pytest.approx(target, abs=0.5)
+        cset = proposal.controller_set
+        loops = LinearLoops(plant, cset.tuned, cset.settings_for(SETTINGS))
+        assert margins_of_system(loops.speed_open()).phase_margin_deg == pytest.approx(
+            target, abs=1.0
+        )
+        sets.append(cset.tuned)
+    assert sets[0].Ki_vel > 1.2 * sets[1].Ki_vel  # less phase margin, more integral
+
+
+def test_the_position_loop_is_no_faster_than_the_speed_loop():
+    """Issue 31, item 3: the position loop's closed-loop bandwidth stays at or below the speed
+    loop's; the set says what limits Kp_pos."""
+    for target in (50.0, 76.0):
+        plant = TwoMass.of_plant("drive2mass")
+        frf = plant.speed_per_torque(F) * plant.torque_per_current(F) / SETTINGS.torque_constant
+        proposal = autotune(F, frf, None, FINE_TUNE, SETTINGS, "analytic", phase_margin=target)
+        speed, position = proposal.speed_margins, proposal.position_margins
+        assert position.bandwidth_hz <= speed.bandwidth_hz * 1.01
+        assert proposal.summary()["position_gain_limited_by"]
+
+
+def test_an_unreachable_target_says_what_the_loop_reaches():
+    plant = TwoMass.of_plant("drive2mass")
+    frf = plant.speed_per_torque(F) * plant.torque_per_current(F) / SETTINGS.torque_constant
+    with pytest.raises(ValueError, match=r"reach .*deg on this plant"):
+        autotune(F, frf, None, FINE_TUNE, SETTINGS, "analytic", phase_margin=120.0)

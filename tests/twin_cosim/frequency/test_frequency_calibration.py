@@ -58,6 +58,27 @@ def test_fit_finds_viscous_friction_and_a_delay():
     assert fit.plant.viscous_friction == pytest.approx(0.02, rel=1e-3)
     assert fit.delay_s == pytest.approx(1e-4, rel=1e-3)
     assert fit.rms_db < 1e-3
+    assert fit.drive_terms()["delay_s"] == pytest.approx(1e-4, rel=1e-3)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_delay_and_a_lag_the_data_do_not_hold_are_not_identified(seed):
+    """Issue 31, item 9: a fit to an FRF without delay nor lag gives no negative delay, and
+    reports both as not identified rather than a fraction of a microsecond."""
+    fit = fit_two_mass(F, noisy(TABLE1, 0.01, seed), np.full(len(F), 0.999))
+    assert fit.delay_s >= 0.0 and fit.lag_s >= 0.0
+    assert fit.drive_terms() == {"delay_s": None, "current_lag_s": None}
+    assert set(fit.not_identified()) == {"delay_s", "current_lag_s"}
+    assert "not identified" in fit.drive_text()
+
+
+def test_a_delay_and_a_lag_the_data_hold_are_identified():
+    truth = TABLE1.with_values(dead_time=125e-6, current_lag=2e-4, torque_constant=1.0)
+    h = truth.speed_per_torque(F) * truth.torque_per_current(F)
+    fit = fit_two_mass(F, h)
+    terms = fit.drive_terms()
+    assert terms["delay_s"] == pytest.approx(125e-6, rel=0.02)
+    assert terms["current_lag_s"] == pytest.approx(2e-4, rel=0.02)
 
 
 def test_a_real_imaginary_file_reads_as_the_polar_one(tmp_path):

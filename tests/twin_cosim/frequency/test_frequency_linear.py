@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import control
@@ -14,6 +15,7 @@ from twin_cosim.current_filters import Notch
 from twin_cosim.frequency.linear import (
     LinearLoops,
     TwoMass,
+    closed,
     hold_discretised,
     speed_loop_of_plant,
 )
@@ -121,3 +123,43 @@ def test_notch_on_the_resonance_lowers_the_speed_loop_peak():
     )
     ratio = abs(notched.speed_open().siso(f)[0] / plain.speed_open().siso(f)[0])
     assert ratio == pytest.approx(0.1, rel=1e-6)
+
+
+def test_static_stiffness_of_a_p_only_cascade_is_kp_pos_kp_vel_kt_over_travel_squared():
+    """Without the speed loop's integral, a torque M at the load holds the axis off by
+    x = M travel / (K_t Kp_vel Kp_pos): the force M / travel over x."""
+    tuned = dataclasses.replace(TABLE3["ft"], Ki_vel=0.0)
+    settings = ControllerSettings()
+    stiffness = LinearLoops(PLANT, tuned, settings).dynamic_stiffness(np.array([1e-3]))[0]
+    expected = tuned.Kp_pos * tuned.Kp_vel * 0.74 / settings.travel_per_rad**2 * 1e-6
+    assert stiffness.real == pytest.approx(expected, rel=1e-6)
+    assert abs(stiffness.imag) < 1e-3 * expected
+
+
+@pytest.mark.parametrize("name", ["ft", "ga"])
+def test_low_frequency_stiffness_of_the_pi_cascade_grows_as_one_over_frequency(name):
+    """With the integral Ki = Ki_vel / T (A/rad), the position error of a torque M is
+    travel (M / (K_t Ki) + M / K) s / Kp_pos at low frequency: the coupling K twists under M
+    and the integral must also wind that twist back."""
+    tuned, settings = TABLE3[name], ControllerSettings()
+    f = np.array([0.01, 0.02])
+    stiffness = np.abs(LinearLoops(PLANT, tuned, settings).dynamic_stiffness(f))
+    integral = tuned.Ki_vel / settings.speed_period
+    compliance = (1 / (0.74 * integral) + 1 / PLANT.stiffness) / tuned.Kp_pos
+    expected = 1 / (settings.travel_per_rad**2 * 2 * np.pi * f * compliance) * 1e-6
+    np.testing.assert_allclose(stiffness, expected, rtol=2e-3)
+
+
+def test_sensitivity_and_closed_loop_add_up_to_one():
+    loops = LinearLoops(PLANT, TABLE3["ft"], ControllerSettings())
+    for loop in ("speed", "position"):
+        s = loops.response(loop, "sensitivity", F[F < 1000])
+        t = loops.response(loop, "closed", F[F < 1000])
+        np.testing.assert_allclose(s + t, 1.0, atol=1e-9)
+
+
+def test_the_cascade_with_a_disturbance_input_keeps_the_reference_path():
+    loops = LinearLoops(PLANT, TABLE3["ft"], ControllerSettings())
+    f = F[F < 1000]
+    with_disturbance = closed(loops.position_open(with_disturbance=True)).response(f)[:, 0, 0]
+    np.testing.assert_allclose(with_disturbance, closed(loops.position_open()).siso(f), rtol=1e-9)

@@ -139,6 +139,8 @@ def test_bode_refuses_a_closed_plant_and_bad_options(twin_cli, tmp_path):
     result = twin_cli("bode", "reference1", "--loop", "plant", "--closed", "--out", str(tmp_path))
     assert result.returncode == 2
     assert "the plant is measured open" in result.stderr and "Traceback" not in result.stderr
+    result = twin_cli("bode", "reference1", "--loop", "disturbance", "--open")
+    assert result.returncode == 2 and "--loop disturbance --open" in result.stderr
     result = twin_cli("bode", "reference1", "--loop", "speed", "--amplitude", "-1")
     assert result.returncode == 2 and "--amplitude" in result.stderr
 
@@ -146,3 +148,77 @@ def test_bode_refuses_a_closed_plant_and_bad_options(twin_cli, tmp_path):
 def test_two_mass_of_a_changed_plant_follows_the_parameters():
     plant = TwoMass.of_plant("drive2mass", {"motor_inertia": 3.5e-4, "resonance_frequency": 60})
     assert plant.resonance_hz == pytest.approx(60 * math.sqrt(1 + 4.2e-4 / 3.5e-4))
+
+
+@pytest.mark.parametrize("name", ["ft", "ga"])
+def test_dynamic_stiffness_is_the_linearised_cascades(reference1, name):
+    """Goal: at low frequency within 5 %, its minimum within 1 dB and 5 % in frequency, measured
+    with the nonlinearities on at the default operating point (friction sliding, backlash
+    closed)."""
+    scenario = reference1.__class__(**{**reference1.__dict__, "tuned": TABLE3[name]})
+    result = bode(scenario, MeasurementSettings("disturbance"), nonlinear=True)
+    measured, linear = result.stiffness, result.linearised_stiffness
+    assert measured.withheld == {}
+    assert measured.low_frequency_n_per_um == pytest.approx(linear.low_frequency_n_per_um, rel=0.05)
+    assert 20 * math.log10(measured.minimum_n_per_um / linear.minimum_n_per_um) == pytest.approx(
+        0.0, abs=1.0
+    )
+    assert measured.minimum_hz == pytest.approx(linear.minimum_hz, rel=0.05)
+    summary = result.summary()
+    assert len(summary["stiffness_n_per_um"]) == len(summary["frequency_hz"])
+    assert summary["unit"] == "N/um" and summary["margins"] is None
+
+
+@pytest.mark.parametrize("loop", ["speed", "position"])
+def test_closed_loop_bandwidth_with_the_nonlinearities_on(reference1, loop):
+    """Goal: the closed loop's -3 dB bandwidth within 5 % of the linearised loop's, measured as
+    a drive measures (nonlinearities on, the default operating point)."""
+    result = bode(reference1, MeasurementSettings(loop, "closed"), nonlinear=True)
+    measured, linear = result.margins, result.linearised_margins
+    assert measured.bandwidth_hz == pytest.approx(linear.bandwidth_hz, rel=0.05)
+    assert result.summary()["margins"]["bandwidth_hz"] == measured.bandwidth_hz
+    assert result.summary()["linearised"]["margins"]["bandwidth_hz"] == linear.bandwidth_hz
+
+
+def test_sensitivity_measured_is_one_over_one_plus_the_loop(reference1):
+    for loop in ("speed", "position"):
+        result = bode(reference1, MeasurementSettings(loop, "sensitivity"), nonlinear=False)
+        assert result.deviation()["max_db"] < 1e-3
+        assert result.margins.peak_sensitivity_db == pytest.approx(
+            result.linearised_margins.peak_sensitivity_db, abs=0.1
+        )
+
+
+def test_margins_read_where_the_coherence_is_low_are_withheld(twin_cli, tmp_path):
+    """Issue 31, item 2: at standstill friction sticks and the backlash opens; the margins read
+    there are withheld in the text, the JSON and the plot's title. The default operating point
+    measures where the loop is coherent."""
+    result = twin_cli(
+        "bode", "reference1", "--loop", "position", "--speed", "0", "--amplitude", "5.5e-5",
+        "--out", str(tmp_path), "--no-plots",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "gain margin withheld" in result.stdout and "phase margin withheld" in result.stdout
+    margins = json.loads((tmp_path / "bode.json").read_text())["margins"]
+    assert margins["gain_margin_db"] is None and margins["phase_margin_deg"] is None
+    assert margins["withheld"]["gain_margin_db"]["lowest_coherence"] < 0.9
+    assert not (tmp_path / "bode.png").exists() and (tmp_path / "frf.csv").is_file()
+    coherent = bode(load_scenario("reference1"), MeasurementSettings("position"), nonlinear=True)
+    assert coherent.margins.withheld == {}
+    linear = coherent.linearised_margins
+    assert coherent.margins.gain_margin_db == pytest.approx(linear.gain_margin_db, abs=0.5)
+    assert coherent.margins.phase_margin_deg == pytest.approx(linear.phase_margin_deg, abs=2.0)
+
+
+def test_bode_disturbance_json_interface(twin_cli, tmp_path):
+    result = twin_cli(
+        "bode", "reference1", "--loop", "disturbance", "--averages", "2", "--out", str(tmp_path),
+        "--json",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["kind"] == "closed" and summary["unit"] == "N/um"
+    for key in ("low_frequency_n_per_um", "minimum_n_per_um", "minimum_hz"):
+        assert summary["stiffness"][key] > 0
+        assert summary["linearised"]["stiffness"][key] > 0
+    assert (tmp_path / "stiffness.png").is_file() and (tmp_path / "frf.csv").is_file()

@@ -193,3 +193,16 @@ def test_the_case_that_stopped_a_candidate_runs_first_next(two_scenarios):
     assert second_try["steps"] < first_try["steps"]  # the stopping case ran first
     assert robust(EvaluationTask(x, cutoff))["steps"] == second_try["steps"]
     robust.close()
+
+
+def test_a_settling_weight_adds_the_runs_settling_time():
+    """--objective settling=W: the fitness is E_pk + W settling_ms (um); the paper's objective,
+    W = 0, is E_pk alone."""
+    weighted = Objective(ObjectiveSpec(loaded(REFERENCE1), None, None, settling_weight=0.1))
+    try:
+        result = weighted(TABLE3["ga"].as_array())
+    finally:
+        weighted.close()
+    metrics = result["metrics"]
+    assert metrics["settling_ms"] > 10.0
+    assert result["fitness"] == pytest.approx(metrics["E_pk_um"] + 0.1 * metrics["settling_ms"])
