@@ -22,7 +22,7 @@ library touches its folder (the FMU block in ``model.c`` and ``variables.yaml``,
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -104,6 +104,15 @@ class PlantModel:
     def variable_names(self) -> set[str]:
         """Names of all the model's variables."""
         return {v.name for v in self.table.variables}
+
+    def require_parameters(self, names: Sequence[str], purpose: str) -> None:
+        """PlantModelError naming ``purpose`` (what needs them) unless the model has all of
+        the parameters ``names``."""
+        missing = [name for name in names if name not in self.parameters]
+        if missing:
+            raise PlantModelError(
+                f"{purpose} {list(names)}; plant model {self.name!r} has no {missing}"
+            )
 
     def start_values(self) -> dict[str, float]:
         """Start values of the parameters (SI units of the variable table)."""

@@ -22,6 +22,23 @@ CLOSE_UP_BEFORE_S = 0.06
 CLOSE_UP_AFTER_S = 0.24
 
 
+def stacked_axes(rows: int, size: tuple[float, float], height_ratios: list[float]):  # type: ignore[no-untyped-def]
+    """A figure of ``rows`` axes one above the other sharing the frequency or time axis, and
+    its axes."""
+    fig = Figure(figsize=size)
+    axes = fig.subplots(rows, 1, sharex=True, height_ratios=height_ratios, squeeze=False)
+    return fig, list(axes[:, 0])
+
+
+def save_figure(fig: Figure, axes, path: Path) -> Path:  # type: ignore[no-untyped-def]
+    """Grid every axis, lay the figure out and write it as a PNG (110 dpi); returns ``path``."""
+    for ax in axes:
+        ax.grid(True, which="both", lw=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path
+
+
 def warm_up() -> None:
     """Draw a small figure with text into memory: what the first figure of a process loads
     (the PNG backend, the fonts) is loaded now, e.g. by a process that waits for its data."""

@@ -3,20 +3,15 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-from twin_cosim.commands.console import command_line, scenario_of, write_json
+from twin_cosim.commands.console import command_line, scenario_of, write_report
 from twin_cosim.commands.options import (
+    axis_test_options,
     command_parser,
-    data_option,
     fraction,
-    no_plots_option,
     number_above,
     out_folder,
-    params_option,
-    plant_option,
-    plant_parameters_option,
     plant_path,
     whole_number,
 )
@@ -69,15 +64,7 @@ def add_arguments(subparsers) -> None:
         help="backlash, friction and the other nonlinearities of the plant model",
     )
     _excitation_options(parser)
-    params_option(parser)
-    plant_option(parser)
-    plant_parameters_option(parser)
-    parser.add_argument(
-        "--out", metavar="DIR", help="output folder (default: out/bode-<scenario>-<loop>-<kind>)"
-    )
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
-    no_plots_option(parser)
-    data_option(parser)
+    axis_test_options(parser, "bode")
     parser.set_defaults(handler=run)
 
 
@@ -119,11 +106,10 @@ def _excitation_options(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Measure, write frf.csv, bode.png (nyquist.png; stiffness.png) and bode.json; print the
-    summary."""
+    """Measure, write frf.csv, bode.png (nyquist.png; stiffness.png), bode.txt and bode.json;
+    print the summary."""
     from twin_cosim.frequency.bode import bode, describe, write_bode
     from twin_cosim.frequency.measurement import MeasurementSettings
-    from twin_cosim.versions import versions
 
     scenario, mismatch = scenario_of(args)
     loop = "plant" if args.loop == "current" else args.loop
@@ -139,19 +125,7 @@ def run(args: argparse.Namespace) -> int:
     )
     out = out_folder(args.out, Path("out") / f"bode-{scenario.name}-{loop}-{how.kind}")
     result = bode(scenario, how, args.nonlinear == "on", plant_path(args), args.coherence_floor)
-    command = command_line("bode")
-    files = write_bode(result, out, command, plots=not args.no_plots)
-    summary = {
-        **result.summary(),
-        "command": command,
-        "outputs": files,
-        "warnings": mismatch,
-        "versions": versions(),
-    }
-    write_json(out / "bode.json", summary)
-    if args.json:
-        print(json.dumps(summary))
-    else:
-        print("\n".join(describe(result)))
-        print(f"wrote {', '.join(files.values())}, {out / 'bode.json'}")
+    files = write_bode(result, out, command_line("bode"), plots=not args.no_plots)
+    table = "\n".join(describe(result)) + "\n"
+    write_report(out, "bode", result.summary(), table, files, mismatch, args.json)
     return 0

@@ -7,8 +7,9 @@ import os
 import shlex
 import signal
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 if TYPE_CHECKING:
     import numpy as np
@@ -16,6 +17,9 @@ if TYPE_CHECKING:
 
     from twin_cosim.run_record import RunRecord
     from twin_cosim.scenario import Scenario
+
+
+T = TypeVar("T")
 
 
 def write_json(path: Path, data: dict[str, Any]) -> None:
@@ -109,10 +113,58 @@ def scenario_of(args: Any) -> tuple[Scenario, list[str]]:
     return scenario, warn_plant_mismatch(scenario, fmu)
 
 
+def run_axis_test(
+    args: Any, name: str, test: Callable[[Any, Any], T]
+) -> tuple[Any, list[str], Path, T]:
+    """Run a test of an axis: ``test(plant, scenario)`` on the scenario the arguments name (its
+    plant, or ``--plant``). Returns the scenario, its plant-mismatch warnings, the output folder
+    (``--out``, else ``out/<name>-<scenario name>``, made) and the test's result."""
+    from twin_cosim.commands.options import out_folder, plant_path
+    from twin_cosim.plant import Plant
+
+    scenario, warnings = scenario_of(args)
+    out = out_folder(args.out, Path("out") / f"{name}-{scenario.name}")
+    with Plant(scenario.plant_fmu(plant_path(args))) as plant:
+        result = test(plant, scenario)
+    out.mkdir(parents=True, exist_ok=True)
+    return scenario, warnings, out, result
+
+
 def write_table(path: Path, command: str, table: str) -> Path:
     """Write a command's text table under a comment line naming the command that made it."""
     path.write_text(f"# {command}\n{table}")
     return path
+
+
+def write_report(
+    out: Path,
+    name: str,
+    summary: dict[str, Any],
+    table: str,
+    files: dict[str, str],
+    warnings: list[str],
+    as_json: bool,
+) -> None:
+    """Write a test's ``<name>.txt`` (``table``) and ``<name>.json`` (``summary`` with the
+    command, its files, the ``warnings`` and the versions) into ``out``; print the summary as
+    JSON, or the table and the files written."""
+    from twin_cosim.versions import versions
+
+    command = command_line(name)
+    files = {"table": str(write_table(out / f"{name}.txt", command, table)), **files}
+    summary = {
+        **summary,
+        "command": command,
+        "outputs": files,
+        "warnings": warnings,
+        "versions": versions(),
+    }
+    write_json(out / f"{name}.json", summary)
+    if as_json:
+        print(json.dumps(summary))
+    else:
+        print(table, end="")
+        print(f"wrote {', '.join(files.values())}, {out / f'{name}.json'}")
 
 
 def warn_plant_mismatch(scenario: Scenario, fmu: Path | None) -> list[str]:

@@ -128,6 +128,38 @@ def plant_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def axis_test_parser(subparsers, name: str, help: str) -> argparse.ArgumentParser:
+    """The parser of a test of an axis: its scenario argument (its own options follow, then
+    :func:`axis_test_options`)."""
+    parser = command_parser(subparsers, name, help)
+    parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
+    return parser
+
+
+def number_options(
+    parser: argparse.ArgumentParser,
+    table: tuple[tuple[str, Callable[[str], float], float | None, str, str], ...],
+) -> None:
+    """Options of one number each: (option, type, default, metavar, help) per row."""
+    for option, kind, default, metavar, text in table:
+        parser.add_argument(option, type=kind, default=default, metavar=metavar, help=text)
+
+
+def axis_test_options(parser: argparse.ArgumentParser, name: str) -> None:
+    """What every test of an axis (``bode``, ``step``, ``kv``, ``friction``) takes besides its
+    own: ``--params``, ``--plant``, ``--plant-parameters``, ``--out`` (default
+    ``out/<name>-<scenario name>``), ``--json``, ``--no-plots``, ``--data``."""
+    params_option(parser)
+    plant_option(parser)
+    plant_parameters_option(parser)
+    parser.add_argument(
+        "--out", metavar="DIR", help=f"output folder (default: out/{name}-<scenario name>...)"
+    )
+    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    no_plots_option(parser)
+    data_option(parser)
+
+
 def no_plots_option(parser: argparse.ArgumentParser) -> None:
     """``--no-plots``: write no figures (the results and data files are the same)."""
     parser.add_argument(

@@ -465,10 +465,11 @@ def plot_bode(
     crossover of an open loop, the bandwidth of a closed one, the peak of a sensitivity;
     ``coherence_floor`` draws that level; ``margins_label`` says whose the margins are.
     """
-    plt = _pyplot()
+    from twin_cosim.plots import save_figure, stacked_axes
+
     measured = any(r.coherence is not None for r in responses.values())
     rows, ratios = (3, [3, 2, 1]) if measured else (2, [3, 2])
-    fig, axes = plt.subplots(rows, 1, figsize=(9, 3 * rows), sharex=True, height_ratios=ratios)
+    fig, axes = stacked_axes(rows, (9, 3 * rows), ratios)
     phases = _phases(list(responses.values()))
     for i, (label, r) in enumerate(responses.items()):
         style = {"marker": ".", "ms": 3, "lw": 0.6} if r.coherence is not None else {"lw": 1.2}
@@ -490,12 +491,7 @@ def plot_bode(
         _mark_margins(axes, margins, first.kind, margins_label)
     fig.suptitle(_wrapped(title), fontsize=9)
     axes[0].legend(fontsize=8)
-    for ax in axes:
-        ax.grid(True, which="both", lw=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, axes, path)
 
 
 def _mark_margins(axes, margins: Margins, kind: str, label: str) -> None:  # type: ignore[no-untyped-def]
@@ -558,8 +554,9 @@ def _phases(responses: list[FrequencyResponse]) -> list[np.ndarray]:
 def plot_stiffness(result: BodeResult, title: str, path: Path) -> Path:
     """The dynamic stiffness |K| (N/um, log scale), its phase and the coherence against
     frequency, measured (points) and linearised (line), the minima marked; returns ``path``."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True, height_ratios=[3, 2, 1])
+    from twin_cosim.plots import save_figure, stacked_axes
+
+    fig, axes = stacked_axes(3, (9, 9), [3, 2, 1])
     state = "nonlinearities " + ("on" if result.nonlinear else "off")
     curves = [(f"measured ({state})", result.measured, result.stiffness)]
     if result.linearised is not None:
@@ -595,12 +592,7 @@ def plot_stiffness(result: BodeResult, title: str, path: Path) -> Path:
         axes[0].set_title(_wrapped(text, 130), fontsize=8, color="tab:red" if withheld else "black")
     axes[0].legend(fontsize=8)
     axes[2].legend(fontsize=8, loc="lower left")
-    for ax in axes:
-        ax.grid(True, which="both", lw=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, axes, path)
 
 
 def plot_nyquist(responses: Mapping[str, FrequencyResponse], title: str, path: Path) -> Path:

@@ -70,10 +70,10 @@ from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario import Scenario
 from twin_cosim.scenario.plant_file import (
     PlantParameters,
+    fitted_plant,
     read_plant_parameters,
     write_plant_parameters,
 )
-from twin_cosim.versions import versions
 
 ALIASES = {
     "f": ("f", "f_hz", "frequency", "frequency_hz", "freq", "freq_hz"),
@@ -614,13 +614,7 @@ def calibrate(
         When the scenario's plant model has no two-mass parameters to fit.
     """
     model = scenario.model_name()
-    known = plant_model(model).parameters
-    missing = [name for name in FITTED if name not in known]
-    if missing:
-        raise ValueError(
-            f"twin calibrate --frf fits the two-mass parameters {list(FITTED)}; plant model "
-            f"{model!r} has no {missing}"
-        )
+    plant_model(model).require_parameters(FITTED, "twin calibrate --frf fits the parameters")
     fit = fit_two_mass(
         frf.frequency_hz[frf.used],
         frf.response[frf.used],
@@ -632,17 +626,14 @@ def calibrate(
         f"a delay and a current lag, {fit.lines} lines, RMS error {fit.rms_db:.3g} dB and "
         f"{fit.rms_deg:.3g} deg"
     )
-    plant = PlantParameters(
-        model=model,
-        parameters=values,
-        provenance={name: {"source": source} for name in values},
-        created_by={
-            "command": command,
-            "version": versions()["twin-cosim"],
-            "frf": str(frf.source),
-            **fit.drive_terms(),
-            "masked_bands_hz": [list(band[:2]) for band in frf.masked_bands],
-        },
+    plant = fitted_plant(
+        model,
+        values,
+        source,
+        command,
+        frf=str(frf.source),
+        **fit.drive_terms(),
+        masked_bands_hz=[list(band[:2]) for band in frf.masked_bands],
     )
     nominal = {**plant_model(model).start_values(), **scenario.plant_parameters}
     other = None if beside is None else read_plant_parameters(beside, model)

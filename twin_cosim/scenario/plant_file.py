@@ -193,6 +193,21 @@ def read_plant_parameters(path: Path | str, model: str | None = None) -> PlantPa
     )
 
 
+def fitted_plant(
+    model: str, parameters: Mapping[str, float], source: str, command: str, **details: Any
+) -> PlantParameters:
+    """A plant parameter file of values a command fitted: each value's provenance ``source``
+    (text), ``created_by`` the command line, the version and ``details``."""
+    from twin_cosim.versions import versions
+
+    return PlantParameters(
+        model=model,
+        parameters=dict(parameters),
+        provenance={name: {"source": source} for name in parameters},
+        created_by={"command": command, "version": versions()["twin-cosim"], **details},
+    )
+
+
 def write_plant_parameters(path: Path | str, plant: PlantParameters) -> Path:
     """Write a plant parameter file (values are checked first; floats round-trip exactly)."""
     check_values(plant.parameters, plant.model, str(path))

@@ -169,16 +169,13 @@ def describe(result: FollowingResult) -> str:
 def plot_following(result: FollowingResult, path: Path, command: str) -> Path:
     """The following error against speed, both directions, feedforward off and on, with the
     line v / Kp_pos; returns ``path``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from twin_cosim.plots import save_figure, stacked_axes
 
     v = np.array([level.speed_m_s for level in result.levels]) * 1e3
     off = np.array([level.error_um for level in result.levels])
     on = np.array([level.error_with_feedforward_um for level in result.levels])
     kp = result.scenario.tuned.Kp_pos
-    fig, axes = plt.subplots(2, 1, figsize=(8, 7), sharex=True, height_ratios=[3, 2])
+    fig, axes = stacked_axes(2, (8, 7), [3, 2])
     line = np.linspace(v.min(), v.max(), 50)
     axes[0].plot(line, line * 1e3 / kp, color="grey", lw=1.0, label=f"v / Kp_pos ({kp:.4g} 1/s)")
     axes[0].plot(v, off, "o", label=f"measured, feedforward off: Kv {result.kv_per_s:.4g} 1/s")
@@ -191,9 +188,4 @@ def plot_following(result: FollowingResult, path: Path, command: str) -> Path:
     axes[1].set_xlabel("carriage speed [mm/s]")
     axes[1].legend(fontsize=8)
     fig.suptitle(f"{result.scenario.name}: following error against speed\n{command}", fontsize=9)
-    for ax in axes:
-        ax.grid(True, lw=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, axes, path)

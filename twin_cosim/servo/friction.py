@@ -65,9 +65,8 @@ from twin_cosim.plant import Plant
 from twin_cosim.plant_model import plant_model
 from twin_cosim.report import text_table
 from twin_cosim.scenario import Scenario
-from twin_cosim.scenario.plant_file import PlantParameters
+from twin_cosim.scenario.plant_file import PlantParameters, fitted_plant
 from twin_cosim.servo.motion import level_statistics, run_motion, speed_levels
-from twin_cosim.versions import versions
 
 SPEEDS = 24  # levels per direction
 DWELL_S = 0.5  # s at each level
@@ -122,6 +121,14 @@ class FrictionPoint:
     def fitted(self) -> bool:
         """Whether the fit uses it."""
         return self.kind != "stick-slip level"
+
+    @classmethod
+    def of_samples(
+        cls, speed: np.ndarray, torque: np.ndarray, kind: str, centre: Any = np.mean
+    ) -> FrictionPoint:
+        """The point of samples of speed (rad/s) and torque (N.m): their ``centre`` (mean or
+        median), and the speed's spread."""
+        return cls(float(centre(speed)), float(centre(torque)), float(np.std(speed)), kind)
 
 
 @dataclass(frozen=True)
@@ -302,11 +309,8 @@ def balance_points(load_speed: np.ndarray, friction: np.ndarray) -> list[Frictio
         inside = bins == b
         if inside.sum() >= MIN_BIN_SAMPLES:
             points.append(
-                FrictionPoint(
-                    float(np.median(load_speed[inside])),
-                    float(np.median(friction[inside])),
-                    float(np.std(load_speed[inside])),
-                    "torque balance",
+                FrictionPoint.of_samples(
+                    load_speed[inside], friction[inside], "torque balance", np.median
                 )
             )
     return points
@@ -527,14 +531,7 @@ def _levels(t: np.ndarray, speed: np.ndarray, torque: np.ndarray) -> list[Fricti
         if end - begin < 2 or t[end - 1] - t[begin] < MIN_LEVEL_S:
             continue
         half = slice((begin + end) // 2, end)
-        points.append(
-            FrictionPoint(
-                float(np.mean(speed[half])),
-                float(np.mean(torque[half])),
-                float(np.std(speed[half])),
-                "steady level",
-            )
-        )
+        points.append(FrictionPoint.of_samples(speed[half], torque[half], "steady level"))
     return points
 
 
@@ -544,17 +541,11 @@ def plant_file(result: FrictionResult, scenario: Scenario, command: str) -> Plan
 
     Raises
     ------
-    ValueError
+    PlantModelError
         When the scenario's plant model has not these parameters.
     """
     model = scenario.model_name()
-    known = plant_model(model).parameters
-    missing = [name for name in PLANT_PARAMETERS if name not in known]
-    if missing:
-        raise ValueError(
-            f"twin friction writes the friction parameters {list(PLANT_PARAMETERS)}; plant model "
-            f"{model!r} has no {missing}"
-        )
+    plant_model(model).require_parameters(PLANT_PARAMETERS, "twin friction writes the parameters")
     v = result.fit.values
     parameters = {
         "coulomb_friction": 0.5 * (v["coulomb_positive"] + v["coulomb_negative"]),
@@ -571,15 +562,8 @@ def plant_file(result: FrictionResult, scenario: Scenario, command: str) -> Plan
         f"levels that stuck and slipped ({result.source}), fitted to Coulomb, viscous and "
         f"Stribeck terms, RMS residual {result.fit.rms:.3g} N.m"
     )
-    return PlantParameters(
-        model=model,
-        parameters=parameters,
-        provenance={name: {"source": source} for name in parameters},
-        created_by={
-            "command": command,
-            "version": versions()["twin-cosim"],
-            "not_identified": result.fit.not_identified,
-        },
+    return fitted_plant(
+        model, parameters, source, command, not_identified=result.fit.not_identified
     )
 
 
@@ -624,12 +608,9 @@ def describe(result: FrictionResult) -> str:
 def plot_friction(result: FrictionResult, path: Path, command: str) -> Path:
     """Torque magnitude against speed magnitude (log scale), each direction's points (hollow
     where the level stuck and slipped) and fitted curves; returns ``path``."""
-    import matplotlib
+    from twin_cosim.plots import save_figure, stacked_axes
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(9, 6))
+    fig, (ax,) = stacked_axes(1, (9, 6), [1])
     speeds = np.array([abs(p.speed) for p in result.points])
     grid = np.geomspace(max(speeds.min(), 1e-4), speeds.max(), 300)
     styles = {
@@ -663,12 +644,8 @@ def plot_friction(result: FrictionResult, path: Path, command: str) -> Path:
     ax.set_xlabel("motor speed |w| [rad/s]")
     ax.set_ylabel("steady torque |K_t i| [N.m]")
     ax.set_title(f"friction curve: {result.source}\n{command}", fontsize=9)
-    ax.grid(True, which="both", lw=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, [ax], path)
 
 
 def _fit_label(fit: FrictionFit, direction: str) -> str:

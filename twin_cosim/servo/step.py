@@ -117,8 +117,6 @@ class StepResult:
         From the step on, columns :data:`COLUMNS`.
     figures : StepFigures
         What the test reads from it.
-    current_limit : float
-        The drive's current limit, A.
     """
 
     scenario: Scenario
@@ -126,17 +124,17 @@ class StepResult:
     duration_s: float
     record: RunRecord
     figures: StepFigures
-    current_limit: float
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready: the figures, the test's settings, the controller."""
+        limit = self.scenario.settings.current_limit
         return {
             "scenario": str(self.scenario.source),
             "step_mm": self.size * 1e3,
             "duration_s": self.duration_s,
             **self.figures.as_dict(),
-            "current_limit_A": self.current_limit,
-            "current_limited": self.figures.max_current_A >= self.current_limit * (1 - 1e-9),
+            "current_limit_A": limit,
+            "current_limited": self.figures.max_current_A >= limit * (1 - 1e-9),
             "params": self.scenario.tuned.as_dict(),
         }
 
@@ -183,7 +181,7 @@ def step_test(
         UNITS,
     )
     figures = step_figures(record, start, size, band_um)
-    return StepResult(scenario, size, duration_s, record, figures, settings.current_limit)
+    return StepResult(scenario, size, duration_s, record, figures)
 
 
 def step_figures(record: RunRecord, start: float, size: float, band_um: float) -> StepFigures:
@@ -267,17 +265,14 @@ def describe(result: StepResult) -> str:
 def plot_step(result: StepResult, path: Path, command: str) -> Path:
     """The response and its deviation from the target (linear, then log scale to show the
     tail), the settling band and times marked; returns ``path``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from twin_cosim.plots import save_figure, stacked_axes
 
     f = result.figures
     t_ms = np.asarray(result.record["t"]) * 1e3
     start = float(result.record["setpoint"][0]) - result.size
     moved_um = (np.asarray(result.record["x"]) - start) * 1e6
     deviation_um = np.abs(moved_um - f.size_um)
-    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True, height_ratios=[3, 2, 2])
+    fig, axes = stacked_axes(3, (9, 9), [3, 2, 2])
     axes[0].plot(t_ms, moved_um, lw=1.0, label="scale reading x")
     axes[0].axhline(f.size_um, color="grey", lw=0.8, ls="--", label="setpoint")
     for sign in (-1, 1):
@@ -313,9 +308,4 @@ def plot_step(result: StepResult, path: Path, command: str) -> Path:
     )
     axes[0].legend(fontsize=8, loc="lower right")
     axes[1].legend(fontsize=8, loc="upper right")
-    for ax in axes:
-        ax.grid(True, which="both", lw=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, axes, path)
