@@ -17,6 +17,7 @@ from twin_cosim.commands.options import (
     fraction,
     no_plots_option,
     out_folder,
+    output_options,
     plant_option,
     plant_path,
     whole_number,
@@ -55,10 +56,7 @@ def add_arguments(subparsers) -> None:
     parser.add_argument(
         "--workers", type=whole_number(1), help="local processes for the fits (default: all cores)"
     )
-    parser.add_argument(
-        "--out", metavar="DIR", help="report folder (default: out/diagnosis-<scenario name>)"
-    )
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    output_options(parser, "report folder (default: out/diagnosis-<scenario name>)")
     parser.add_argument(
         "--quiet",
         action="store_true",

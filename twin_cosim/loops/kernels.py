@@ -55,27 +55,34 @@ _DO_STEP3 = ir.FunctionType(
 FMI3 = 3  # an axis' FMI version, as the master's ``versions`` give it
 
 
+_VALUES_SIGNATURE = types.int64(types.intp, types.intp, types.intp, types.intp, types.intp)
+
+
+def _values_codegen(function_type: ir.FunctionType, value_count: bool):  # type: ignore[no-untyped-def]
+    """The code of a call of a Set/Get function of real values at an address: (instance, value
+    references, count, values), and the count of values again when ``value_count`` (FMI 3.0)."""
+
+    def codegen(context, builder, sig, args):  # type: ignore[no-untyped-def]
+        function = builder.inttoptr(args[0], function_type.as_pointer())
+        component_, references_, count_, values_ = args[1:]
+        arguments = [
+            builder.inttoptr(component_, _POINTER),
+            builder.inttoptr(references_, _POINTER),
+            count_,
+            builder.inttoptr(values_, _POINTER),
+        ]
+        if value_count:
+            arguments.append(count_)
+        return builder.sext(builder.call(function, arguments), ir.IntType(64))
+
+    return codegen
+
+
 @intrinsic
 def real_call(typingctx, address, component, references, count, values):  # type: ignore[no-untyped-def]
     """``fmi2SetReal`` or ``fmi2GetReal`` at ``address``: (instance, value references (uint32
     pointer), count, values (float64 pointer)) -> fmi2Status; every argument an integer."""
-    signature = types.int64(types.intp, types.intp, types.intp, types.intp, types.intp)
-
-    def codegen(context, builder, sig, args):  # type: ignore[no-untyped-def]
-        function = builder.inttoptr(args[0], _REAL_CALL.as_pointer())
-        component_, references_, count_, values_ = args[1:]
-        status = builder.call(
-            function,
-            [
-                builder.inttoptr(component_, _POINTER),
-                builder.inttoptr(references_, _POINTER),
-                count_,
-                builder.inttoptr(values_, _POINTER),
-            ],
-        )
-        return builder.sext(status, ir.IntType(64))
-
-    return signature, codegen
+    return _VALUES_SIGNATURE, _values_codegen(_REAL_CALL, value_count=False)
 
 
 @intrinsic
@@ -104,24 +111,7 @@ def do_step(typingctx, address, component, time, step, no_prior_state):  # type:
 def float64_call(typingctx, address, component, references, count, values):  # type: ignore[no-untyped-def]
     """``fmi3SetFloat64`` or ``fmi3GetFloat64`` at ``address``: (instance, value references
     (uint32 pointer), count, values (float64 pointer), count of values: the same) -> status."""
-    signature = types.int64(types.intp, types.intp, types.intp, types.intp, types.intp)
-
-    def codegen(context, builder, sig, args):  # type: ignore[no-untyped-def]
-        function = builder.inttoptr(args[0], _FLOAT64_CALL.as_pointer())
-        component_, references_, count_, values_ = args[1:]
-        status = builder.call(
-            function,
-            [
-                builder.inttoptr(component_, _POINTER),
-                builder.inttoptr(references_, _POINTER),
-                count_,
-                builder.inttoptr(values_, _POINTER),
-                count_,
-            ],
-        )
-        return builder.sext(status, ir.IntType(64))
-
-    return signature, codegen
+    return _VALUES_SIGNATURE, _values_codegen(_FLOAT64_CALL, value_count=True)
 
 
 @intrinsic
