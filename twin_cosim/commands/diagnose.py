@@ -99,10 +99,12 @@ def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     settings = settings_from(scenario, args.split, args.max_effects)
     start = time.perf_counter()
     progress = _ProgressBars(args)
-    result = diagnose(
-        scenario, measured, holdout, args.plant, settings, progress=progress, pool=pool
-    )
-    progress.finish()
+    try:
+        result = diagnose(
+            scenario, measured, holdout, args.plant, settings, progress=progress, pool=pool
+        )
+    finally:
+        progress.finish()
     wall_s = time.perf_counter() - start
     summary = {
         **summary_of(result),

@@ -29,10 +29,12 @@ from twin_cosim.versions import installed_version
 
 MODULE = "twin_loops"
 _PACKAGE = Path(__file__).resolve().parents[1]
-# What the loops are made from: their code, the controller they inline, the plant contract
-# (the positions of inputs and outputs), and this file's signatures.
+# What the loops are made from: their code and the statuses they compile in (loops/__init__.py),
+# the controller they inline, the plant contract (the positions of inputs and outputs), and this
+# file's signatures.
 SOURCES = (
     _PACKAGE / "loops" / "kernels.py",
+    _PACKAGE / "loops" / "__init__.py",
     _PACKAGE / "loops" / "ahead.py",
     _PACKAGE / "controller.py",
     _PACKAGE / "plant.py",

@@ -26,7 +26,7 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from twin_cosim import controller
+from twin_cosim import controller, loops, plant
 from twin_cosim.loops import ABORTED, FMI2_OK_OR_WARNING
 from twin_cosim.plant import CONTRACT_INPUTS, CONTRACT_OUTPUTS
 
@@ -368,14 +368,15 @@ def master(
 
 
 def drop_stale_compiled() -> None:
-    """Delete numba's cached machine code of these functions when a source they inline
-    (controller.py) is newer.
+    """Delete numba's cached machine code of these functions when a source they inline or
+    compile in (controller.py, the plant contract of plant.py, the statuses of loops/__init__.py)
+    is newer.
 
     numba's cache checks only the source file of the cached function itself; the master inlines
     the controller's functions, so an edited controller would otherwise keep running its old
     form.
     """
-    changed = Path(controller.__file__).stat().st_mtime
+    changed = max(Path(module.__file__).stat().st_mtime for module in (controller, plant, loops))
     for function in (master, position_loop, speed_loop, exchange):
         cache_dir = Path(function._cache._cache_path)
         code = function.py_func.__code__
