@@ -15,8 +15,8 @@ One master, two paths that give the same trajectories:
   compiled by numba (ahead of time when built, see :mod:`twin_cosim.loops`), calling each
   instance's SetReal / DoStep / GetReal (FMI 2.0: fmi2SetReal ...; FMI 3.0: fmi3SetFloat64
   ...) through their C function pointers;
-- reference: :func:`_step_reference`, a plain Python loop through fmpy's ``FMU2Slave`` or ``FMU3Slave`` calls; the
-  readable one.
+- reference: :func:`_step_reference`, a plain Python loop through fmpy's ``FMU2Slave`` or
+  ``FMU3Slave`` calls; the readable one.
 
 The options of a run are signals injected into an axis' loops (:class:`Injections`: a load
 torque, a current added to the controller's command, a speed or position setpoint offset, noise
