@@ -40,7 +40,8 @@ import numpy as np
 
 from twin_cosim import controller
 from twin_cosim.controller import ControllerSettings, TunedParameters
-from twin_cosim.loops import ABORTED, compiled_loops
+from twin_cosim.loops import ABORTED
+from twin_cosim.loops.ahead import compiled_loops
 from twin_cosim.plant import CONTRACT_INPUTS, CONTRACT_OUTPUTS, Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.run_record import RunRecord

@@ -4,9 +4,9 @@ functions (FMI 2.0 or FMI 3.0, per axis).
 One plain Python function over numbers and arrays (:func:`master`), compiled by numba: just in
 time here (with numba's on-disk cache), or ahead of time into a shared library by
 :mod:`twin_cosim.loops.ahead` (the same function, the same machine-code semantics, loaded
-without numba). Callers reach it through :func:`twin_cosim.loops.compiled_loops`, which picks the
-shared library when it is built for these sources; :mod:`twin_cosim.cosim` prepares its
-arguments.
+without numba). Callers reach it through :func:`twin_cosim.loops.ahead.compiled_loops`, which
+picks the shared library when it is built for these sources; :mod:`twin_cosim.cosim` prepares
+its arguments.
 
 The FMI functions are called by address (:func:`real_call`, :func:`do_step` for FMI 2.0;
 :func:`float64_call`, :func:`do_step3` for FMI 3.0): the addresses of ``fmi2SetReal``,
