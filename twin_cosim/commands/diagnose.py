@@ -169,7 +169,7 @@ class _ProgressBars:
 def _print_text(result: Diagnosis) -> None:
     """The verdict and each accepted effect's held-out gaps, numbers for people."""
     from twin_cosim.gap.report.pages import hypothesis_units
-    from twin_cosim.gap.report.verdict import names, number, parameters
+    from twin_cosim.gap.verdict import names, number, parameters
 
     units = hypothesis_units(result.context.model)
     print(result.verdict)
