@@ -64,7 +64,7 @@ def add_arguments(subparsers) -> None:
         help="backlash, friction and the other nonlinearities of the plant model",
     )
     _excitation_options(parser)
-    axis_test_options(parser, "bode")
+    axis_test_options(parser, "out/bode-<scenario>-<loop>-<kind>")
     parser.set_defaults(handler=run)
 
 

@@ -49,7 +49,7 @@ def add_arguments(subparsers) -> None:
         help="fit a measured file of constant-speed runs instead: t [s], torque [N.m] or "
         "current [A], motor_speed [rad/s] or x [m] (default: the twin's runs)",
     )
-    axis_test_options(parser, "friction")
+    axis_test_options(parser, "out/friction-<scenario name>")
     parser.set_defaults(handler=run)
 
 

@@ -24,7 +24,7 @@ def add_arguments(subparsers) -> None:
     parser.add_argument(
         "--dwell", type=number_above(0.0), default=0.3, metavar="S", help="time at each speed, s"
     )
-    axis_test_options(parser, "kv")
+    axis_test_options(parser, "out/kv-<scenario name>")
     parser.set_defaults(handler=run)
 
 

@@ -86,6 +86,15 @@ def params_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def output_options(parser: argparse.ArgumentParser, folder: str, printed: str = "summary") -> None:
+    """``--out DIR`` (``folder``: what the folder is and its default, for the help) and
+    ``--json`` (print the ``printed`` as one JSON object)."""
+    parser.add_argument("--out", metavar="DIR", help=folder)
+    parser.add_argument(
+        "--json", action="store_true", help=f"print the {printed} as one JSON object"
+    )
+
+
 def out_folder(option: str | None, default: Path) -> Path:
     """The output folder of ``--out`` (or ``default``); an existing file is refused."""
     out = Path(option) if option else default
@@ -145,17 +154,14 @@ def number_options(
         parser.add_argument(option, type=kind, default=default, metavar=metavar, help=text)
 
 
-def axis_test_options(parser: argparse.ArgumentParser, name: str) -> None:
+def axis_test_options(parser: argparse.ArgumentParser, folder: str) -> None:
     """What every test of an axis (``bode``, ``step``, ``kv``, ``friction``) takes besides its
-    own: ``--params``, ``--plant``, ``--plant-parameters``, ``--out`` (default
-    ``out/<name>-<scenario name>``), ``--json``, ``--no-plots``, ``--data``."""
+    own: ``--params``, ``--plant``, ``--plant-parameters``, ``--out`` (default ``folder``),
+    ``--json``, ``--no-plots``, ``--data``."""
     params_option(parser)
     plant_option(parser)
     plant_parameters_option(parser)
-    parser.add_argument(
-        "--out", metavar="DIR", help=f"output folder (default: out/{name}-<scenario name>...)"
-    )
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    output_options(parser, f"output folder (default: {folder})")
     no_plots_option(parser)
     data_option(parser)
 

@@ -38,7 +38,7 @@ def add_arguments(subparsers) -> None:
         "a position step at standstill: rise time, overshoot, settling time to a band, the tail",
     )
     number_options(parser, NUMBERS)
-    axis_test_options(parser, "step")
+    axis_test_options(parser, "out/step-<scenario name>")
     parser.set_defaults(handler=run)
 
 
