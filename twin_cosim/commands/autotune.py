@@ -92,6 +92,17 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _filter_text(section: dict) -> str:
+    """A current filter as a drive shows it: notch at Hz, width Hz, depth dB; low-pass at Hz,
+    damping."""
+    if section["type"] == "notch":
+        return (
+            f"notch at {section['frequency_hz']:.4g} Hz, {section['bandwidth_hz']:.3g} Hz wide, "
+            f"{section['depth_db']:.3g} dB"
+        )
+    return f"low-pass at {section['frequency_hz']:.4g} Hz, damping {section['damping']:.3g}"
+
+
 def _print_text(summary: dict, out: Path, plot: Path | None) -> None:
     """The set, its loops' margins and closed-loop figures, and its metrics beside the
     scenario's own set's."""
@@ -102,7 +113,7 @@ def _print_text(summary: dict, out: Path, plot: Path | None) -> None:
         print(f"twin autotune: {note}")
     print("params: " + ", ".join(f"{k}={v:.6g}" for k, v in summary["params"].items()))
     settings = summary["settings"]
-    filters = settings["filters"] or "none"
+    filters = "; ".join(_filter_text(f) for f in settings["filters"]) or "none"
     print(f"current filters: {filters}; feedforward inertia {settings['inertia']:.4g} kg.m2")
     speed = Margins(**summary["margins"])
     position = Margins(**summary["position_margins"])

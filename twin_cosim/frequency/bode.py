@@ -440,14 +440,18 @@ FIGURE_NAMES = {  # field: (what a reader calls it, unit)
 
 def withheld_notes(withheld: Mapping[str, Mapping[str, float]]) -> list[str]:
     """Why each withheld figure is withheld, one line each."""
-    notes = []
-    for name, w in withheld.items():
-        label, unit = FIGURE_NAMES[name]
-        notes.append(
-            f"{label} withheld: read as {w['value']:.3g} {unit} at {w['frequency_hz']:.4g} Hz, "
-            f"above a line of coherence {w['lowest_coherence']:.2f} (floor {w['floor']:g})"
-        )
-    return notes
+    return [
+        f"{FIGURE_NAMES[name][0]} withheld: read as {_as_read(name, w)}, "
+        f"above a line of coherence {w['lowest_coherence']:.2f} (floor {w['floor']:g})"
+        for name, w in withheld.items()
+    ]
+
+
+def _as_read(name: str, withheld: Mapping[str, float]) -> str:
+    """A withheld figure's value as read, with its unit and (unless it is one) its frequency."""
+    unit = FIGURE_NAMES[name][1]
+    where = "" if unit == "Hz" else f" at {withheld['frequency_hz']:.4g} Hz"
+    return f"{withheld['value']:.3g} {unit}{where}"
 
 
 def plot_bode(
@@ -519,8 +523,7 @@ def withheld_line(withheld: Mapping[str, Mapping[str, float]]) -> str:
         return ""
     floor = next(iter(withheld.values()))["floor"]
     read = ", ".join(
-        f"{FIGURE_NAMES[name][0]} {w['value']:.3g} {FIGURE_NAMES[name][1]} at "
-        f"{w['frequency_hz']:.3g} Hz ({w['lowest_coherence']:.2f})"
+        f"{FIGURE_NAMES[name][0]} {_as_read(name, w)} ({w['lowest_coherence']:.2f})"
         for name, w in withheld.items()
     )
     return f"\nwithheld, read above a line of coherence below {floor:g} (lowest): {read}"

@@ -596,11 +596,17 @@ def describe(result: FrictionResult) -> str:
     unsteady = [p for p in result.points if p.kind == "stick-slip level"]
     notes = [f"{name}: not identified: {why}" for name, why in result.fit.not_identified.items()]
     if unsteady:
-        speeds = ", ".join(f"{p.speed:.3g}" for p in unsteady)
+        ranges = []
+        for name, sign in (("positive", 1.0), ("negative", -1.0)):
+            speeds = [abs(p.speed) for p in unsteady if p.speed * sign > 0]
+            if speeds:
+                ranges.append(
+                    f"{len(speeds)} {name} levels at {min(speeds):.3g}-{max(speeds):.3g} rad/s"
+                )
         balance = sum(p.kind == "torque balance" for p in result.points)
         notes.append(
-            f"stick-slip at {speeds} rad/s: their means not fitted; {balance} torque-balance "
-            "points of their sliding samples fitted instead"
+            f"stick-slip: {', '.join(ranges)}: their means not fitted; {balance} "
+            "torque-balance points of their sliding samples fitted instead"
         )
     return table + "".join(f"{note}\n" for note in notes)
 
@@ -643,6 +649,7 @@ def plot_friction(result: FrictionResult, path: Path, command: str) -> Path:
         )
     ax.set_xlabel("motor speed |w| [rad/s]")
     ax.set_ylabel("steady torque |K_t i| [N.m]")
+    ax.set_ylim(0.0, 1.1 * max(abs(p.torque) for p in result.points))  # from 0, as drives draw it
     ax.set_title(f"friction curve: {result.source}\n{command}", fontsize=9)
     ax.legend(fontsize=8)
     return save_figure(fig, [ax], path)

@@ -256,7 +256,7 @@ def describe(result: StepResult) -> str:
         (f"settling time to +-{COARSE_BAND * 100:g} %", ms(f.settling_time_coarse_ms), "ms"),
         ("tail: duration", ms(f.tail_ms), "ms"),
         ("tail: largest deviation", "-" if f.tail_um is None else f"{f.tail_um:.3g}", "um"),
-        ("final error", f"{f.final_error_um:.3g}", "um"),
+        ("final error", f"{f.final_error_um:.4f}", "um"),
         ("largest current", f"{f.max_current_A:.3g}", "A"),
     ]
     return text_table(("figure", "value", "unit"), rows)
