@@ -22,7 +22,7 @@ LOOP_CHOICES = ("plant", "current", "speed", "position", "disturbance")  # curre
 def add_arguments(subparsers) -> None:
     """The ``bode`` command and its options."""
     parser = command_parser(
-        subparsers, "bode", "measure a loop's frequency response in closed loop, with margins"
+        subparsers, "bode", "measure a loop's frequency response in closed loop, with margins", run
     )
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     parser.add_argument(
@@ -65,7 +65,6 @@ def add_arguments(subparsers) -> None:
     )
     _excitation_options(parser)
     axis_test_options(parser, "out/bode-<scenario>-<loop>-<kind>")
-    parser.set_defaults(handler=run)
 
 
 def _excitation_options(parser: argparse.ArgumentParser) -> None:
@@ -78,7 +77,10 @@ def _excitation_options(parser: argparse.ArgumentParser) -> None:
         "20 %% of the drive's friction torque)",
     )
     parser.add_argument(
-        "--averages", type=whole_number(2), default=8, help="multisine realisations averaged"
+        "--averages",
+        type=whole_number(2),
+        default=8,
+        help="multisine realisations averaged",
     )
     parser.add_argument(
         "--speed",

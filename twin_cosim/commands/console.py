@@ -27,6 +27,20 @@ def write_json(path: Path, data: dict[str, Any]) -> None:
     path.write_text(json.dumps(data, indent=2) + "\n")
 
 
+def write_summary(path: Path, summary: dict[str, Any], as_json: bool) -> bool:
+    """Write a command's summary as indented JSON and, with ``--json``, print it on one line.
+
+    Returns
+    -------
+    bool
+        True when the command prints its text instead (no ``--json``).
+    """
+    write_json(path, summary)
+    if as_json:
+        print(json.dumps(summary))
+    return not as_json
+
+
 FORK_FROM_ROWS = 10_000  # a record this long is formatted in two processes (a fork costs ~5 ms)
 
 
@@ -159,10 +173,7 @@ def write_report(
         "warnings": warnings,
         "versions": versions(),
     }
-    write_json(out / f"{name}.json", summary)
-    if as_json:
-        print(json.dumps(summary))
-    else:
+    if write_summary(out / f"{name}.json", summary, as_json):
         print(table, end="")
         print(f"wrote {', '.join(files.values())}, {out / f'{name}.json'}")
 

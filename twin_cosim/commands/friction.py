@@ -41,6 +41,7 @@ def add_arguments(subparsers) -> None:
         "friction",
         "constant-speed runs both ways: the steady torque against speed, fitted to Coulomb, "
         "viscous and Stribeck terms per direction, written as plant.yaml",
+        run,
     )
     number_options(parser, NUMBERS)
     parser.add_argument(
@@ -50,7 +51,6 @@ def add_arguments(subparsers) -> None:
         "current [A], motor_speed [rad/s] or x [m] (default: the twin's runs)",
     )
     axis_test_options(parser, "out/friction-<scenario name>")
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -11,7 +11,7 @@ from twin_cosim.commands.options import axis_test_options, axis_test_parser, num
 def add_arguments(subparsers) -> None:
     """The ``kv`` command and its options."""
     parser = axis_test_parser(
-        subparsers, "kv", "the following error at constant speeds and the position gain Kv"
+        subparsers, "kv", "the following error at constant speeds and the position gain Kv", run
     )
     parser.add_argument(
         "--speeds",
@@ -25,7 +25,6 @@ def add_arguments(subparsers) -> None:
         "--dwell", type=number_above(0.0), default=0.3, metavar="S", help="time at each speed, s"
     )
     axis_test_options(parser, "out/kv-<scenario name>")
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

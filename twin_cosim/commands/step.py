@@ -36,10 +36,10 @@ def add_arguments(subparsers) -> None:
         subparsers,
         "step",
         "a position step at standstill: rise time, overshoot, settling time to a band, the tail",
+        run,
     )
     number_options(parser, NUMBERS)
     axis_test_options(parser, "out/step-<scenario name>")
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
