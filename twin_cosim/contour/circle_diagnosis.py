@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from twin_cosim.contour.ballbar import ballbar_figures, cyclic_periods
 from twin_cosim.contour.circle import CircleSpec, circle_motion
 from twin_cosim.contour.machine_run import MachinePlants, axis_grids
 from twin_cosim.contour.measured_circle import MeasuredCircle, replay_circle
@@ -56,11 +57,13 @@ def diagnose_circle(
     Returns
     -------
     dict
-        ``machine`` and ``twin`` (ISO 230-4 figures of each path), ``transitions`` (per
-        quadrant transition: axis, measured and twin spike, gap in um), ``axis_gap_rms_um``,
-        ``axes`` (each diagnosed axis: verdict, accepted effects, held-out reduction),
-        ``verdict`` (``axis``, ``effect``, ``transition_deg``, ``text``) and ``paths`` (the two
-        :class:`~twin_cosim.contour.circle.CircleResult`, for plots; not JSON).
+        ``machine`` and ``twin`` (ISO 230-4 figures of each path), ``ballbar`` (the ballbar's
+        diagnostics of each, :func:`~twin_cosim.contour.ballbar.ballbar_figures`),
+        ``transitions`` (per quadrant transition: axis, measured and twin spike, gap in um),
+        ``axis_gap_rms_um``, ``axes`` (each diagnosed axis: verdict, accepted effects, held-out
+        reduction), ``verdict`` (``axis``, ``effect``, ``transition_deg``, ``text``) and
+        ``paths`` (the two :class:`~twin_cosim.contour.circle.CircleResult`, for plots; not
+        JSON).
     """
     with MachinePlants(machine) as plants:
         replay = replay_circle(machine, measured, plants, fast)
@@ -87,6 +90,10 @@ def diagnose_circle(
         "direction": measured.direction,
         "machine": replay.on_machine.summary(),
         "twin": replay.on_twin.summary(),
+        "ballbar": {
+            name: ballbar_figures([path], measured.radius, cyclic_periods(machine))
+            for name, path in (("machine", replay.on_machine), ("twin", replay.on_twin))
+        },
         "transitions": transitions,
         "axis_gap_rms_um": replay.axis_gaps(),
         "axes": found,

@@ -60,7 +60,7 @@ def test_comments_numbers_and_modal_motion():
         ("G01 Z1 F100", 1, "Z1"),
         ("G01 X1 X2 F1", 1, "X2"),
         ("G00 G01 X1 F1", 1, "G01"),
-        ("M3", 1, "M3"),
+        ("M98 P100", 1, "M98"),
         ("G01 X1 F100\nG02 X2 Y0 R0.1", 2, "R0.1"),
         ("G01 X10 F100\nG02 X0 Y0 I-4 J0\n", 2, "I-4"),
         ("G01 X10 F100\nG03 X0 Y10 R10 I1", 2, "R10"),

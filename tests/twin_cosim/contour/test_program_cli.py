@@ -39,10 +39,10 @@ def test_simulate_a_program_prints_contour_and_axis_metrics(twin_cli, tmp_path):
 
 def test_a_line_outside_the_subset_exits_2_naming_line_and_word(twin_cli, tmp_path):
     program = tmp_path / "bad.nc"
-    program.write_text("G21 G90\nG01 X1 F100\nG01 X2 T4\n")
+    program.write_text("G21 G90\nG01 X1 F100\nG01 X2 A4\n")
     done = twin_cli("simulate", "xy_table", "--program", str(program), "--out", str(tmp_path))
     assert done.returncode == 2
-    assert "line 3" in done.stderr and "T4" in done.stderr
+    assert "line 3" in done.stderr and "A4" in done.stderr
     assert "Traceback" not in done.stderr
     assert not (tmp_path / "contour.csv").exists()  # nothing ran
 
