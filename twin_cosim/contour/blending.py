@@ -24,6 +24,13 @@ interpolation period ``T`` (the references are sampled at it): ``v |du_i| <= j_i
 step, as where a line meets an arc) for every axis ``i``. A kink at a real corner so passes at
 almost zero speed.
 
+Before the corners are rounded, LinuxCNC's naive CAM detector (G64's Q, P when Q is not given)
+merges consecutive straight moves in the XY plane at one feed whose corners all lie within Q of
+the straight line from the first one's start to the last one's end into that line
+(:func:`merge_straight`): a CAM program's chords of a curve, whose end points are rounded to
+the program's digits (0.1 um steps on chords of a few um turn the direction back and forth),
+become fewer, longer lines whose corners blend into arcs of about the curve's radius.
+
 The segments are arrays (:class:`Segments`): a program of thousands of blocks is blended,
 limited and sampled without a Python step per block.
 """
@@ -275,6 +282,60 @@ def corner_speed(
     arc = Arc((0.0, 0.0), radius, 0.0, turn)
     segments = Segments.of([arc], [None])
     return float(segments.path_limits(limits)[0, 0])
+
+
+def merge_straight(
+    segments: Segments, mergeable: np.ndarray, tolerance: np.ndarray
+) -> tuple[Segments, np.ndarray]:
+    """Merge runs of straight moves whose corners lie within ``tolerance`` of one line.
+
+    Parameters
+    ----------
+    segments
+        Consecutive motion blocks, one segment each.
+    mergeable
+        Per join (n - 1): the blocks on either side may merge (both lines in the XY plane, one
+        feed, both blended with the same ``tolerance``).
+    tolerance
+        Per block: how far a corner may lie from the merged line, m (G64's Q; 0: no merging).
+
+    Returns
+    -------
+    tuple
+        The merged segments (each merged line keeps its first block's feed), and for each the
+        index of the last block it covers (it starts at the one after the previous one's).
+    """
+    n = len(segments)
+    last = []
+    first = 0
+    while first < n:
+        end = first
+        while end + 1 < n and mergeable[end] and tolerance[first] > 0:
+            a, b = segments.start[first], segments.end[end + 1]
+            corners = segments.end[first : end + 1]
+            span = b - a
+            squared = float(span @ span)
+            along = np.clip((corners - a) @ span / squared, 0.0, 1.0) if squared else 0.0
+            away = np.linalg.norm(corners - (a + np.outer(along, span)), axis=1)
+            if away.max() > tolerance[first]:
+                break
+            end += 1
+        last.append(end)
+        first = end + 1
+    last_block = np.array(last)
+    first_block = np.concatenate(([0], last_block[:-1] + 1))
+    merged = Segments(
+        is_line=segments.is_line[first_block],
+        start=segments.start[first_block],
+        end=np.where(segments.is_line[first_block, None], segments.end[last_block], 0.0),
+        centre=segments.centre[first_block],
+        radius=segments.radius[first_block],
+        angle=segments.angle[first_block],
+        sweep=segments.sweep[first_block],
+        feed=segments.feed[first_block],
+        block=np.arange(len(first_block)),
+    )
+    return merged, last_block
 
 
 def blend(segments: Segments, blends: np.ndarray, tolerance: np.ndarray) -> tuple[Segments, Joins]:

@@ -15,9 +15,11 @@ G90, G91     absolute / incremental coordinates of X, Y, Z
 G20, G21     inch / millimetre
 G04 P        dwell, P in seconds (LinuxCNC; Fanuc reads P in ms: give seconds)
 G61, G61.1   exact stop: every block ends at rest (modal)
-G64 [P]      blending (modal): the path keeps its speed through tangent joins and rounds
+G64 [P [Q]]  blending (modal): the path keeps its speed through tangent joins and rounds
              corners, leaving each programmed corner by at most P (program units; without P,
-             as far as the blocks allow)
+             as far as the blocks allow); straight moves whose corners lie within Q (LinuxCNC's
+             naive CAM tolerance, P/2 when not given, below P) of one line are traversed as
+             that line, their corners blended within P - Q: the path stays within P
 N            sequence number (ignored)
 M02, M30     end of program (nothing after it may move)
 ===========  ================================================================================
@@ -26,8 +28,8 @@ Words of CAM output that do not move the axes are accepted and listed as ignored
 (:attr:`Program.ignored`): ``O`` (program number), ``S`` (spindle speed), ``T`` (tool),
 ``M03``-``M09`` (spindle, tool change, coolant), ``G54`` (the first work offset: the machine's
 own coordinates), ``G40``, ``G49``, ``G80`` (cancel cutter radius and tool length compensation
-and canned cycles, none of which the subset has), ``Q`` of ``G64`` (LinuxCNC's naive CAM
-tolerance: every segment is kept); ``G91.1`` and ``G94`` name what the subset does anyway.
+and canned cycles, none of which the subset has); ``G91.1`` and ``G94`` name what the subset
+does anyway.
 
 Comments in parentheses or after ``;`` are ignored. The path control mode (G61, G64) holds
 until the program changes it; before it does, the machine scenario's (``interpolation.
@@ -79,8 +81,8 @@ _ENDS = (2, 30)
 _ALLOWED = set("GXYZIJRFPNMOSTQ")
 _IGNORED_LETTERS = set("OST")
 SUBSET = (
-    "G17, G00-G03, G04 P, G20, G21, G61, G61.1, G64 P, G90, G91, G91.1, G94, F, X, Y, Z, I, J, "
-    "R, N, M02, M30; ignored: O, S, T, M03-M09, G40, G49, G54, G80"
+    "G17, G00-G03, G04 P, G20, G21, G61, G61.1, G64 P Q, G90, G91, G91.1, G94, F, X, Y, Z, I, J, "
+    "Q, R, N, M02, M30; ignored: O, S, T, M03-M09, G40, G49, G54, G80"
 )
 ARC_TOLERANCE = 5e-6  # m: largest difference of an arc's start and end radius (LinuxCNC's)
 ARC_RELATIVE_TOLERANCE = 1e-3
@@ -318,7 +320,7 @@ def _block(
         if not values["F"][1] > 0:
             raise fail(values["F"], "expected a feed > 0 (units per minute)")
         state.feed = values["F"][1] * state.unit / 60.0
-    _path_control(groups, values, state, fail, ignored, number)
+    _path_control(groups, values, state, fail)
     blocks: list[Block] = []
     if "dwell" in groups:
         blocks.append(_dwell(groups, values, fail, number))
@@ -336,8 +338,8 @@ def _block(
     return blocks
 
 
-def _path_control(groups, values, state: _State, fail, ignored: list[IgnoredWord], number: int):
-    """G61, G61.1 and G64 [P] [Q] of one line into the modal state."""
+def _path_control(groups, values, state: _State, fail) -> None:
+    """G61, G61.1 and G64 [P [Q]] of one line into the modal state."""
     word = groups.get("path control")
     for letter in ("Q",) if word is None else ():
         if letter in values:
@@ -352,14 +354,19 @@ def _path_control(groups, values, state: _State, fail, ignored: list[IgnoredWord
         return
     if "dwell" in groups:
         raise fail(word, "G64 and a dwell in one line (both take P)")
-    if "Q" in values:
-        ignored.append(IgnoredWord(number, _text(*values["Q"])))
-    tolerance = math.inf
+    tolerance, merge = math.inf, 0.0
     if "P" in values:
         if values["P"][1] < 0:
             raise fail(values["P"], "expected a tolerance >= 0 (program units)")
         tolerance = values["P"][1] * state.unit
-    state.path_control = PathControl("G64", tolerance)
+        merge = tolerance / 2
+    if "Q" in values:
+        if "P" not in values:
+            raise fail(values["Q"], "Q (naive CAM tolerance) needs P (G64 P<tolerance> Q<...>)")
+        if not 0 <= values["Q"][1] < values["P"][1]:
+            raise fail(values["Q"], "expected 0 <= Q < P (Q's merge and the blends share P)")
+        merge = values["Q"][1] * state.unit
+    state.path_control = PathControl("G64", tolerance, merge)
 
 
 def _dwell(groups, values, fail, number: int) -> Pause:

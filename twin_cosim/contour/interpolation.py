@@ -42,6 +42,7 @@ from twin_cosim.contour.blending import (
     Segments,
     blend,
     concatenate,
+    merge_straight,
 )
 from twin_cosim.contour.gcode import Motion, Pause, Program
 from twin_cosim.contour.path import Element, Line
@@ -210,16 +211,17 @@ def reachable_speed(end, length, acceleration: float, jerk: float):
     end = np.asarray(end, dtype=np.float64)
     length = np.maximum(np.asarray(length, dtype=np.float64), 0.0)
     knee = acceleration**2 / jerk  # the largest change without a phase at full acceleration
-    # a change x^2 within the knee: x^3 + 2 end x = length sqrt(jerk), Cardano's one real root
-    q = length * math.sqrt(jerk)
-    root = np.sqrt(q**2 / 4.0 + (2.0 * end) ** 3 / 27.0)
-    x = np.cbrt(q / 2.0 + root) + np.cbrt(q / 2.0 - root)
-    # a larger change: change^2 + b change + c = 0
-    b = knee + 2.0 * end
-    c = 2.0 * end * knee - 2.0 * length * acceleration
-    beyond = (-b + np.sqrt(np.maximum(b * b - 4.0 * c, 0.0))) / 2.0
+    with np.errstate(invalid="ignore"):  # an infinite length: any speed
+        # a change x^2 within the knee: x^3 + 2 end x = length sqrt(jerk), Cardano's real root
+        q = length * math.sqrt(jerk)
+        root = np.sqrt(q**2 / 4.0 + (2.0 * end) ** 3 / 27.0)
+        x = np.cbrt(q / 2.0 + root) + np.cbrt(q / 2.0 - root)
+        # a larger change: change^2 + b change + c = 0
+        b = knee + 2.0 * end
+        c = 2.0 * end * knee - 2.0 * length * acceleration
+        beyond = (-b + np.sqrt(np.maximum(b * b - 4.0 * c, 0.0))) / 2.0
     change = np.where(length <= (2.0 * end + knee) * acceleration / jerk, x * x, beyond)
-    speed = end + change
+    speed = np.where(np.isinf(length), np.inf, end + change)
     return float(speed) if speed.ndim == 0 else speed
 
 
@@ -275,7 +277,7 @@ def _spans(
     tangential acceleration is also kept so that its part of the jerk across the path
     (3 v a / R) stays within the share of the jerk left from the centripetal term; its speed is
     one from which the machine stops within the blocks it looks ahead (from the segment's
-    start) at the run's least acceleration and jerk.
+    start) at the run's least acceleration and jerk, where they end before the run does.
     """
     lengths = segments.lengths
     ends = np.cumsum(lengths)
@@ -283,7 +285,10 @@ def _spans(
     block_end = np.zeros(blocks[-1] + 1)
     np.maximum.at(block_end, blocks, ends)
     block_end = np.maximum.accumulate(block_end)
-    ahead = block_end[np.minimum(blocks + look_ahead, len(block_end) - 1)] - ends
+    window = np.minimum(blocks + look_ahead, len(block_end) - 1)
+    ahead = np.where(  # the run's end is a stop the passes plan for exactly
+        window < len(block_end) - 1, block_end[window] - ends, np.inf
+    )
     bounds = segments.path_limits(limits)
     least = (float(bounds[:, 1].min()), float(bounds[:, 2].min()))
     lone = bool(joins.stop.all())
@@ -487,6 +492,34 @@ class PlannedMotion:
     feeds: tuple[BlockFeed, ...]
 
 
+def _mergeable(part: Segments, controls: list[PathControl]) -> tuple[np.ndarray, np.ndarray]:
+    """Which neighbouring blocks the naive CAM detector may merge (both straight in the XY
+    plane at one feed, blended alike), and each block's merge tolerance (m, 0: none)."""
+    flat = part.is_line & (part.start[:, 2] == part.end[:, 2])
+    same_feed = (part.feed[:-1] == part.feed[1:]) | (
+        np.isnan(part.feed[:-1]) & np.isnan(part.feed[1:])
+    )
+    alike = np.array([a == b for a, b in zip(controls[:-1], controls[1:], strict=True)], dtype=bool)
+    blends = np.array([c.blends for c in controls])
+    mergeable = flat[:-1] & flat[1:] & same_feed & alike.reshape(-1) & blends[:-1]
+    tolerance = np.array([c.merge_tolerance if c.blends else 0.0 for c in controls])
+    return mergeable, tolerance
+
+
+def _blend_tolerances(controls: list[PathControl], last_block: np.ndarray) -> np.ndarray:
+    """How far the blend at each merged block's end may leave its corner (m): G64's P, less Q
+    where a merged line (of several blocks, Q from the programmed path) meets the corner, so
+    that the path stays within P."""
+    merged = np.diff(last_block, prepend=-1) > 1
+    near = merged | np.append(merged[1:], False)
+    return np.array(
+        [
+            controls[k].tolerance - (controls[k].merge_tolerance if close else 0.0)
+            for k, close in zip(last_block.tolist(), near.tolist(), strict=True)
+        ]
+    )
+
+
 def _runs(blocks) -> list[list[Motion] | Pause]:
     """Motions grouped into runs between dwells; zero-length motions dropped."""
     runs: list[list[Motion] | Pause] = []
@@ -568,10 +601,14 @@ def plan_blocks(
             continue
         part = parts[len(planned)]
         controls = [m.path_control or path_control for m in run]
-        blends = np.array([c.blends for c in controls])
-        tolerance = np.array([c.tolerance for c in controls])
-        segments, joins = blend(part, blends, tolerance)
-        spans, top = _plan_run(segments, joins, limits, sample_period, look_ahead)
+        merged, last_block = merge_straight(part, *_mergeable(part, controls))
+        segments, joins = blend(
+            merged,
+            np.array([controls[k].blends for k in last_block]),
+            _blend_tolerances(controls, last_block),
+        )
+        spans, top_merged = _plan_run(segments, joins, limits, sample_period, look_ahead)
+        top = np.repeat(top_merged, np.diff(last_block, prepend=-1))
         starts = np.concatenate(([0.0], np.cumsum(segments.lengths)))
         for span in spans:
             pieces.append((t, span.profile, along + float(starts[span.first])))

@@ -16,7 +16,7 @@ Layout (``axes`` is required, every other section optional)::
     interpolation:
       sample_period: 0.004              # s: the CNC's interpolation period
       path_mode: G61                    # G61: exact stop at every block end; G64: blending
-      tolerance: 5.0e-6                 # m: G64's P, how far the path may leave a corner
+      tolerance: 5.0e-6                 # m: G64's P (Q: P/2), how far the path may leave a corner
       look_ahead: 200                   # blocks the planner looks ahead
     geometry: {...}                     # geometric errors (twin_cosim.scenario.machine_geometry)
     program: part.nc                    # a part program (G-code), relative to the file
@@ -111,10 +111,16 @@ class PathControl:
     tolerance : float
         G64's P: how far the path may leave a programmed corner, m; ``inf`` for G64 without P
         (the best speed, the corner rounded as far as the blocks allow).
+    merge_tolerance : float
+        G64's Q, LinuxCNC's naive CAM tolerance: consecutive straight moves in the XY plane
+        whose corners lie within it of one straight line are traversed as that line, m (P/2
+        when Q is not given, below P; the corners of merged lines blend within P - Q, so that
+        the path stays within P; 0 for G64 without P: none merged).
     """
 
     mode: str = "G61"
     tolerance: float = math.inf
+    merge_tolerance: float = 0.0
 
     @property
     def blends(self) -> bool:
@@ -125,7 +131,12 @@ class PathControl:
         """``G61`` or ``G64 P<tolerance in mm>``, as a program writes it."""
         if not self.blends:
             return "G61"
-        return "G64" if math.isinf(self.tolerance) else f"G64 P{self.tolerance * 1e3:g}"
+        if math.isinf(self.tolerance):
+            return "G64"
+        written = f"G64 P{self.tolerance * 1e3:g}"
+        if self.merge_tolerance != self.tolerance / 2:
+            written += f" Q{self.merge_tolerance * 1e3:g}"
+        return written
 
 
 EXACT_STOP = PathControl("G61")
@@ -376,7 +387,8 @@ def _interpolation(check: Checker, data: Any) -> tuple[float, PathControl, int]:
     look_ahead = check.number(given.get("look_ahead", LOOK_AHEAD), "interpolation.look_ahead")
     if look_ahead != int(look_ahead) or look_ahead < 1:
         raise check.fail("interpolation.look_ahead", "a whole number of blocks >= 1", look_ahead)
-    return period, PathControl(mode, tolerance), int(look_ahead)
+    merge = 0.0 if math.isinf(tolerance) else tolerance / 2
+    return period, PathControl(mode, tolerance, merge), int(look_ahead)
 
 
 def is_machine_scenario(path: Path | str) -> bool:
