@@ -302,8 +302,9 @@ def merge_straight(
     Returns
     -------
     tuple
-        The merged segments (each merged line keeps its first block's feed), and for each the
-        index of the last block it covers (it starts at the one after the previous one's).
+        The merged segments (each merged line keeps its first block's feed and index), and for
+        each the index of the last block it covers (it starts at the one after the previous
+        one's).
     """
     n = len(segments)
     last = []
@@ -333,7 +334,7 @@ def merge_straight(
         angle=segments.angle[first_block],
         sweep=segments.sweep[first_block],
         feed=segments.feed[first_block],
-        block=np.arange(len(first_block)),
+        block=segments.block[first_block],
     )
     return merged, last_block
 

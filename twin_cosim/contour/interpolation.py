@@ -188,7 +188,8 @@ def plan_block(
 
 
 MERGE_RATIO = 0.95  # segments whose speed limits lie within this ratio share a span
-PASS_MARGIN = 1e-9  # share of a span's length kept back in the passes (rounding)
+PASS_MARGIN = 1e-6  # share of a span's length kept back in the passes (ruckig's rounding)
+SHORT_SPAN = 1e-6  # m: a span this short keeps its speed (a change would be below rounding)
 FEED_SHORTFALL = 1e-3  # a stretch whose top speed falls this share short of its feed is reported
 
 
@@ -324,21 +325,20 @@ def _spans(
 
 def _passes(spans: list[_Span], caps: list[float]) -> None:
     """Each span's entry and exit speed (m/s): the boundaries' caps lowered by a backward and a
-    forward pass so that every span can change between them within its length."""
+    forward pass so that every span can change between them within its length (a span shorter
+    than :data:`SHORT_SPAN` keeps its speed)."""
     speed = list(caps)
+
+    def reach(span: _Span, other: float) -> float:
+        if span.length < SHORT_SPAN:
+            return other
+        length = span.length * (1 - PASS_MARGIN)
+        return reachable_speed(other, length, span.acceleration, span.jerk)
+
     for i in range(len(spans) - 1, -1, -1):
-        span = spans[i]
-        speed[i] = min(speed[i], span.speed)
-        length = span.length * (1 - PASS_MARGIN)
-        speed[i] = min(
-            speed[i], reachable_speed(speed[i + 1], length, span.acceleration, span.jerk)
-        )
+        speed[i] = min(speed[i], spans[i].speed, reach(spans[i], speed[i + 1]))
     for i, span in enumerate(spans):
-        speed[i + 1] = min(speed[i + 1], span.speed)
-        length = span.length * (1 - PASS_MARGIN)
-        speed[i + 1] = min(
-            speed[i + 1], reachable_speed(speed[i], length, span.acceleration, span.jerk)
-        )
+        speed[i + 1] = min(speed[i + 1], span.speed, reach(span, speed[i]))
     for i, span in enumerate(spans):
         span.entry, span.exit = speed[i], speed[i + 1]
 
@@ -393,6 +393,7 @@ def _check_spans(
         column = COORDINATE[name]
         for q, cap in enumerate((lim.velocity, lim.acceleration, lim.jerk)):
             ratio = np.maximum(ratio, derivatives[q, :, column] / cap)
+    ratio[v < -_LIMIT_SLACK * np.abs(v).max()] = 2.0  # a profile that runs back: plan it again
     np.maximum.at(excess, owner, ratio)
     return excess, index, v
 
@@ -405,7 +406,7 @@ def _plan_run(
     look_ahead: int,
 ) -> tuple[list[_Span], np.ndarray]:
     """The planned spans of a run of segments, and the top speed (m/s) reached in each block
-    of the run (by its index from the run's first block)."""
+    of the run (by its index; 0 for a block merged into another)."""
     spans, caps = _spans(segments, joins, limits, period, look_ahead)
     blocks = segments.block - segments.block[0]
     for _ in range(_MAX_REPLANS):
@@ -608,7 +609,7 @@ def plan_blocks(
             _blend_tolerances(controls, last_block),
         )
         spans, top_merged = _plan_run(segments, joins, limits, sample_period, look_ahead)
-        top = np.repeat(top_merged, np.diff(last_block, prepend=-1))
+        top = np.repeat(top_merged[merged.block], np.diff(last_block, prepend=-1))
         starts = np.concatenate(([0.0], np.cumsum(segments.lengths)))
         for span in spans:
             pieces.append((t, span.profile, along + float(starts[span.first])))
@@ -618,7 +619,7 @@ def plan_blocks(
         caps = dataclasses.replace(part, feed=np.full(len(part), np.nan)).path_limits(limits)
         for k, motion in enumerate(run):
             programmed = None if math.isnan(part.feed[k]) else float(part.feed[k])
-            stop_after = "end" if k == len(run) - 1 else None if controls[k].blends else "G61"
+            stop_after = "G61" if not controls[k].blends else "end" if k == len(run) - 1 else None
             capped = programmed is not None and caps[k, 0] < programmed * (1 - FEED_SHORTFALL)
             feeds_out.append(
                 BlockFeed(
