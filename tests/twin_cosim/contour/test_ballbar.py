@@ -43,7 +43,10 @@ def _path(direction: str, geometry: MachineGeometry, lag=(0.0, 0.0), lost=(0.0, 
     )
 
 
-def _figures(geometry=MachineGeometry(), directions=("ccw", "cw"), periods=None, **errors):
+IDEAL = MachineGeometry()
+
+
+def _figures(geometry=IDEAL, directions=("ccw", "cw"), periods=None, **errors):
     results = [evaluate_circle(_path(d, geometry, **errors), R, d, SPEED) for d in directions]
     return ballbar_figures(results, R, periods or {"X": 0.01, "Y": 0.01})
 
