@@ -40,7 +40,9 @@ def test_the_blend_arc_leaves_the_corner_by_the_tolerance_and_touches_both_lines
     expected = tolerance * math.sin(theta / 2) / (1 - math.sin(theta / 2))
     assert arc.radius == pytest.approx(expected, rel=1e-12)
     turn = np.array([math.radians(turn_deg)])
-    assert blend_radius(turn, np.array([tolerance]), np.array([1.0]))[0] == arc.radius
+    assert blend_radius(turn, np.array([tolerance]), np.array([1.0]))[0] == pytest.approx(
+        arc.radius, rel=1e-9
+    )
     middle = arc.points(np.array([arc.length / 2]))[0]
     assert np.linalg.norm(middle) == pytest.approx(tolerance, rel=1e-9)  # from the corner
     # the arc starts where the first line now ends and ends where the second starts
