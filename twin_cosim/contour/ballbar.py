@@ -38,6 +38,10 @@ cyclic error           A sin(2 pi x / P) along X: its c times      ``cyclic_erro
                                                                    period ``cyclic_period_mm``
 =====================  ==========================================  ===========================
 
+The samples the fitted signatures leave far off (a ringing that outlasts a spike's window, a
+stick-slip: no error of the table) are left out and the fit made again, up to
+:data:`ROBUST_ROUNDS` times.
+
 The reversal spikes (the transient at each quadrant transition) are the circle's own figures
 (:class:`~twin_cosim.contour.circle.Spike`); ``reversal_spikes_um`` lists them per axis and
 end, the mean of the directions. With one direction the ellipse at 45 degrees cannot be split
@@ -70,6 +74,9 @@ from twin_cosim.contour.circle import (
 from twin_cosim.scenario.machine import MachineScenario
 
 UM = 1e-6  # m per um
+OUTLIER_SPREAD = 4.0  # samples beyond this many robust standard deviations are left out
+OUTLIER_FLOOR = 0.05e-6  # m: never closer than this
+ROBUST_ROUNDS = 4
 ENDS = {0.0: ("X", "positive"), 180.0: ("X", "negative"), 90.0: ("Y", "positive")}
 ENDS[270.0] = ("Y", "negative")
 
@@ -182,8 +189,7 @@ def ballbar_figures(
             for row, target in zip(rows, targets, strict=True)
         ]
     )
-    solution = np.linalg.lstsq(design, np.concatenate(targets), rcond=None)[0]
-    value = dict(zip(names, solution.tolist(), strict=True))
+    value = dict(zip(names, _robust_fit(design, np.concatenate(targets)).tolist(), strict=True))
     speed = float(np.mean([r.speed_mm_min for r in results])) / 60e3  # m/s
     figures: dict[str, Any] = {
         "centre_offset_um": {
@@ -212,6 +218,22 @@ def ballbar_figures(
         "notes": _notes(both, periods, fitted),
     }
     return figures
+
+
+def _robust_fit(design: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Least squares, then again without the samples the signatures leave far off (beyond
+    :data:`OUTLIER_SPREAD` times their robust spread and :data:`OUTLIER_FLOOR`): a ringing that
+    outlasts a spike's window, a stick-slip, is no error of the list and would tilt them."""
+    keep = np.ones(len(target), dtype=bool)
+    for _ in range(ROBUST_ROUNDS):
+        solution = np.linalg.lstsq(design[keep], target[keep], rcond=None)[0]
+        residual = target - design @ solution
+        spread = 1.4826 * np.median(np.abs(residual[keep] - np.median(residual[keep])))
+        kept = np.abs(residual) <= max(OUTLIER_SPREAD * spread, OUTLIER_FLOOR)
+        if np.array_equal(kept, keep) or kept.sum() < design.shape[1] * 4:
+            break
+        keep = kept
+    return solution
 
 
 def _spikes(results: Sequence[CircleResult]) -> dict[str, dict[str, float]]:
