@@ -8,9 +8,10 @@ held-out reduction, that effect, and the quadrant transition of that axis where 
 and the twin's reversal spikes differ the most.
 
 :func:`synthesize_circle` makes a measured test whose answer is known: the circle run on a
-virtual machine, the twin with effects switched on in one axis' plant
+virtual machine, the twin with effects switched on in its axes' plants
 (:func:`twin_cosim.gap.synth.synthesize` per axis; the axes do not interact), calibration error
-and measurement noise.
+and measurement noise, its geometric errors; :func:`synthesize_motion` the same for any planned
+motion (a part program; ``twin synth MACHINE``).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 
 from twin_cosim.contour.ballbar import ballbar_figures, cyclic_periods
 from twin_cosim.contour.circle import CircleSpec, circle_motion
+from twin_cosim.contour.interpolation import PlannedMotion
 from twin_cosim.contour.machine_run import MachinePlants, axis_grids
 from twin_cosim.contour.measured_circle import MeasuredCircle, replay_circle
 from twin_cosim.gap.diagnosis import Diagnosis, diagnose
@@ -150,14 +152,37 @@ def synthesize_circle(
     decimate: int = 4,
 ) -> RunRecord:
     """A measured circular test of a virtual machine (the columns of a measured test's CSV,
-    :mod:`twin_cosim.contour.measured_circle`).
+    :mod:`twin_cosim.contour.measured_circle`): :func:`synthesize_motion` of the circle's
+    motion (:func:`~twin_cosim.contour.circle.circle_motion`)."""
+    motion, _ = circle_motion(machine, spec)
+    return synthesize_motion(
+        machine, motion, effects, perturb, seed, noise_position, noise_current, decimate
+    )
+
+
+def synthesize_motion(
+    machine: MachineScenario,
+    motion: PlannedMotion,
+    effects: dict[str, list[EffectSpec]],
+    perturb: float = 0.0,
+    seed: int = 0,
+    noise_position: float = 20e-9,
+    noise_current: float = 5e-3,
+    decimate: int = 4,
+) -> RunRecord:
+    """A measured run of a virtual machine following a planned motion (a circle, a program).
+
+    Each axis runs its reference with the effects of ``effects`` switched on in its plant
+    (:func:`twin_cosim.gap.synth.synthesize`; the axes do not interact), calibration error and
+    measurement noise; the measured X and Y are the tool point (the machine's geometric errors
+    applied), as a ballbar or a grid encoder reads it.
 
     Parameters
     ----------
     machine
-        The nominal machine.
-    spec
-        The circle.
+        The nominal machine (its geometry is the virtual machine's).
+    motion
+        The per-axis references.
     effects
         Axis name -> effects switched on in that axis' plant.
     perturb
@@ -168,11 +193,15 @@ def synthesize_circle(
         Standard deviations of the white measurement noise, m and A.
     decimate
         Keep every n-th position-loop sample (4: 1 ms).
+
+    Returns
+    -------
+    RunRecord
+        ``t`` (s), ``<axis>_ref`` and ``<axis>`` (m) of every axis, ``current_<axis>`` (A).
     """
-    motion, _ = circle_motion(machine, spec)
     grids = axis_grids(machine, motion)
     columns: dict[str, np.ndarray] = {}
-    for k, name in enumerate(("X", "Y")):
+    for k, name in enumerate(machine.axis_names):
         scenario = machine.axis_scenario(name, grids[name])
         run = synthesize(
             scenario,
@@ -187,7 +216,9 @@ def synthesize_circle(
         columns[f"{lower}_ref"] = run["x_ref"]
         columns[lower] = run["x"]
         columns[f"current_{lower}"] = run["current"]
-    order = ("t", "x_ref", "y_ref", "x", "y", "current_x", "current_y")
+    columns["x"], columns["y"] = machine.geometry.tool_point(columns["x"], columns["y"])
+    lower = [name.lower() for name in machine.axis_names]
+    order = ["t"] + [f"{a}_ref" for a in lower] + lower + [f"current_{a}" for a in lower]
     units = {name: "A" if name.startswith("current") else "m" for name in order} | {"t": "s"}
     table = RunRecord.from_columns({name: columns[name] for name in order}, units)
     return table.rows(slice(None, None, decimate))
