@@ -22,6 +22,7 @@ from twin_cosim.commands.options import (
     feed_override_option,
     no_plots_option,
     out_folder,
+    output_options,
     params_option,
     plant_option,
     plant_parameters_option,
@@ -59,8 +60,7 @@ def add_arguments(subparsers) -> None:
         "(default: the scenario's program)",
     )
     feed_override_option(parser)
-    parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<scenario name>)")
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    output_options(parser, "output folder (default: out/<scenario name>)")
     parser.add_argument(
         "--reference-path",
         action="store_true",

@@ -51,7 +51,7 @@ from twin_cosim.controller import ControllerSettings, TunedParameters
 from twin_cosim.plant_model import model_of, plant_model
 from twin_cosim.reference import ReferenceError, ReferenceGrid, check_periods
 from twin_cosim.scenario.controller_section import controller_section
-from twin_cosim.scenario.loader import MAX_SAMPLES, NAME_PATTERN, find_scenario
+from twin_cosim.scenario.loader import MAX_SAMPLES, find_scenario, read_top_level
 from twin_cosim.scenario.machine_geometry import MachineGeometry, geometry_section
 from twin_cosim.scenario.plant_section import plant_section
 from twin_cosim.scenario.resolved import Scenario
@@ -407,19 +407,15 @@ def load_machine(path: Path | str) -> MachineScenario:
         message names the file and the key path.
     """
     source = find_scenario(path)
-    check = Checker(source)
     loaded = load_yaml(source)
     if isinstance(loaded, dict) and "axes" not in loaded and SINGLE_AXIS_KEYS & set(loaded):
         raise ScenarioError(
             f"{source}: a single-axis scenario (plant, controller, reference); this command "
             "needs a machine scenario, with axes: (X, Y and optionally Z), e.g. xy_table"
         )
-    data = check.mapping(loaded, "(top level)", MACHINE_KEYS)
-    if "axes" not in data:
-        raise check.fail("axes", "an axes section (X, Y and optionally Z)")
-    name = str(data.get("name", source.stem))
-    if not NAME_PATTERN.fullmatch(name):
-        raise check.fail("name", "a plain file name (letters, digits, '.', '_', '-')", name)
+    check, data, name = read_top_level(
+        source, MACHINE_KEYS, "axes", "an axes section (X, Y and optionally Z)"
+    )
     axes = axes_section(check, data["axes"])
     sample_period, path_control, look_ahead = _interpolation(check, data.get("interpolation"))
     geometry = geometry_section(
