@@ -78,6 +78,9 @@ def run(args: argparse.Namespace) -> int:
     if args.measured:
         return _measured(args, out, command)
     if args.radius is None or args.feed is None:
+        from twin_cosim.scenario import load_machine
+
+        load_machine(args.scenario)  # a scenario of no machine is named first
         raise ValueError("--radius MM and --feed MM_PER_MIN are required (unless --measured)")
     summary, draw = circular_test(
         args.scenario,

@@ -41,6 +41,7 @@ def test_a_circle_beyond_the_travel_is_refused_before_it_runs(twin_cli, tmp_path
     "command",
     [
         ("circle", "reference1", "--radius", "5", "--feed", "500"),
+        ("circle", "reference1"),
         ("ssp", "reference1"),
         ("simulate", "reference1", "--program", "scenarios/part.nc"),
     ],
