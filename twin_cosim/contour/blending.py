@@ -49,6 +49,7 @@ ARC_SHARE = 0.5  # share rho of the axes' acceleration and jerk kept for an arc'
 TANGENT_ANGLE = 1e-9  # rad: joins turning less are tangent (rounding of the program's numbers)
 REVERSAL_ANGLE = math.pi - 1e-6  # rad: a line that turns back on itself stops
 COORDINATE = {"X": 0, "Y": 1, "Z": 2}
+MERGE_WINDOW = 16  # blocks: the first window of candidate ends of a merged line
 
 
 @dataclass(frozen=True)
@@ -307,20 +308,12 @@ def merge_straight(
         one's).
     """
     n = len(segments)
+    stops = np.append(np.flatnonzero(~np.asarray(mergeable, dtype=bool)), n - 1)
     last = []
     first = 0
     while first < n:
-        end = first
-        while end + 1 < n and mergeable[end] and tolerance[first] > 0:
-            a, b = segments.start[first], segments.end[end + 1]
-            corners = segments.end[first : end + 1]
-            span = b - a
-            squared = float(span @ span)
-            along = np.clip((corners - a) @ span / squared, 0.0, 1.0) if squared else 0.0
-            away = np.linalg.norm(corners - (a + np.outer(along, span)), axis=1)
-            if away.max() > tolerance[first]:
-                break
-            end += 1
+        reach = int(stops[np.searchsorted(stops, first)])  # the last block a chain may reach
+        end = _merged_end(segments, first, reach, tolerance[first]) if reach > first else first
         last.append(end)
         first = end + 1
     last_block = np.array(last)
@@ -337,6 +330,33 @@ def merge_straight(
         block=segments.block[first_block],
     )
     return merged, last_block
+
+
+def _merged_end(segments: Segments, first: int, reach: int, tolerance: float) -> int:
+    """The last block of the line merged from block ``first`` (at most ``reach``): the first
+    ``end`` whose next block would leave a corner beyond ``tolerance`` (m) of the line from
+    ``first``'s start to that block's end. Candidate ends are tried in windows that double, all
+    of a window at once."""
+    if tolerance <= 0:
+        return first
+    a = segments.start[first]
+    end, window = first, MERGE_WINDOW
+    while end < reach:
+        ends = np.arange(end + 1, min(end + window, reach) + 1)  # candidate last blocks
+        corners = segments.end[first : ends[-1]] - a  # each block's end, from first's start
+        span = segments.end[ends] - a
+        squared = np.einsum("ij,ij->i", span, span)
+        along = np.zeros((len(corners), len(ends)))
+        np.divide(corners @ span.T, squared, out=along, where=squared > 0)
+        np.clip(along, 0.0, 1.0, out=along)
+        offset = corners[:, None, :] - along[:, :, None] * span[None, :, :]
+        away = np.einsum("kmi,kmi->km", offset, offset) > tolerance**2
+        away &= np.arange(first, ends[-1])[:, None] < ends[None, :]  # the corners before each
+        beyond = away.any(axis=0)
+        if beyond.any():
+            return int(ends[np.argmax(beyond)]) - 1
+        end, window = int(ends[-1]), 2 * window
+    return end
 
 
 def blend(segments: Segments, blends: np.ndarray, tolerance: np.ndarray) -> tuple[Segments, Joins]:
