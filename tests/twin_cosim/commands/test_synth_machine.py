@@ -41,7 +41,13 @@ def test_a_circle_of_a_virtual_machine_with_an_effect_in_one_axis_and_its_geomet
     _synth(twin_cli, str(nominal), *circle, "--out", str(plain))
     backlash = tmp_path / "backlash.csv"
     done = _synth(
-        twin_cli, str(nominal), *circle, "--effect", "Y:plant:backlash=40e-6", "--out", str(backlash)
+        twin_cli,
+        str(nominal),
+        *circle,
+        "--effect",
+        "Y:plant:backlash=40e-6",
+        "--out",
+        str(backlash),
     )
     assert "wrote" in done.stdout and "backlash.csv.truth.json" in done.stdout
     square = tmp_path / "square.csv"
