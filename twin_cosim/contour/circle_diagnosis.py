@@ -7,11 +7,11 @@ halves). The verdict names the axis whose diagnosis accepts an effect with the l
 held-out reduction, that effect, and the quadrant transition of that axis where the measured
 and the twin's reversal spikes differ the most.
 
-:func:`synthesize_circle` makes a measured test whose answer is known: the circle run on a
-virtual machine, the twin with effects switched on in its axes' plants
+:func:`synthesize_motion` makes a measured test whose answer is known: a planned motion (the
+circle's, :func:`~twin_cosim.contour.circle.circle_motion`; a part program's) run on a virtual
+machine, the twin with effects switched on in its axes' plants
 (:func:`twin_cosim.gap.synth.synthesize` per axis; the axes do not interact), calibration error
-and measurement noise, its geometric errors; :func:`synthesize_motion` the same for any planned
-motion (a part program; ``twin synth MACHINE``).
+and measurement noise, its geometric errors (``twin synth MACHINE``).
 """
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ from typing import Any
 import numpy as np
 
 from twin_cosim.contour.ballbar import ballbar_figures, cyclic_periods
-from twin_cosim.contour.circle import CircleSpec, circle_motion
 from twin_cosim.contour.interpolation import PlannedMotion
 from twin_cosim.contour.machine_run import MachinePlants, axis_grids
 from twin_cosim.contour.measured_circle import MeasuredCircle, replay_circle
@@ -139,25 +138,6 @@ def _verdict(diagnoses: dict[str, Diagnosis], transitions: list[dict[str, Any]])
         f"up to {worst['gap_um']:.2f} um (spike: measured {worst['machine_height_um']:+.2f} um, "
         f"twin {worst['twin_height_um']:+.2f} um)",
     }
-
-
-def synthesize_circle(
-    machine: MachineScenario,
-    spec: CircleSpec,
-    effects: dict[str, list[EffectSpec]],
-    perturb: float = 0.0,
-    seed: int = 0,
-    noise_position: float = 20e-9,
-    noise_current: float = 5e-3,
-    decimate: int = 4,
-) -> RunRecord:
-    """A measured circular test of a virtual machine (the columns of a measured test's CSV,
-    :mod:`twin_cosim.contour.measured_circle`): :func:`synthesize_motion` of the circle's
-    motion (:func:`~twin_cosim.contour.circle.circle_motion`)."""
-    motion, _ = circle_motion(machine, spec)
-    return synthesize_motion(
-        machine, motion, effects, perturb, seed, noise_position, noise_current, decimate
-    )
 
 
 def synthesize_motion(
