@@ -101,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     from twin_cosim.scenario import for_measured_run, is_machine_scenario, resolve_scenario
 
     if is_machine_scenario(args.scenario):
-        return run_machine_synth(args)
+        return run_machine_synth(args, _effect)
     if args.radius is not None or args.feed is not None or args.program:
         raise ValueError("--radius, --feed and --program: for a machine scenario (axes:)")
     out, truth, machine = _files(args)

@@ -11,6 +11,7 @@ calibration error and measurement noise, and its geometric errors
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -51,8 +52,12 @@ def add_machine_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def run_machine_synth(args: argparse.Namespace) -> int:
-    """Synthesize the machine's run, write it and its known answer (``RUN.truth.json``)."""
+def run_machine_synth(
+    args: argparse.Namespace, library_effect: Callable[[str, str], EffectSpec]
+) -> int:
+    """Synthesize the machine's run, write it and its known answer (``RUN.truth.json``);
+    ``library_effect(text, model)`` reads an ``--effect`` of a plant model's library (the one
+    of ``twin synth`` for one axis)."""
     from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec, circle_motion
     from twin_cosim.contour.circle_diagnosis import synthesize_motion
     from twin_cosim.contour.gcode import read_program
@@ -64,7 +69,7 @@ def run_machine_synth(args: argparse.Namespace) -> int:
             raise ValueError(f"--{option}: for a single-axis scenario, not a machine (axes:)")
     out, truth = _files(args)
     machine = load_machine(args.scenario)
-    effects = _axis_effects(args.effect, machine)
+    effects = _axis_effects(args.effect, machine, library_effect)
     if args.radius is not None or args.feed is not None:
         if args.radius is None or args.feed is None or args.program:
             raise ValueError("a circle takes --radius MM and --feed MM_PER_MIN (not --program)")
@@ -105,11 +110,11 @@ def _effect_truth(effect: EffectSpec) -> dict:
     return {"name": effect.name, "params": dict(effect.params)}
 
 
-def _axis_effects(texts: list[str], machine: MachineScenario) -> dict[str, list[EffectSpec]]:
+def _axis_effects(
+    texts: list[str], machine: MachineScenario, library_effect: Callable[[str, str], EffectSpec]
+) -> dict[str, list[EffectSpec]]:
     """``--effect AXIS:NAME:param=value,...`` of a machine: each effect in its axis' plant
     model's library (or ``plant``)."""
-    from twin_cosim.commands.synth import _effect
-
     effects: dict[str, list[EffectSpec]] = {}
     for text in texts:
         axis, _, effect = text.partition(":")
@@ -119,7 +124,7 @@ def _axis_effects(texts: list[str], machine: MachineScenario) -> dict[str, list[
                 f"{list(machine.axis_names)}, e.g. Y:stribeck:stribeck_friction=0.3"
             )
         model = machine.axis(axis).model_name()
-        effects.setdefault(axis, []).append(_effect(effect, model))
+        effects.setdefault(axis, []).append(library_effect(effect, model))
     return effects
 
 
