@@ -58,3 +58,49 @@ def test_the_polar_plot_scale_is_a_round_division():
     assert ring_division(0.9) == 0.2
     assert ring_division(160.0) == 50.0
     assert signed(-0.001) == "0.00" and signed(1.234) == "+1.23"
+
+
+def test_no_label_of_the_polar_plot_lies_on_another(tmp_path, saved_figure):
+    """Spikes at every transition in both directions (where the labels used to overprint at 90
+    and 270 degrees and on the 0 degree tick): every text drawn stands clear of every other."""
+    import math
+
+    import numpy as np
+
+    from twin_cosim.contour.ballbar import ballbar_figures
+    from twin_cosim.contour.circle import evaluate_circle
+    from twin_cosim.contour.circle_report import ballbar_table, plot_circle
+    from twin_cosim.run_record import RunRecord
+
+    radius, n = 0.01, 7200
+    results = []
+    for direction, sign in (("cw", -1.0), ("ccw", 1.0)):
+        angle = math.radians(45) + sign * np.linspace(0, 2 * math.pi, n, endpoint=False)
+        travelled = np.degrees(sign * angle)
+        r = radius + sum(
+            14e-6 * np.exp(-0.5 * (((travelled - sign * at) % 360 - 3.0) / 2.0) ** 2)
+            for at in (0.0, 90.0, 180.0, 270.0)
+        )
+        data = RunRecord.from_columns(
+            {"t": np.arange(n) * 1e-3, "x": r * np.cos(angle), "y": r * np.sin(angle)},
+            {"t": "s", "x": "m", "y": "m"},
+        )
+        results.append((direction.upper(), evaluate_circle(data, radius, direction, 0.0167)))
+    assert all(len(result.spikes) == 4 for _, result in results)
+    figures = ballbar_figures([result for _, result in results], radius, {"X": 0.01, "Y": 0.01})
+    plot_circle(
+        results, 10.0, "twin circle xy_table", tmp_path / "c.png", ballbar_table({"": figures})
+    )
+    fig = saved_figure["fig"]
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.table import Table
+    from matplotlib.text import Text
+
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    texts = fig.findobj(lambda a: isinstance(a, Text) and a.get_visible())
+    texts += [c.get_text() for t in fig.findobj(Table) for c in t.get_celld().values()]
+    boxes = [text.get_window_extent(renderer) for text in texts if text.get_text().strip()]
+    assert len(boxes) > 20  # the angles, the scale, the title, the table's cells
+    for k, box in enumerate(boxes):
+        for other in boxes[k + 1 :]:
+            assert not box.overlaps(other), (box, other)
