@@ -30,19 +30,20 @@ def add_machine_options(parser: argparse.ArgumentParser) -> None:
         "--radius",
         type=float,
         metavar="MM",
-        help="machine scenarios: a circular test of this radius, mm (with --feed)",
+        help="machine scenarios: a circular test of this radius, mm (with --feed) "
+        "(default: none, the program)",
     )
     parser.add_argument(
         "--feed",
         type=float,
         metavar="MM_PER_MIN",
-        help="machine scenarios: the circle's feed, mm/min (with --radius)",
+        help="machine scenarios: the circle's feed, mm/min (with --radius) (default: none)",
     )
     parser.add_argument(
         "--direction",
         choices=["cw", "ccw"],
         default="ccw",
-        help="machine scenarios: the circle's direction",
+        help="machine scenarios: the circle's direction (default: ccw)",
     )
     parser.add_argument(
         "--program",
