@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
 
-from twin_cosim.commands.console import command_line, write_json
+from twin_cosim.commands.console import command_line, write_summary
 from twin_cosim.commands.options import (
     command_parser,
     feed_override_option,
@@ -31,7 +30,10 @@ def _positive(text: str) -> float:
 def add_arguments(subparsers) -> None:
     """The ``circle`` command and its options."""
     parser = command_parser(
-        subparsers, "circle", "circular test (ISO 230-4: G, H, F, reversal spikes) on a machine"
+        subparsers,
+        "circle",
+        "circular test (ISO 230-4: G, H, F, reversal spikes) on a machine",
+        run,
     )
     parser.add_argument("scenario", help="machine scenario (axes: X, Y), file or shipped name")
     parser.add_argument(
@@ -65,7 +67,6 @@ def add_arguments(subparsers) -> None:
         action="store_true",
         help="step through fmpy in plain Python instead of the compiled loop",
     )
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -93,10 +94,7 @@ def run(args: argparse.Namespace) -> int:
         fast=not args.reference_path,
         feed_override=args.feed_override,
     )
-    write_json(out / "circle.json", summary)
-    if args.json:
-        print(json.dumps(summary))
-    else:
+    if write_summary(out / "circle.json", summary, args.json):
         _print_circle(args, summary, out)
     for warning in summary["warnings"]:
         print(f"twin circle: warning: {warning}", file=sys.stderr)
@@ -154,9 +152,7 @@ def _measured(args: argparse.Namespace, out: Path, command: str) -> int:
         )
     found["outputs"] = {"plot": None if args.no_plots else str(out / "circle.png")}
     found["outputs"]["folder"] = str(out)
-    write_json(out / "circle.json", found)
-    if args.json:
-        print(json.dumps(found))
+    if not write_summary(out / "circle.json", found, args.json):
         return 0
     machine, twin = found["machine"], found["twin"]
     print(
