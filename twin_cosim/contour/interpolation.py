@@ -31,6 +31,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
@@ -667,28 +668,16 @@ def plan_program(
     limits: dict[str, AxisLimits],
     sample_period: float,
     settle: float,
-    path_control: PathControl = EXACT_STOP,
-    look_ahead: int = LOOK_AHEAD,
-    feed_override: float = 1.0,
-    max_duration: float = math.inf,
+    **planning: Any,
 ) -> PlannedMotion:
-    """The per-axis references of a part program (see :func:`plan_blocks`), its travel checked
-    first (:func:`check_travel`)."""
+    """The per-axis references of a part program (:func:`plan_blocks` of its blocks from its
+    start, ``planning`` the path control, look-ahead, feed override and longest duration it
+    takes), its travel checked first (:func:`check_travel`)."""
     if not program.elements:
         raise InterpolationError(f"{program.source}: the program has no motion")
     check_travel(program.blocks, limits, program.source)
     try:
-        return plan_blocks(
-            program.blocks,
-            program.start,
-            limits,
-            sample_period,
-            settle,
-            path_control,
-            look_ahead,
-            feed_override,
-            max_duration,
-        )
+        return plan_blocks(program.blocks, program.start, limits, sample_period, settle, **planning)
     except InterpolationError as exc:
         raise InterpolationError(f"{program.source}: {exc}") from None
 

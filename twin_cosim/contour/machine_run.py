@@ -198,10 +198,10 @@ def plan_on(machine: MachineScenario, program: Program, feed_override: float = 1
         machine.limits,
         machine.sample_period,
         machine.settle,
-        machine.path_control,
-        machine.look_ahead,
-        feed_override,
-        longest_path(machine),
+        path_control=machine.path_control,
+        look_ahead=machine.look_ahead,
+        feed_override=feed_override,
+        max_duration=longest_path(machine),
     )
 
 

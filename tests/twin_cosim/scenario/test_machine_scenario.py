@@ -68,6 +68,15 @@ def test_each_axis_has_its_own_plant_parameters_and_controller(tmp_path):
         ),
         ("axes: {X: {controller: {parameters: zz}}, Y: {}}", "axes.X.controller.parameters"),
         ("axes: {X: {}, Y: {}}\ninterpolation: {sample_period: 0.0013}", "interpolation.sample"),
+        ("axes: {X: {limits: {travel: [0.1, 0.5]}}, Y: {}}", "axes.X.limits.travel: expected"),
+        ("axes: {X: {limits: {travel: 0.5}}, Y: {}}", "axes.X.limits.travel: expected [low"),
+        ("axes: {X: {}, Y: {}}\ninterpolation: {path_mode: G62}", "interpolation.path_mode"),
+        ("axes: {X: {}, Y: {}}\ninterpolation: {tolerance: 1.0e-5}", "interpolation.tolerance"),
+        ("axes: {X: {}, Y: {}}\ninterpolation: {look_ahead: 0}", "interpolation.look_ahead"),
+        ("axes: {X: {}, Y: {}}\ngeometry: {scale: {X: a}}", "geometry.scale.X: expected a number"),
+        ("axes: {X: {}, Y: {}}\ngeometry: {straightness: {X: 2}}", "axes.X.limits.travel"),
+        ("axes: {X: {}, Y: {}}\ngeometry: {cyclic: {Y: {amplitude_um: 1}}}", "cyclic.Y.period"),
+        ("axes: {X: {}, Y: {}}\ngeometry: {roll: 1}", "geometry: unknown key(s) ['roll']"),
     ],
 )
 def test_errors_name_the_file_and_the_key(tmp_path, text, message):
@@ -128,27 +137,6 @@ def test_the_geometry_moves_the_tool_as_its_signs_say():
     bow = dataclasses.replace(machine.geometry, straightness={"X": 2e-6}, travel={"X": (-0.4, 0.4)})
     _, y = bow.tool_point(np.array([-0.4, 0.0, 0.4]), np.zeros(3))
     assert y == pytest.approx([0.0, 2e-6, 0.0], abs=1e-18)  # 0 at the ends, the bow mid-travel
-
-
-@pytest.mark.parametrize(
-    ("text", "message"),
-    [
-        ("axes: {X: {limits: {travel: [0.1, 0.5]}}, Y: {}}", "axes.X.limits.travel: expected"),
-        ("axes: {X: {limits: {travel: 0.5}}, Y: {}}", "axes.X.limits.travel: expected [low"),
-        ("axes: {X: {}, Y: {}}\ninterpolation: {path_mode: G62}", "interpolation.path_mode"),
-        ("axes: {X: {}, Y: {}}\ninterpolation: {tolerance: 1.0e-5}", "interpolation.tolerance"),
-        ("axes: {X: {}, Y: {}}\ninterpolation: {look_ahead: 0}", "interpolation.look_ahead"),
-        ("axes: {X: {}, Y: {}}\ngeometry: {scale: {X: a}}", "geometry.scale.X: expected a number"),
-        ("axes: {X: {}, Y: {}}\ngeometry: {straightness: {X: 2}}", "axes.X.limits.travel"),
-        ("axes: {X: {}, Y: {}}\ngeometry: {cyclic: {Y: {amplitude_um: 1}}}", "cyclic.Y.period"),
-        ("axes: {X: {}, Y: {}}\ngeometry: {roll: 1}", "geometry: unknown key(s) ['roll']"),
-    ],
-)
-def test_limits_path_control_and_geometry_errors_name_the_key(tmp_path, text, message):
-    path = _write(tmp_path, text)
-    with pytest.raises(ScenarioError) as error:
-        load_machine(path)
-    assert str(path) in str(error.value) and message in str(error.value)
 
 
 def test_a_single_axis_scenario_is_not_a_machine_and_the_error_says_so():
