@@ -3,9 +3,10 @@
 Each case hides one effect of the plant-model library in one axis of ``scenarios/xy_table.yaml``
 (plus a calibration error of up to ``--perturb`` on both axes' calibrated parameters and white
 measurement noise), runs a circle on that virtual machine
-(:func:`twin_cosim.contour.circle_diagnosis.synthesize_circle`), writes it as a measured test and
-lets the diagnosis (:func:`twin_cosim.contour.circle_diagnosis.diagnose_circle`) name the axis
-and the effect without being told. A case counts when both are right (the effect may stand in
+(:func:`twin_cosim.contour.circle_diagnosis.synthesize_motion` of the circle), writes it as a
+measured test and lets the diagnosis
+(:func:`twin_cosim.contour.circle_diagnosis.diagnose_circle`) name the axis and the effect
+without being told. A case counts when both are right (the effect may stand in
 an accepted look-alike group). Results are appended to ``--results`` as they come.
 
     python benchmarks/circle_diagnosis.py [--perturb 0.02] [--results FILE]
@@ -18,8 +19,8 @@ import json
 import tempfile
 from pathlib import Path
 
-from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec
-from twin_cosim.contour.circle_diagnosis import diagnose_circle, synthesize_circle
+from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec, circle_motion
+from twin_cosim.contour.circle_diagnosis import diagnose_circle, synthesize_motion
 from twin_cosim.contour.measured_circle import read_measured_circle
 from twin_cosim.gap.synth import parse_effect
 from twin_cosim.scenario import load_machine
@@ -62,8 +63,9 @@ def main() -> None:
         if case in done:
             continue
         spec = CircleSpec(radius * 1e-3, feed * MM_PER_MIN, direction)
-        table = synthesize_circle(
-            machine, spec, {axis: [parse_effect(effect)]}, args.perturb, seed=case
+        motion, _ = circle_motion(machine, spec)
+        table = synthesize_motion(
+            machine, motion, {axis: [parse_effect(effect)]}, args.perturb, seed=case
         )
         with tempfile.TemporaryDirectory() as folder:
             path = Path(folder) / "measured.csv"

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
 from twin_cosim.commands.console import command_line, write_summary
 from twin_cosim.commands.options import (
     command_parser,
+    feed_override_option,
     no_plots_option,
     out_folder,
     output_options,
@@ -52,6 +54,7 @@ def add_arguments(subparsers) -> None:
     parser.add_argument(
         "--direction", choices=["cw", "ccw", "both"], default="both", help="direction(s)"
     )
+    feed_override_option(parser)
     parser.add_argument(
         "--params",
         help="ft|ga|ce|sa for every axis, or a YAML/JSON file (one set, or axes: {X: ..., Y: "
@@ -68,7 +71,7 @@ def add_arguments(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the circle(s), write circle.json, circle.png and the records; print the result."""
-    from twin_cosim.contour.circle import circular_test
+    from twin_cosim.contour.circle_report import circular_test
 
     command = command_line("circle")
     default = Path("out") / f"{Path(args.scenario).stem}-circle"
@@ -76,6 +79,9 @@ def run(args: argparse.Namespace) -> int:
     if args.measured:
         return _measured(args, out, command)
     if args.radius is None or args.feed is None:
+        from twin_cosim.scenario import load_machine
+
+        load_machine(args.scenario)  # a scenario of no machine is named first
         raise ValueError("--radius MM and --feed MM_PER_MIN are required (unless --measured)")
     summary, draw = circular_test(
         args.scenario,
@@ -86,18 +92,29 @@ def run(args: argparse.Namespace) -> int:
         out,
         command,
         fast=not args.reference_path,
+        feed_override=args.feed_override,
     )
     if write_summary(out / "circle.json", summary, args.json):
         _print_circle(args, summary, out)
+    for warning in summary["warnings"]:
+        print(f"twin circle: warning: {warning}", file=sys.stderr)
     if not args.no_plots:
         draw()
     return 0
 
 
 def _print_circle(args: argparse.Namespace, summary: dict[str, Any], out: Path) -> None:
-    """The circle's figures and spikes, for people."""
+    """The circle's figures, spikes and ballbar's diagnostics, for people."""
+    reached = summary["feed_reached_mm_min"]
+    asked = args.feed * args.feed_override / 100
+    feed = f"{reached:.0f} mm/min"
+    if summary["warnings"] or args.feed_override != 100:
+        feed += f" (programmed {args.feed:g} mm/min"
+        feed += f", override {args.feed_override:g} %)" if args.feed_override != 100 else ")"
+    elif abs(reached - asked) > 0.5:
+        feed += f" (programmed {args.feed:g} mm/min)"
     print(
-        f"circle R {args.radius:g} mm at {args.feed:g} mm/min: G {summary['G_um']:.2f} um, "
+        f"circle R {args.radius:g} mm at {feed}: G {summary['G_um']:.2f} um, "
         f"F {summary['F_um']:.2f} um"
         + (f", H {summary['H_um']:.2f} um" if "H_um" in summary else "")
     )
@@ -106,6 +123,7 @@ def _print_circle(args: argparse.Namespace, summary: dict[str, Any], out: Path) 
             f"  {spike['direction']:>3} {spike['angle_deg']:5.0f} deg ({spike['axis']} reverses): "
             f"spike {spike['height_um']:+.2f} um, {spike['width_ms']:.1f} ms"
         )
+    print("  ballbar: " + ballbar_line(summary["ballbar"]))
     plot = "" if args.no_plots else ", circle.png"
     print(f"wrote {out}/circle.json{plot}, contour_<direction>.csv")
 
@@ -114,8 +132,8 @@ def _measured(args: argparse.Namespace, out: Path, command: str) -> int:
     """Replay and diagnose a measured test (the diagnosis of
     :func:`twin_cosim.contour.circle_diagnosis.diagnose_circle`); write circle.json and
     circle.png (machine and twin); print the verdict."""
-    from twin_cosim.contour.circle import plot_circle
     from twin_cosim.contour.circle_diagnosis import diagnose_circle
+    from twin_cosim.contour.circle_report import paths_table, plot_circle
     from twin_cosim.contour.measured_circle import read_measured_circle
     from twin_cosim.scenario import load_machine
 
@@ -124,14 +142,16 @@ def _measured(args: argparse.Namespace, out: Path, command: str) -> int:
     out.mkdir(parents=True, exist_ok=True)
     found = diagnose_circle(machine, test, not args.reference_path, workers=1)
     paths = found.pop("paths")
-    plot_circle(
-        [("machine", paths["machine"]), ("twin", paths["twin"])],
-        test.radius * 1e3,
-        None,
-        command,
-        out / "circle.png",
-    )
-    found["outputs"] = {"plot": str(out / "circle.png"), "folder": str(out)}
+    if not args.no_plots:
+        plot_circle(
+            [("machine", paths["machine"]), ("twin", paths["twin"])],
+            test.radius * 1e3,
+            command,
+            out / "circle.png",
+            paths_table(paths, found["ballbar"]),
+        )
+    found["outputs"] = {"plot": None if args.no_plots else str(out / "circle.png")}
+    found["outputs"]["folder"] = str(out)
     if not write_summary(out / "circle.json", found, args.json):
         return 0
     machine, twin = found["machine"], found["twin"]
@@ -145,5 +165,22 @@ def _measured(args: argparse.Namespace, out: Path, command: str) -> int:
             f"{gap['machine_height_um']:+.2f} um, twin {gap['twin_height_um']:+.2f} um"
         )
     print(found["verdict"]["text"])
-    print(f"wrote {out}/circle.json, circle.png")
+    for name in ("machine", "twin"):
+        print(f"  ballbar, {name}: " + ballbar_line(found["ballbar"][name]))
+    print(f"wrote {out}/circle.json" + ("" if args.no_plots else ", circle.png"))
     return 0
+
+
+def ballbar_line(figures: dict[str, Any]) -> str:
+    """The ballbar's main figures in one line."""
+    from twin_cosim.contour.circle_report import signed
+
+    backlash = figures["backlash_um"]
+    servo = figures["servo_mismatch_ms"]
+    return (
+        f"squareness {signed(figures['squareness_um_per_m'], 1)} um/m, scale mismatch X-Y "
+        f"{signed(figures['scale_mismatch_um_per_m'], 1)} um/m, backlash X "
+        f"{signed(backlash['X']['positive'])}/{signed(backlash['X']['negative'])} um, Y "
+        f"{signed(backlash['Y']['positive'])}/{signed(backlash['Y']['negative'])} um"
+        + (f", servo mismatch {signed(servo, 3)} ms" if servo is not None else "")
+    )

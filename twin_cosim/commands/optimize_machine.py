@@ -16,6 +16,7 @@ from twin_cosim.commands.options import out_folder
 from twin_cosim.optimize.algorithms import method_label
 
 if TYPE_CHECKING:
+    from twin_cosim.optimize.driver import CampaignResult
     from twin_cosim.workers import ProcessPool, SerialPool
 
 _SINGLE_AXIS_OPTIONS = (
@@ -82,15 +83,39 @@ def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     if args.json:
         print(json.dumps(result.as_dict()))
         return 0
-    metrics = result.metrics or {}
-    target = result.details["target"]
+    print(f"{method_label(spec.method)}: {_outcome(result)}")
     print(
-        f"{method_label(spec.method)}: fitness {result.fitness:.3f} um (reference sets: "
-        f"{result.details['reference_fitness']:.3f} um), largest {target} "
-        f"{metrics.get(target, float('nan')):.3f} um, after {result.evaluations} "
-        f"evaluations in {result.wall_s:.1f} s; {result.stop_reason}"
+        f"  after {result.evaluations} evaluations in {result.wall_s:.1f} s; {result.stop_reason}"
     )
     for axis, params in result.best_params["axes"].items():
         print(f"  {axis}: " + ", ".join(f"{k}={v:.6g}" for k, v in params.items()))
     print(f"wrote {out}/result.json (twin circle ... --params {out}/result.json)")
     return 0
+
+
+def _outcome(result: CampaignResult) -> str:
+    """The best candidate's worst case and the target's largest value, against the reference
+    sets, in words: a relative score as a ratio (each case scored against the reference sets'
+    value on it), values in um."""
+    details = result.details
+    target = details["target"]
+    metrics = result.metrics
+    if metrics is None:
+        return (
+            f"no valid run (the best candidate's status: {result.status}; its score "
+            f"{result.fitness:.4g} is a penalty; see evaluations.jsonl)"
+        )
+    cases = details["cases"]
+    reference = {case: values[target] for case, values in zip(cases, result.reference, strict=True)}
+    worst, largest = metrics["worst_case"], metrics[f"{target}_case"]
+    if details["relative"]:
+        ratio = result.fitness / details["reference_fitness"]
+        head = f"worst case {worst} at {ratio:.3f} of the reference sets' {target} on it"
+    else:
+        head = f"worst case {worst}"
+    text = (
+        f"{head} ({target} {metrics[f'worst_case_{target}']:.3f} um, reference sets "
+        f"{reference[worst]:.3f} um); largest {target} {metrics[target]:.3f} um on {largest} "
+        f"(reference sets {reference[largest]:.3f} um)"
+    )
+    return text if result.status == "ok" else f"{text}, above an IAU cap (penalised)"

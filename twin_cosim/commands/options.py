@@ -173,6 +173,34 @@ def axis_test_options(parser: argparse.ArgumentParser, folder: str) -> None:
     data_option(parser)
 
 
+FEED_OVERRIDE_RANGE = (1.0, 200.0)  # % (a CNC's feed override knob: SINUMERIK up to 120 %)
+
+
+def _feed_override(text: str) -> float:
+    low, high = FEED_OVERRIDE_RANGE
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not low <= value <= high:
+        raise argparse.ArgumentTypeError(
+            f"expected a feed override from {low:g} to {high:g} %, got {text!r}"
+        )
+    return value
+
+
+def feed_override_option(parser: argparse.ArgumentParser) -> None:
+    """``--feed-override PCT``: the programmed feeds scaled (rapid traverses keep theirs)."""
+    parser.add_argument(
+        "--feed-override",
+        type=_feed_override,
+        default=100.0,
+        metavar="PCT",
+        help="feed override, %% of every programmed feed, 1 to 200 (rapid traverses G00 keep "
+        "the axes' speed) (default: 100)",
+    )
+
+
 def no_plots_option(parser: argparse.ArgumentParser) -> None:
     """``--no-plots``: write no figures (the results and data files are the same)."""
     parser.add_argument(

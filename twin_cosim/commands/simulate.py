@@ -18,6 +18,7 @@ from twin_cosim.commands.console import (
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
+    feed_override_option,
     no_plots_option,
     out_folder,
     output_options,
@@ -57,6 +58,7 @@ def add_arguments(subparsers) -> None:
         help="part program (G-code subset, docs/contouring.md) for a machine scenario (axes:) "
         "(default: the scenario's program)",
     )
+    feed_override_option(parser)
     output_options(parser, "output folder (default: out/<scenario name>)")
     parser.add_argument(
         "--reference-path",
@@ -75,6 +77,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.program or is_machine_scenario(args.scenario):
         return _run_program(args)
+    if args.feed_override != 100.0:
+        raise ValueError("--feed-override: for a part program on a machine scenario (axes:)")
     from twin_cosim.painter import Painter
 
     painter = None if args.no_plots else Painter.start()  # imports matplotlib meanwhile
@@ -227,16 +231,18 @@ def _print_text(name: str, metrics: Metrics, summary: dict[str, Any], machine: s
 def _run_program(args: argparse.Namespace) -> int:
     """:func:`run` of a machine scenario or a part program: run the program, write the records
     (``contour.csv``, the contour record; ``<axis>.csv``, each axis' record) and ``summary.json``
-    (``contour_error_max_um``, ``contour_error_rms_um`` and each axis' metrics under ``axes``),
-    print the summary, then plot ``contour.png`` (unless ``--no-plots``). Exit status 1 when an
-    axis' error left the band of ``optimize.abort_error_um`` (the loop diverged), as for one
-    axis."""
+    (``contour_error_max_um``, ``contour_error_rms_um``, the path time, the feeds programmed and
+    reached, each axis' metrics under ``axes``, the words ignored), print the summary, then plot
+    ``contour.png`` (unless ``--no-plots``). Exit status 1 when an axis' error left the band of
+    ``optimize.abort_error_um`` (the loop diverged), as for one axis."""
     from twin_cosim.contour.gcode import read_program
+    from twin_cosim.contour.interpolation import feed_warnings
     from twin_cosim.contour.machine_run import (
         MachinePlants,
         axis_metrics,
         contour_metrics,
-        run_program,
+        plan_on,
+        run_machine,
     )
     from twin_cosim.contour.tuning import contour_settings
     from twin_cosim.scenario import load_axes_parameters, load_machine
@@ -256,44 +262,56 @@ def _run_program(args: argparse.Namespace) -> int:
         raise ValueError(f"{machine.source}: no program: give --program PART.nc")
     program = read_program(source, machine.axis_names)
     out = out_folder(args.out, Path("out") / machine.name)
+    start = time.perf_counter()
+    motion = plan_on(machine, program, args.feed_override / 100.0)  # refused before it runs
+    planned = time.perf_counter() - start
     out.mkdir(parents=True, exist_ok=True)
     with MachinePlants(machine) as plants:
         start = time.perf_counter()
-        record, _ = run_program(machine, program, plants, not args.reference_path)
+        record = run_machine(machine, motion, plants, not args.reference_path)
         wall = time.perf_counter() - start
     band_um = contour_settings(machine).config.abort_error_um
-    warnings = [
+    diverged = [
         f"axis {name}: the loop diverged: |error| reached {peak:.4g} um, beyond the band of "
         f"{band_um:g} um (optimize.abort_error_um)"
         for name, axis in record.axes.items()
         if not (peak := float(abs(axis["error"]).max()) * 1e6) <= band_um
     ]
+    warnings = feed_warnings(motion) + diverged
     write_record_csv(out / "contour.csv", record.contour)
     for name, axis in record.axes.items():
         write_record_csv(out / f"{name}.csv", axis)
+    fed = [f for f in motion.feeds if f.programmed is not None]
     summary: dict[str, Any] = {
         "scenario": str(machine.source),
         "program": str(source),
         **contour_metrics(record),
+        "path_time_s": motion.end_time,
+        "path_control": machine.path_control.describe(),
+        "feed_override_pct": args.feed_override,
+        "feed_programmed_mm_min": max((f.programmed * 60e3 for f in fed), default=None),
+        "feed_reached_mm_min": max((f.reached * 60e3 for f in fed), default=None),
         "axes": axis_metrics(record),
         "params": {a.name: a.tuned.as_dict() for a in machine.axes},
         "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
+        "plan_s": planned,
         "wall_s": wall,
         "outputs": {"contour": str(out / "contour.csv")}
         | ({} if args.no_plots else {"plot": str(out / "contour.png")}),
+        "ignored": [{"line": w.line, "word": w.word} for w in program.ignored],
         "warnings": warnings,
         "versions": versions(),
     }
     if write_summary(out / "summary.json", summary, args.json):
-        print(
-            f"{machine.name} {source.name}: contour error max "
-            f"{summary['contour_error_max_um']:.2f} um, RMS {summary['contour_error_rms_um']:.2f}"
-            f" um; "
-            + ", ".join(f"{n} E_pk {m['E_pk_um']:.2f} um" for n, m in summary["axes"].items())
-            + f" ({wall:.2f} s wall)"
-        )
+        print(_program_headline(machine.name, source.name, summary))
         plot = "" if args.no_plots else ", contour.png"
         print(f"wrote {out}/contour.csv{plot}, summary.json")
+    if program.ignored:
+        print(
+            "twin simulate: note: ignored (they do not move the axes): "
+            + program.ignored_summary(),
+            file=sys.stderr,
+        )
     for warning in warnings:
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
     if not args.no_plots:
@@ -301,4 +319,24 @@ def _run_program(args: argparse.Namespace) -> int:
 
         title = f"{machine.name}: {source.name}"
         plot_contour(record, title, command_line("simulate"), out / "contour.png")
-    return 1 if warnings else 0
+    return 1 if diverged else 0
+
+
+def _program_headline(machine: str, program: str, summary: dict[str, Any]) -> str:
+    """A program run's summary in one line: contour error, path time, feed reached, axes."""
+    feed = ""
+    if summary["feed_programmed_mm_min"] is not None:
+        feed = (
+            f", feed reached {summary['feed_reached_mm_min']:.0f} of "
+            f"{summary['feed_programmed_mm_min']:.0f} mm/min"
+        )
+        if summary["feed_override_pct"] != 100.0:
+            feed += f" (override {summary['feed_override_pct']:g} %)"
+    return (
+        f"{machine} {program}: contour error max {summary['contour_error_max_um']:.2f} um, RMS "
+        f"{summary['contour_error_rms_um']:.2f} um; path {summary['path_time_s']:.2f} s"
+        + feed
+        + "; "
+        + ", ".join(f"{n} E_pk {m['E_pk_um']:.2f} um" for n, m in summary["axes"].items())
+        + f" ({summary['wall_s']:.2f} s wall)"
+    )

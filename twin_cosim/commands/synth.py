@@ -14,6 +14,7 @@ from twin_cosim.commands.options import (
     plant_path,
     whole_number,
 )
+from twin_cosim.commands.synth_machine import add_machine_options, run_machine_synth
 
 if TYPE_CHECKING:
     from twin_cosim.gap.synth import EffectSpec
@@ -52,7 +53,8 @@ def add_arguments(subparsers) -> None:
         default=[],
         metavar="NAME:param=value,...",
         help="effect to switch on (repeatable); NAME from the plant model's library (listed "
-        "below) or 'plant' (default: none)",
+        "below) or 'plant'; a machine scenario's names its axis first, AXIS:NAME:... "
+        "(default: none)",
     )
     _error_options(parser)
     plant_option(parser)
@@ -70,6 +72,7 @@ def add_arguments(subparsers) -> None:
         help="measured run to write, a new file: .csv, or .mat in the EMPS format (required)",
     )
     parser.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    add_machine_options(parser)
     data_option(parser)
 
 
@@ -94,8 +97,12 @@ def run(args: argparse.Namespace) -> int:
     machine's plant file (``RUN.machine.yaml``)."""
     from twin_cosim.gap.synth import synthesize
     from twin_cosim.measured import read_measured
-    from twin_cosim.scenario import for_measured_run, resolve_scenario
+    from twin_cosim.scenario import for_measured_run, is_machine_scenario, resolve_scenario
 
+    if is_machine_scenario(args.scenario):
+        return run_machine_synth(args, _effect)
+    if args.radius is not None or args.feed is not None or args.program:
+        raise ValueError("--radius, --feed and --program: for a machine scenario (axes:)")
     out, truth, machine = _files(args)
     scenario = resolve_scenario(args.scenario)
     warn_plant_mismatch(scenario, plant_path(args))

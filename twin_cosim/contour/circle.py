@@ -26,27 +26,39 @@ On the data circle (360 degrees of actual positions around the nominal centre, t
   degrees when Y lags (at 45 when X lags), clockwise the other way round; its size (peak to
   peak) is about v |T_X - T_Y|.
 
-:func:`circular_test` runs the test as ``twin circle`` does (one or both directions, the
-records); :func:`plot_circle` draws the polar plot as ballbar software does.
+The circle is evaluated on the tool's path: the axes' positions moved by the machine's geometric
+errors (:class:`~twin_cosim.scenario.machine_geometry.MachineGeometry`), as a ballbar sees it.
+:mod:`~twin_cosim.contour.ballbar` fits the ballbar's diagnostics to it,
+:mod:`~twin_cosim.contour.circle_report` runs the test as ``twin circle`` does and draws it.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from twin_cosim.contour.gcode import Motion
-from twin_cosim.contour.interpolation import PlannedMotion, plan_block, plan_blocks
-from twin_cosim.contour.machine_run import MachinePlants, MachineRecord, run_machine
+from twin_cosim.contour.interpolation import (
+    InterpolationError,
+    PlannedMotion,
+    check_travel,
+    first_limits,
+    plan_block,
+    plan_blocks,
+)
+from twin_cosim.contour.machine_run import (
+    MachinePlants,
+    MachineRecord,
+    longest_path,
+    run_machine,
+    tool_path,
+)
 from twin_cosim.contour.path import Arc
 from twin_cosim.metrics import UM_PER_M
 from twin_cosim.run_record import RunRecord
-from twin_cosim.scenario import load_axes_parameters, load_machine
 from twin_cosim.scenario.machine import MachineScenario
 
 DIRECTIONS = ("cw", "ccw")
@@ -59,10 +71,6 @@ SPIKE_LEAD_DEG = 2.0  # before it (the actual path may reverse a little early)
 SMOOTH_ORDERS = 2  # the smooth part of the radial deviation: orders 0..2 of the angle
 HYSTERESIS_STEP_DEG = 0.5
 MISMATCH_SHARE = 0.2  # an ellipse this share of G or more names the lagging axis
-
-COLOURS = ("tab:blue", "tab:red", "tab:green", "tab:purple")
-RING_SHARE = 0.4  # the deviation band drawn as this share of the plot's radius
-MARKED_SHARE = 0.1  # spikes of at least this share of the drawn band (and 0.5 um) are marked
 
 
 @dataclass(frozen=True)
@@ -206,9 +214,9 @@ def _smooth_part(angle: np.ndarray, deviation: np.ndarray, keep: np.ndarray) -> 
     return basis @ coefficients
 
 
-def _after(angle_deg: np.ndarray, transition: float, sign: float) -> np.ndarray:
-    """Angle travelled since ``transition`` (degrees, in the direction of motion), in
-    [-180, 180)."""
+def travelled_since(angle_deg: np.ndarray, transition: float, sign: float) -> np.ndarray:
+    """Angle travelled since ``transition`` (degrees, in the direction of motion ``sign``, +1
+    counter-clockwise), in [-180, 180)."""
     return (sign * (angle_deg - transition) + 180.0) % 360.0 - 180.0
 
 
@@ -216,7 +224,7 @@ def _spike(
     t: np.ndarray, angle_deg: np.ndarray, residual: np.ndarray, transition: float, sign: float
 ) -> Spike:
     """The spike of one transition from the residual radial deviation (um)."""
-    travelled = _after(angle_deg, transition, sign)
+    travelled = travelled_since(angle_deg, transition, sign)
     window = np.flatnonzero((travelled >= -SPIKE_LEAD_DEG) & (travelled <= SPIKE_WINDOW_DEG))
     if len(window) == 0:
         return Spike(transition, REVERSING_AXIS[transition], 0.0, 0.0, transition)
@@ -286,7 +294,7 @@ def evaluate_circle(data: RunRecord, radius: float, direction: str, speed: float
     angle_deg = np.degrees(angle) % 360.0
     near = np.zeros(len(t), dtype=bool)
     for transition in TRANSITIONS_DEG:
-        travelled = _after(angle_deg, transition, sign)
+        travelled = travelled_since(angle_deg, transition, sign)
         near |= (travelled >= -SPIKE_LEAD_DEG) & (travelled <= SPIKE_WINDOW_DEG)
     deviation = about_fit * UM_PER_M
     keep = ~near if np.count_nonzero(~near) > 2 * SMOOTH_ORDERS + 1 else np.ones_like(near)
@@ -348,10 +356,25 @@ class CircleRun:
 
 
 def circle_motion(machine: MachineScenario, spec: CircleSpec) -> tuple[PlannedMotion, Arc]:
-    """The test's motion on the machine: feed-in, data circle and feed-out as one arc."""
-    limits = {axis.name: axis.limits for axis in machine.axes}
+    """The test's motion on the machine: feed-in, data circle and feed-out as one arc.
+
+    Raises
+    ------
+    InterpolationError
+        Before anything is planned, when the circle leaves an axis' travel or would take longer
+        than a run may last (``run.max_samples``).
+    """
+    limits = machine.limits
     quarter = spec.radius * math.pi / 2
     trial = Arc((0.0, 0.0), spec.radius, 0.0, spec.sign * 4 * math.pi)
+    name = f"circle of radius {spec.radius * 1e3:g} mm"
+    check_travel([Motion(trial, spec.feed, 0)], limits, name)
+    shortest = 3 * math.pi * spec.radius / first_limits(trial, spec.feed, limits)[0]
+    if shortest > longest_path(machine):  # a turn and two quarters at least
+        raise InterpolationError(
+            f"{name} at {spec.feed / MM_PER_MIN:g} mm/min: takes at least {shortest:.4g} s, "
+            f"longer than the {longest_path(machine):.4g} s a run may last (run.max_samples)"
+        )
     ramp = float(plan_block(trial, spec.feed, limits).p[3])  # path length of the feed ramp, m
     feed_in = math.pi / 2 * max(1, math.ceil(ramp / quarter * (1 + 1e-9)))
     start = math.radians(DATA_START_DEG) - spec.sign * feed_in
@@ -386,157 +409,9 @@ def run_circle(
     motion, arc = circle_motion(machine, spec)
     record: MachineRecord = run_machine(machine, motion, plants, fast, abort_error)
     data = data_circle(record.contour, arc)
-    speed = motion.speeds[0]
-    result = evaluate_circle(record.contour.rows(data), spec.radius, spec.direction, speed)
-    return CircleRun(spec, motion, record, data, result)
-
-
-def circular_test(
-    scenario: str,
-    radius_mm: float,
-    feed_mm_min: float,
-    direction: str,
-    params: str | None,
-    out: Path,
-    command: str,
-    fast: bool = True,
-) -> tuple[dict[str, Any], Callable[[], None]]:
-    """Run the test, write ``contour_<direction>.csv`` (the contour records) into ``out``.
-
-    Parameters
-    ----------
-    scenario
-        Machine scenario (file or shipped name).
-    radius_mm, feed_mm_min
-        Radius (mm) and feed (mm/min).
-    direction
-        ``cw``, ``ccw`` or ``both``.
-    params
-        ``--params``: a Table 3 set or a file (one set, or one per axis); None: the scenario's.
-    out
-        Output folder.
-    command
-        The command line, written in the figure.
-    fast
-        Compiled path (default) or the fmpy reference path.
-
-    Returns
-    -------
-    tuple
-        The summary: ``G_um``, ``F_um`` (the largest over the directions), ``H_um`` (both
-        directions), ``spikes`` (each direction's quadrant transitions: ``direction``,
-        ``angle_deg``, ``axis``, ``height_um``, ``width_ms``, ``peak_deg``), ``directions``
-        (each one's figures and servo-mismatch signature), radius, feed, parameters and
-        outputs; and what draws ``circle.png`` (called after the summary is saved, or not).
-    """
-    machine = load_machine(scenario)
-    if params:
-        machine = machine.with_tuned(load_axes_parameters(params, machine.axis_names))
-    directions = DIRECTIONS if direction == "both" else (direction,)
-    out.mkdir(parents=True, exist_ok=True)
-    results = []
-    with MachinePlants(machine) as plants:
-        for name in directions:
-            spec = CircleSpec(radius_mm * 1e-3, feed_mm_min * MM_PER_MIN, name)
-            run = run_circle(machine, plants, spec, fast)
-            run.record.contour.frame().to_csv(out / f"contour_{name}.csv", index=False)
-            results.append(run.result)
-    h = hysteresis(*results) if len(results) == 2 else None
-
-    def draw() -> None:
-        labelled = [(r.direction.upper(), r) for r in results]
-        plot_circle(labelled, radius_mm, h, command, out / "circle.png")
-
-    summary: dict[str, Any] = {
-        "scenario": str(machine.source),
-        "radius_mm": radius_mm,
-        "feed_mm_min": feed_mm_min,
-        "G_um": max(r.G_um for r in results),
-        "F_um": max(r.F_um for r in results),
-    }
-    if h is not None:
-        summary["H_um"] = h
-    summary["spikes"] = [
-        {"direction": r.direction, **s} for r in results for s in r.summary()["spikes"]
-    ]
-    summary["directions"] = {r.direction: r.summary() for r in results}
-    summary["params"] = {a.name: a.tuned.as_dict() for a in machine.axes}
-    summary["outputs"] = {"plot": str(out / "circle.png"), "folder": str(out)}
-    return summary, draw
-
-
-def plot_circle(
-    results: Sequence[tuple[str, CircleResult]],
-    radius_mm: float,
-    hysteresis_um: float | None,
-    command: str,
-    path: Path,
-) -> Path:
-    """Write the polar plot of one circle's directions; returns ``path``.
-
-    Parameters
-    ----------
-    results
-        (label, evaluation) of each path drawn: CW and CCW, or a measured test and the twin.
-    radius_mm
-        Nominal radius, mm.
-    hysteresis_um
-        H (um) when both directions ran, else None.
-    command
-        The command that made the figure (written under the title).
-    path
-        PNG file to write.
-    """
-    import matplotlib  # only to draw
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    deviations = np.concatenate([r.deviation_um for _, r in results])
-    low, high = float(deviations.min()), float(deviations.max())
-    margin = max(0.15 * (high - low), 0.5)
-    low, high = min(low - margin, 0.0), max(high + margin, 0.0)
-    fig = plt.figure(figsize=(8.5, 9))
-    ax = fig.add_subplot(projection="polar")
-    ax.set_rorigin(low - (high - low) * (1 - RING_SHARE) / RING_SHARE)
-    ax.set_rlim(low, high)
-    circle = np.linspace(0.0, 2 * math.pi, 721)
-    ax.plot(circle, np.zeros_like(circle), color="0.3", ls="--", lw=0.8, label="nominal circle")
-    for (label, result), colour in zip(results, COLOURS, strict=False):
-        order = np.argsort(result.angle_deg)
-        theta = np.radians(result.angle_deg[order])
-        speed = result.speed_mm_min
-        ellipse = result.mismatch
-        lagging = ellipse["lagging_axis"]
-        ax.plot(
-            theta,
-            result.deviation_um[order],
-            color=colour,
-            lw=1.2,
-            label=f"{label} at {speed:.0f} mm/min: G {result.G_um:.2f} um, "
-            f"F {result.F_um:.2f} um; ellipse {ellipse['size_um']:.2f} um at "
-            f"{ellipse['major_axis_deg']:.0f} deg" + (f" ({lagging} lags)" if lagging else ""),
-        )
-        shown = max(0.5, MARKED_SHARE * (high - low))
-        for spike in (s for s in result.spikes if abs(s.height_um) >= shown):
-            at = np.interp(spike.peak_deg, result.angle_deg[order], result.deviation_um[order])
-            ax.plot(math.radians(spike.peak_deg), at, marker="v", color=colour, ms=7)
-            ax.annotate(
-                f"{spike.axis} {spike.height_um:+.1f} um\n{spike.width_ms:.0f} ms",
-                (math.radians(spike.peak_deg), at),
-                textcoords="offset points",
-                xytext=(6, 6),
-                fontsize=7,
-                color=colour,
-            )
-    ax.set_rlabel_position(67.5)
-    ax.set_title(
-        f"circular test, radius {radius_mm:g} mm: radial deviation [um] from the nominal circle"
-        + (f", H {hysteresis_um:.2f} um" if hysteresis_um is not None else "")
-        + f"\n{command}",
-        fontsize=9,
+    x, y = tool_path(record.contour)
+    tool = RunRecord.from_columns(
+        {"t": record.contour["t"][data], "x": x[data], "y": y[data]}, {"t": "s", "x": "m", "y": "m"}
     )
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), fontsize=8)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    result = evaluate_circle(tool, spec.radius, spec.direction, motion.feeds[0].reached)
+    return CircleRun(spec, motion, record, data, result)

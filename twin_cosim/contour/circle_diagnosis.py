@@ -7,10 +7,11 @@ halves). The verdict names the axis whose diagnosis accepts an effect with the l
 held-out reduction, that effect, and the quadrant transition of that axis where the measured
 and the twin's reversal spikes differ the most.
 
-:func:`synthesize_circle` makes a measured test whose answer is known: the circle run on a
-virtual machine, the twin with effects switched on in one axis' plant
+:func:`synthesize_motion` makes a measured test whose answer is known: a planned motion (the
+circle's, :func:`~twin_cosim.contour.circle.circle_motion`; a part program's) run on a virtual
+machine, the twin with effects switched on in its axes' plants
 (:func:`twin_cosim.gap.synth.synthesize` per axis; the axes do not interact), calibration error
-and measurement noise.
+and measurement noise, its geometric errors (``twin synth MACHINE``).
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from twin_cosim.contour.circle import CircleSpec, circle_motion
+from twin_cosim.contour.ballbar import ballbar_figures, cyclic_periods
+from twin_cosim.contour.interpolation import PlannedMotion
 from twin_cosim.contour.machine_run import MachinePlants, axis_grids
 from twin_cosim.contour.measured_circle import MeasuredCircle, replay_circle
 from twin_cosim.gap.diagnosis import Diagnosis, diagnose
@@ -56,11 +58,13 @@ def diagnose_circle(
     Returns
     -------
     dict
-        ``machine`` and ``twin`` (ISO 230-4 figures of each path), ``transitions`` (per
-        quadrant transition: axis, measured and twin spike, gap in um), ``axis_gap_rms_um``,
-        ``axes`` (each diagnosed axis: verdict, accepted effects, held-out reduction),
-        ``verdict`` (``axis``, ``effect``, ``transition_deg``, ``text``) and ``paths`` (the two
-        :class:`~twin_cosim.contour.circle.CircleResult`, for plots; not JSON).
+        ``machine`` and ``twin`` (ISO 230-4 figures of each path), ``ballbar`` (the ballbar's
+        diagnostics of each, :func:`~twin_cosim.contour.ballbar.ballbar_figures`),
+        ``transitions`` (per quadrant transition: axis, measured and twin spike, gap in um),
+        ``axis_gap_rms_um``, ``axes`` (each diagnosed axis: verdict, accepted effects, held-out
+        reduction), ``verdict`` (``axis``, ``effect``, ``transition_deg``, ``text``) and
+        ``paths`` (the two :class:`~twin_cosim.contour.circle.CircleResult`, for plots; not
+        JSON).
     """
     with MachinePlants(machine) as plants:
         replay = replay_circle(machine, measured, plants, fast)
@@ -87,6 +91,10 @@ def diagnose_circle(
         "direction": measured.direction,
         "machine": replay.on_machine.summary(),
         "twin": replay.on_twin.summary(),
+        "ballbar": {
+            name: ballbar_figures([path], measured.radius, cyclic_periods(machine))
+            for name, path in (("machine", replay.on_machine), ("twin", replay.on_twin))
+        },
         "transitions": transitions,
         "axis_gap_rms_um": replay.axis_gaps(),
         "axes": found,
@@ -132,9 +140,9 @@ def _verdict(diagnoses: dict[str, Diagnosis], transitions: list[dict[str, Any]])
     }
 
 
-def synthesize_circle(
+def synthesize_motion(
     machine: MachineScenario,
-    spec: CircleSpec,
+    motion: PlannedMotion,
     effects: dict[str, list[EffectSpec]],
     perturb: float = 0.0,
     seed: int = 0,
@@ -142,15 +150,19 @@ def synthesize_circle(
     noise_current: float = 5e-3,
     decimate: int = 4,
 ) -> RunRecord:
-    """A measured circular test of a virtual machine (the columns of a measured test's CSV,
-    :mod:`twin_cosim.contour.measured_circle`).
+    """A measured run of a virtual machine following a planned motion (a circle, a program).
+
+    Each axis runs its reference with the effects of ``effects`` switched on in its plant
+    (:func:`twin_cosim.gap.synth.synthesize`; the axes do not interact), calibration error and
+    measurement noise; the measured X and Y are the tool point (the machine's geometric errors
+    applied), as a ballbar or a grid encoder reads it.
 
     Parameters
     ----------
     machine
-        The nominal machine.
-    spec
-        The circle.
+        The nominal machine (its geometry is the virtual machine's).
+    motion
+        The per-axis references.
     effects
         Axis name -> effects switched on in that axis' plant.
     perturb
@@ -161,11 +173,15 @@ def synthesize_circle(
         Standard deviations of the white measurement noise, m and A.
     decimate
         Keep every n-th position-loop sample (4: 1 ms).
+
+    Returns
+    -------
+    RunRecord
+        ``t`` (s), ``<axis>_ref`` and ``<axis>`` (m) of every axis, ``current_<axis>`` (A).
     """
-    motion, _ = circle_motion(machine, spec)
     grids = axis_grids(machine, motion)
     columns: dict[str, np.ndarray] = {}
-    for k, name in enumerate(("X", "Y")):
+    for k, name in enumerate(machine.axis_names):
         scenario = machine.axis_scenario(name, grids[name])
         run = synthesize(
             scenario,
@@ -180,7 +196,9 @@ def synthesize_circle(
         columns[f"{lower}_ref"] = run["x_ref"]
         columns[lower] = run["x"]
         columns[f"current_{lower}"] = run["current"]
-    order = ("t", "x_ref", "y_ref", "x", "y", "current_x", "current_y")
+    columns["x"], columns["y"] = machine.geometry.tool_point(columns["x"], columns["y"])
+    lower = [name.lower() for name in machine.axis_names]
+    order = ["t"] + [f"{a}_ref" for a in lower] + lower + [f"current_{a}" for a in lower]
     units = {name: "A" if name.startswith("current") else "m" for name in order} | {"t": "s"}
     table = RunRecord.from_columns({name: columns[name] for name in order}, units)
     return table.rows(slice(None, None, decimate))

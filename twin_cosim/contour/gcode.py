@@ -2,27 +2,40 @@
 
 The subset:
 
-=========  ==================================================================================
-G17        XY plane for arcs (the only plane)
-G00        rapid traverse: a straight line at the axes' velocity limits
-G01        straight line at the programmed feed
-G02, G03   arc clockwise / counter-clockwise seen from +Z, in the XY plane at constant Z;
-           centre by I, J (offsets from the arc's start, always incremental) or radius R
-           (R > 0: at most 180 degrees, R < 0: more); a full circle by I, J with the end at
-           the start
-F          feed, units per minute (G94)
-G90, G91   absolute / incremental coordinates of X, Y, Z
-G20, G21   inch / millimetre
-G04 P      dwell, P in seconds (LinuxCNC; Fanuc reads P in ms: give seconds)
-N          sequence number (ignored)
-M02, M30   end of program (nothing after it may move)
-=========  ==================================================================================
+===========  ================================================================================
+G17          XY plane for arcs (the only plane)
+G00          rapid traverse: a straight line at the axes' velocity limits
+G01          straight line at the programmed feed
+G02, G03     arc clockwise / counter-clockwise seen from +Z, in the XY plane at constant Z;
+             centre by I, J (offsets from the arc's start, always incremental: G91.1) or
+             radius R (R > 0: at most 180 degrees, R < 0: more); a full circle by I, J with
+             the end at the start
+F            feed, units per minute (G94)
+G90, G91     absolute / incremental coordinates of X, Y, Z
+G20, G21     inch / millimetre
+G04 P        dwell, P in seconds (LinuxCNC; Fanuc reads P in ms: give seconds)
+G61, G61.1   exact stop: every block ends at rest (modal)
+G64 [P [Q]]  blending (modal): the path keeps its speed through tangent joins and rounds
+             corners, leaving each programmed corner by at most P (program units; without P,
+             as far as the blocks allow); straight moves whose corners lie within Q (LinuxCNC's
+             naive CAM tolerance, P/2 when not given, below P) of one line are traversed as
+             that line, their corners blended within P - Q: the path stays within P
+N            sequence number (ignored)
+M02, M30     end of program (nothing after it may move)
+===========  ================================================================================
 
-Comments in parentheses or after ``;`` are ignored. Every motion block ends in an exact stop
-(the path speed reaches zero at each block end; no blending). Anything else (another word,
-another G or M code, a word twice, two codes of one modal group, an arc's Z change, an axis the
-machine lacks, a number in another format) is refused before anything runs, naming the line and
-the word (:class:`ProgramError`).
+Words of CAM output that do not move the axes are accepted and listed as ignored
+(:attr:`Program.ignored`): ``O`` (program number), ``S`` (spindle speed), ``T`` (tool),
+``M03``-``M09`` (spindle, tool change, coolant), ``G54`` (the first work offset: the machine's
+own coordinates), ``G40``, ``G49``, ``G80`` (cancel cutter radius and tool length compensation
+and canned cycles, none of which the subset has); ``G91.1`` and ``G94`` name what the subset
+does anyway.
+
+Comments in parentheses or after ``;`` are ignored. The path control mode (G61, G64) holds
+until the program changes it; before it does, the machine scenario's (``interpolation.
+path_mode``) holds. Anything else (another word, another G or M code, a word twice, two codes of
+one modal group, an arc's Z change, an axis the machine lacks, a number in another format) is
+refused before anything runs, naming the line and the word (:class:`ProgramError`).
 
 Why not a parser from the package index: the ones that exist (``gcodeparser``, ``pygcode``)
 drop what they do not understand without a word, lose modal motion lines and bare ``F`` words,
@@ -38,25 +51,39 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from twin_cosim.contour.path import Arc, Element, Line
+from twin_cosim.scenario.machine import PathControl
 
 MM = 1e-3  # m per mm
 INCH = 25.4e-3  # m per inch
 _WORD = re.compile(r"([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
 _COMMENT = re.compile(r"\([^)]*\)")
-_MODAL_GROUPS = {
-    0: "motion",
-    1: "motion",
-    2: "motion",
-    3: "motion",
-    17: "plane",
-    20: "units",
-    21: "units",
-    90: "distance",
-    91: "distance",
-    4: "dwell",
+# G codes by their number as written without leading zeros ("1", "61.1"): their modal group
+_G_GROUPS = {
+    "0": "motion",
+    "1": "motion",
+    "2": "motion",
+    "3": "motion",
+    "17": "plane",
+    "20": "units",
+    "21": "units",
+    "90": "distance",
+    "91": "distance",
+    "91.1": "arc distance",
+    "94": "feed mode",
+    "61": "path control",
+    "61.1": "path control",
+    "64": "path control",
+    "4": "dwell",
 }
+_G_IGNORED = {"40", "49", "54", "80"}  # no motion: cancel compensations and cycles, offset 1
+_M_IGNORED = {3, 4, 5, 6, 7, 8, 9}  # spindle, tool change, coolant
 _ENDS = (2, 30)
-_ALLOWED = set("GXYZIJRFPNM")
+_ALLOWED = set("GXYZIJRFPNMOSTQ")
+_IGNORED_LETTERS = set("OST")
+SUBSET = (
+    "G17, G00-G03, G04 P, G20, G21, G61, G61.1, G64 P Q, G90, G91, G91.1, G94, F, X, Y, Z, I, J, "
+    "Q, R, N, M02, M30; ignored: O, S, T, M03-M09, G40, G49, G54, G80"
+)
 ARC_TOLERANCE = 5e-6  # m: largest difference of an arc's start and end radius (LinuxCNC's)
 ARC_RELATIVE_TOLERANCE = 1e-3
 
@@ -67,7 +94,7 @@ class ProgramError(ValueError):
 
 @dataclass(frozen=True)
 class Motion:
-    """One motion block: a path element traversed from rest to rest.
+    """One motion block.
 
     Attributes
     ----------
@@ -77,11 +104,14 @@ class Motion:
         Programmed path speed, m/s; None for a rapid traverse (G00).
     line : int
         Line number in the program (1-based).
+    path_control : PathControl or None
+        The path control mode the program set for this block (G61, G64); None: the machine's.
     """
 
     element: Element
     feed: float | None
     line: int
+    path_control: PathControl | None = None
 
 
 @dataclass(frozen=True)
@@ -96,6 +126,14 @@ Block = Motion | Pause
 
 
 @dataclass(frozen=True)
+class IgnoredWord:
+    """A word accepted and ignored because it does not move the axes (``S12000`` on line 3)."""
+
+    line: int
+    word: str
+
+
+@dataclass(frozen=True)
 class Program:
     """A part program read into blocks.
 
@@ -107,16 +145,30 @@ class Program:
         Position (X, Y, Z) in m where the program starts (the machine's position).
     source : str
         The file (or a label) named in errors.
+    ignored : tuple of IgnoredWord
+        The words that do not move the axes, accepted and ignored, in program order.
     """
 
     blocks: tuple[Block, ...]
     start: tuple[float, float, float]
     source: str
+    ignored: tuple[IgnoredWord, ...] = ()
 
     @property
     def elements(self) -> tuple[Element, ...]:
         """The path's elements (motions only), in order."""
         return tuple(b.element for b in self.blocks if isinstance(b, Motion))
+
+    def ignored_summary(self) -> str:
+        """The ignored words for a reader, each with its lines: ``S12000 (line 3), M05 (lines
+        40, 52)``; empty when none."""
+        lines: dict[str, list[int]] = {}
+        for ignored in self.ignored:
+            lines.setdefault(ignored.word, []).append(ignored.line)
+        return ", ".join(
+            f"{word} (line{'s' if len(found) > 1 else ''} {', '.join(map(str, found))})"
+            for word, found in lines.items()
+        )
 
 
 def read_program(
@@ -142,6 +194,7 @@ class _State:
     absolute: bool = True
     unit: float = MM
     feed: float | None = None
+    path_control: PathControl | None = None
     ended: bool = False
 
 
@@ -171,6 +224,7 @@ def parse_program(
     """
     state = _State(position=[float(v) for v in start])
     blocks: list[Block] = []
+    ignored: list[IgnoredWord] = []
     for number, raw in enumerate(text.splitlines(), start=1):
         words = _words(raw, source, number)
         if not words:
@@ -179,8 +233,8 @@ def parse_program(
             raise ProgramError(
                 f"{source}: line {number}: {_text(*words[0])}: after the end of program (M02/M30)"
             )
-        blocks.extend(_block(words, state, source, number, axes))
-    return Program(tuple(blocks), tuple(float(v) for v in start), source)
+        blocks.extend(_block(words, state, source, number, axes, ignored))
+    return Program(tuple(blocks), tuple(float(v) for v in start), source, tuple(ignored))
 
 
 def _words(raw: str, source: str, number: int) -> list[tuple[str, float, str]]:
@@ -198,8 +252,7 @@ def _words(raw: str, source: str, number: int) -> list[tuple[str, float, str]]:
         letter, value = match.group(1).upper(), match.group(2)
         if letter not in _ALLOWED:
             raise ProgramError(
-                f"{source}: line {number}: {match.group(0)}: word outside the subset "
-                f"(G17, G00-G03, G04 P, G20, G21, G90, G91, F, X, Y, Z, I, J, R, N, M02, M30)"
+                f"{source}: line {number}: {match.group(0)}: word outside the subset ({SUBSET})"
             )
         words.append((letter, float(value), match.group(0)))
         at = match.end()
@@ -219,8 +272,9 @@ def _block(
     source: str,
     number: int,
     axes: tuple[str, ...],
+    ignored: list[IgnoredWord],
 ) -> list[Block]:
-    """The blocks of one line, the modal state updated."""
+    """The blocks of one line, the modal state updated, its ignored words added to ``ignored``."""
 
     def fail(word: tuple[str, float, str], what: str) -> ProgramError:
         return ProgramError(f"{source}: line {number}: {_text(*word)}: {what}")
@@ -231,17 +285,25 @@ def _block(
         letter, value, _ = word
         if letter == "N":
             continue
-        if letter == "G":
-            code = int(value)
-            if value != code or code not in _MODAL_GROUPS:
-                raise fail(word, "G code outside the subset (G17, G00-G04, G20, G21, G90, G91)")
-            group = _MODAL_GROUPS[code]
+        if letter in _IGNORED_LETTERS:
+            ignored.append(IgnoredWord(number, _text(*word)))
+        elif letter == "G":
+            code = f"{value:g}"
+            if code in _G_IGNORED:
+                ignored.append(IgnoredWord(number, _text(*word)))
+                continue
+            if code not in _G_GROUPS:
+                raise fail(word, f"G code outside the subset ({SUBSET})")
+            group = _G_GROUPS[code]
             if group in groups:
                 raise fail(word, f"a second {group} code in one line")
             groups[group] = word
         elif letter == "M":
+            if value in _M_IGNORED:
+                ignored.append(IgnoredWord(number, _text(*word)))
+                continue
             if value not in _ENDS:
-                raise fail(word, "M code outside the subset (M02, M30: end of program)")
+                raise fail(word, f"M code outside the subset ({SUBSET})")
             groups["end"] = word
         else:
             if letter in values:
@@ -258,11 +320,12 @@ def _block(
         if not values["F"][1] > 0:
             raise fail(values["F"], "expected a feed > 0 (units per minute)")
         state.feed = values["F"][1] * state.unit / 60.0
+    _path_control(groups, values, state, fail)
     blocks: list[Block] = []
     if "dwell" in groups:
         blocks.append(_dwell(groups, values, fail, number))
-    elif "P" in values:
-        raise fail(values["P"], "P belongs to a dwell (G04 P seconds)")
+    elif "P" in values and "path control" not in groups:
+        raise fail(values["P"], "P belongs to a dwell (G04 P seconds) or to G64 (P tolerance)")
     if "motion" in groups:
         state.motion = int(groups["motion"][1])
     moves = any(k in values for k in ("X", "Y", "Z", "I", "J", "R"))
@@ -273,6 +336,37 @@ def _block(
     if "end" in groups:
         state.ended = True
     return blocks
+
+
+def _path_control(groups, values, state: _State, fail) -> None:
+    """G61, G61.1 and G64 [P [Q]] of one line into the modal state."""
+    word = groups.get("path control")
+    for letter in ("Q",) if word is None else ():
+        if letter in values:
+            raise fail(values[letter], "Q belongs to G64 (P tolerance Q naive CAM tolerance)")
+    if word is None:
+        return
+    if word[1] != 64:
+        for letter in ("P", "Q"):
+            if letter in values:
+                raise fail(values[letter], f"{letter} belongs to G64, not {_text(*word)}")
+        state.path_control = PathControl("G61")
+        return
+    if "dwell" in groups:
+        raise fail(word, "G64 and a dwell in one line (both take P)")
+    tolerance, merge = math.inf, 0.0
+    if "P" in values:
+        if values["P"][1] < 0:
+            raise fail(values["P"], "expected a tolerance >= 0 (program units)")
+        tolerance = values["P"][1] * state.unit
+        merge = tolerance / 2
+    if "Q" in values:
+        if "P" not in values:
+            raise fail(values["Q"], "Q (naive CAM tolerance) needs P (G64 P<tolerance> Q<...>)")
+        if not 0 <= values["Q"][1] < values["P"][1]:
+            raise fail(values["Q"], "expected 0 <= Q < P (Q's merge and the blends share P)")
+        merge = values["Q"][1] * state.unit
+    state.path_control = PathControl("G64", tolerance, merge)
 
 
 def _dwell(groups, values, fail, number: int) -> Pause:
@@ -308,7 +402,7 @@ def _motion(values, state: _State, fail, number: int) -> Motion:
             raise fail(word, "no feed F given before this move")
         feed = state.feed
     state.position = end
-    return Motion(element, feed, number)
+    return Motion(element, feed, number, state.path_control)
 
 
 def _arc(values, state: _State, start: list[float], end: list[float], fail) -> Arc:

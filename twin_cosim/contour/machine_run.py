@@ -4,7 +4,9 @@ The per-axis references of a :class:`~twin_cosim.contour.interpolation.PlannedMo
 interpolated onto the position-loop grid (:func:`twin_cosim.reference.interpolate`), every axis
 runs on its own plant instance in the master (:func:`twin_cosim.cosim.run_axes`), and the
 contour record puts the programmed and the actual positions side by side with the contour
-error: the distance of the actual position to the programmed path. :func:`plot_contour` draws a
+error: the distance of the tool point to the programmed path (the tool point is the axes'
+positions moved by the machine's geometric errors,
+:class:`~twin_cosim.scenario.machine_geometry.MachineGeometry`). :func:`plot_contour` draws a
 program's run.
 """
 
@@ -25,6 +27,7 @@ from twin_cosim.plant import Plant
 from twin_cosim.reference import ReferenceGrid, interpolate
 from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario.machine import MachineScenario
+from twin_cosim.scenario.machine_geometry import MachineGeometry
 
 MAGNIFICATION_SHARE = 0.05  # the drawn contour error at its largest: this share of the part's size
 
@@ -67,7 +70,8 @@ class MachineRecord:
         Axis name -> its record (columns of :data:`twin_cosim.cosim.RECORD_COLUMNS`).
     contour : RunRecord
         One row per position-loop sample: ``t`` (s), ``<axis>_ref`` and ``<axis>`` (m) of each
-        axis (lower-case names), ``contour_error`` (m, distance of the actual position to the
+        axis (lower-case names), on a machine with geometric errors ``x_tool`` and ``y_tool``
+        (m, the tool point), ``contour_error`` (m, distance of the tool point to the
         programmed path).
     """
 
@@ -96,7 +100,9 @@ def axis_grids(machine: MachineScenario, motion: PlannedMotion) -> dict[str, Ref
     }
 
 
-def contour_record(records: dict[str, RunRecord], motion: PlannedMotion) -> RunRecord:
+def contour_record(
+    records: dict[str, RunRecord], motion: PlannedMotion, geometry: MachineGeometry
+) -> RunRecord:
     """The contour record of per-axis records (see :class:`MachineRecord`)."""
     first = next(iter(records.values()))
     columns = {"t": first["t"]}
@@ -105,6 +111,9 @@ def contour_record(records: dict[str, RunRecord], motion: PlannedMotion) -> RunR
         columns[f"{name.lower()}_ref"] = record["x_ref"]
         columns[name.lower()] = record["x"]
         actual[:, "XYZ".index(name)] = record["x"]
+    if not geometry.is_ideal:
+        actual[:, 0], actual[:, 1] = geometry.tool_point(actual[:, 0], actual[:, 1])
+        columns["x_tool"], columns["y_tool"] = actual[:, 0].copy(), actual[:, 1].copy()
     columns["contour_error"] = distance_to_path(motion.elements, actual)
     units = {name: "s" if name == "t" else "m" for name in columns}
     return RunRecord.from_columns(columns, units)
@@ -149,7 +158,22 @@ def run_machine(
     ]
     recorded = run_axes(runs, fast, abort_error)
     records = {name: axis.position_loop for name, axis in recorded.items()}
-    return MachineRecord(records, contour_record(records, motion))
+    return MachineRecord(records, contour_record(records, motion, machine.geometry))
+
+
+def tool_path(contour: RunRecord) -> tuple[np.ndarray, np.ndarray]:
+    """The tool point's X and Y (m) of a contour record: the axes' positions on a machine
+    without geometric errors."""
+    if "x_tool" in contour:
+        return contour["x_tool"], contour["y_tool"]
+    return contour["x"], contour["y"]
+
+
+def longest_path(machine: MachineScenario) -> float:
+    """The longest path time (s) a run of the machine may have: ``run.max_samples`` position-loop
+    samples, the settle time included."""
+    period = machine.axes[0].settings.position_period
+    return (machine.max_samples - 1) * period - machine.settle
 
 
 def contour_metrics(record: MachineRecord) -> dict[str, float]:
@@ -166,20 +190,36 @@ def axis_metrics(record: MachineRecord) -> dict[str, dict[str, float]]:
     return {name: compute_metrics(axis).as_dict() for name, axis in record.axes.items()}
 
 
+def plan_on(machine: MachineScenario, program: Program, feed_override: float = 1.0):
+    """The planned motion of a part program on the machine (its limits, interpolation period,
+    path control, look-ahead and longest run), the feed override a factor (1: 100 %)."""
+    return plan_program(
+        program,
+        machine.limits,
+        machine.sample_period,
+        machine.settle,
+        path_control=machine.path_control,
+        look_ahead=machine.look_ahead,
+        feed_override=feed_override,
+        max_duration=longest_path(machine),
+    )
+
+
 def run_program(
     machine: MachineScenario,
     program: Program,
     plants: MachinePlants,
     fast: bool = True,
     abort_error: float = math.inf,
+    feed_override: float = 1.0,
 ) -> tuple[MachineRecord, PlannedMotion]:
-    """Run a part program on the machine: its planned motion, then the run of every axis.
+    """Run a part program on the machine: its planned motion (:func:`plan_on`), then the run of
+    every axis.
 
     The program starts at the machine's origin (every axis at 0 m); ``abort_error`` as for
-    :func:`run_machine` (m).
+    :func:`run_machine` (m); ``feed_override`` a factor on the programmed feeds.
     """
-    limits = {axis.name: axis.limits for axis in machine.axes}
-    motion = plan_program(program, limits, machine.sample_period, machine.settle)
+    motion = plan_on(machine, program, feed_override)
     return run_machine(machine, motion, plants, fast, abort_error), motion
 
 
@@ -205,7 +245,7 @@ def plot_contour(record: MachineRecord, title: str, command: str, path: Path) ->
     contour = record.contour
     t = contour["t"]
     ref = contour.select(["x_ref", "y_ref"]).to_numpy()
-    actual = contour.select(["x", "y"]).to_numpy()
+    actual = np.column_stack(tool_path(contour))
     error = contour["contour_error"]
     size = float(np.ptp(ref, axis=0).max()) or 1e-3
     gain = MAGNIFICATION_SHARE * size / max(float(error.max()), 1e-12)

@@ -430,6 +430,7 @@ class MachineProblem:
             "reference": record["references"],
             "details": {
                 "reference_fitness": values[0] if record["relative"] else max(values),
+                "relative": record["relative"],
                 "cases": record["cases"],
                 "target": self.settings.target,
             },
@@ -498,9 +499,11 @@ class ContourObjective:
         Returns
         -------
         dict
-            ``fitness`` (um), ``status`` (ok, violation, unstable, failed, stopped),
-            ``reason``, ``metrics`` (the worst case's target value and per case the values) and
-            ``steps`` (speed-loop steps simulated, all axes).
+            ``fitness`` (um; relative scores in the first case's units), ``status`` (ok,
+            violation, unstable, failed, stopped), ``reason``, ``metrics`` (the target's largest
+            value over the cases and its case, e.g. ``G`` and ``G_case``; the worst case, the one
+            that sets the fitness, and its own value, ``worst_case`` and ``worst_case_G``; per
+            case the values) and ``steps`` (speed-loop steps simulated, all axes).
         """
         return self._own.evaluate(task, self.evaluate)
 
@@ -538,9 +541,13 @@ class ContourObjective:
         self._order.first(worst_case)
         status = "ok" if all(r["status"] == "ok" for r in ordered) else "violation"
         reason = "; ".join(r["reason"] for r in ordered if r["reason"])
+        target = settings.target
+        largest = max(range(len(ordered)), key=lambda i: ordered[i][target])
         metrics = {
-            settings.target: max(r[settings.target] for r in ordered),
+            target: ordered[largest][target],
+            f"{target}_case": ordered[largest]["case"],
             "worst_case": ordered[worst_case]["case"],
+            f"worst_case_{target}": ordered[worst_case][target],
             "runs": ordered,
         }
         return evaluation_result(scores[worst_case], status, reason, metrics, steps)

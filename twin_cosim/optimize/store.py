@@ -183,11 +183,19 @@ def write_result(out_dir: Path, result: dict[str, Any]) -> None:
 
 
 def logged_fitness(out_dir: Path) -> tuple[np.ndarray, list[str]]:
-    """Fitness (um) and status of each logged evaluation, in log order."""
+    """Fitness (um) and status of each evaluation the optimizer was told, in log order.
+
+    A candidate that early stopping runs in a second pass of its generation (stopped in the
+    first) is logged twice: it counts once, with its final result, where it first appears.
+    """
     log = EvaluationLog(Path(out_dir) / "evaluations.jsonl")
     entries = log.entries
     log.close()
-    return np.array([e["fitness"] for e in entries], dtype=float), [e["status"] for e in entries]
+    final: dict[tuple[str, Any], dict[str, Any]] = {}  # keeps each first place
+    for entry in entries:
+        final[(entry["key"], entry.get("generation"))] = entry
+    told = list(final.values())
+    return np.array([e["fitness"] for e in told], dtype=float), [e["status"] for e in told]
 
 
 LOG_KEYS = frozenset({"key", "x", "fitness"})

@@ -9,11 +9,16 @@ Layout (``axes`` is required, every other section optional)::
       X:
         plant: {model: drive2mass, parameters: {}, parameters_file: x_plant.yaml}
         controller: {parameters: ft, settings: {}}
-        limits: {velocity: 0.25, acceleration: 2.0, jerk: 40.0}    # m/s, m/s^2, m/s^3
+        limits: {velocity: 0.25, acceleration: 2.0, jerk: 40.0,    # m/s, m/s^2, m/s^3
+                 travel: [-0.2, 0.2]}                              # m: soft limits (optional)
       Y: {...}
       Z: {...}                          # optional
     interpolation:
       sample_period: 0.004              # s: the CNC's interpolation period
+      path_mode: G61                    # G61: exact stop at every block end; G64: blending
+      tolerance: 5.0e-6                 # m: G64's P (Q: P/2), how far the path may leave a corner
+      look_ahead: 200                   # blocks the planner looks ahead
+    geometry: {...}                     # geometric errors (twin_cosim.scenario.machine_geometry)
     program: part.nc                    # a part program (G-code), relative to the file
     run:
       settle: 0.2                       # s of standstill recorded after the path's end
@@ -36,27 +41,31 @@ ordinary single-axis :class:`~twin_cosim.scenario.resolved.Scenario` once its re
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from fmu_build.build import build_fmu
 from twin_cosim.controller import ControllerSettings, TunedParameters
-from twin_cosim.plant_model import model_of
+from twin_cosim.plant_model import model_of, plant_model
 from twin_cosim.reference import ReferenceError, ReferenceGrid, check_periods
 from twin_cosim.scenario.controller_section import controller_section
 from twin_cosim.scenario.loader import MAX_SAMPLES, find_scenario, read_top_level
+from twin_cosim.scenario.machine_geometry import MachineGeometry, geometry_section
 from twin_cosim.scenario.plant_section import plant_section
 from twin_cosim.scenario.resolved import Scenario
-from twin_cosim.schema import Checker, load_yaml
+from twin_cosim.schema import Checker, ScenarioError, load_yaml
 
 AXIS_NAMES = ("X", "Y", "Z")
+SINGLE_AXIS_KEYS = {"plant", "controller", "reference"}  # a single-axis scenario's sections
 AXIS_KEYS = {"plant", "controller", "limits"}
 MACHINE_KEYS = {
     "name",
     "description",
     "axes",
     "interpolation",
+    "geometry",
     "program",
     "run",
     "optimize",
@@ -76,11 +85,61 @@ class AxisLimits:
         Largest acceleration, m/s^2.
     jerk : float
         Largest jerk, m/s^3.
+    travel : tuple or None
+        Soft limits (low, high) of the axis' position, m; None: no limit.
     """
 
     velocity: float
     acceleration: float
     jerk: float
+    travel: tuple[float, float] | None = None
+
+
+PATH_MODES = ("G61", "G64")
+LOOK_AHEAD = 200  # blocks the planner looks ahead by default
+
+
+@dataclass(frozen=True)
+class PathControl:
+    """How the path passes the joins of its blocks (RS274/NGC's path control mode).
+
+    Attributes
+    ----------
+    mode : str
+        ``G61``: exact stop, every block ends at rest; ``G64``: blending, the path keeps its
+        speed through tangent joins and rounds corners within ``tolerance``.
+    tolerance : float
+        G64's P: how far the path may leave a programmed corner, m; ``inf`` for G64 without P
+        (the best speed, the corner rounded as far as the blocks allow).
+    merge_tolerance : float
+        G64's Q, LinuxCNC's naive CAM tolerance: consecutive straight moves in the XY plane
+        whose corners lie within it of one straight line are traversed as that line, m (P/2
+        when Q is not given, below P; the corners of merged lines blend within P - Q, so that
+        the path stays within P; 0 for G64 without P: none merged).
+    """
+
+    mode: str = "G61"
+    tolerance: float = math.inf
+    merge_tolerance: float = 0.0
+
+    @property
+    def blends(self) -> bool:
+        """Whether joins are blended (G64)."""
+        return self.mode == "G64"
+
+    def describe(self) -> str:
+        """``G61`` or ``G64 P<tolerance in mm>``, as a program writes it."""
+        if not self.blends:
+            return "G61"
+        if math.isinf(self.tolerance):
+            return "G64"
+        written = f"G64 P{self.tolerance * 1e3:g}"
+        if self.merge_tolerance != self.tolerance / 2:
+            written += f" Q{self.merge_tolerance * 1e3:g}"
+        return written
+
+
+EXACT_STOP = PathControl("G61")
 
 
 @dataclass(frozen=True)
@@ -125,6 +184,13 @@ class AxisSetup:
         """The axis' plant model: its model, else its FMU file's model identifier."""
         return self.model if self.model is not None else model_of(self.fmu)
 
+    def screw_lead(self) -> float:
+        """Carriage travel per screw revolution, m: 2 pi times the travel per motor radian
+        times the motor radians per screw radian (the plant card's ``motor_per_screw``)."""
+        card = plant_model(self.model_name())
+        values = {**card.start_values(), **self.plant_parameters}
+        return 2 * math.pi * self.settings.travel_per_rad * card.motor_per_screw(values)
+
 
 @dataclass(frozen=True)
 class MachineScenario:
@@ -148,6 +214,12 @@ class MachineScenario:
         Standstill after the end of the path, s, that every run keeps recording.
     max_samples : int
         Position-loop samples a run may have at most.
+    path_control : PathControl
+        The path control mode a program runs with until it sets its own (``G61``, ``G64``).
+    look_ahead : int
+        Blocks the planner looks ahead: every join's speed allows a stop within them.
+    geometry : MachineGeometry
+        The geometric errors between the axes' positions and the tool point.
     optimize : dict
         The raw ``optimize`` section (contour tuning).
     diagnose : dict
@@ -162,6 +234,9 @@ class MachineScenario:
     program: Path | None = None
     settle: float = 0.2
     max_samples: int = 2_400_000
+    path_control: PathControl = EXACT_STOP
+    look_ahead: int = LOOK_AHEAD
+    geometry: MachineGeometry = MachineGeometry()
     optimize: dict[str, Any] = field(default_factory=dict)
     diagnose: dict[str, Any] = field(default_factory=dict)
 
@@ -169,6 +244,11 @@ class MachineScenario:
     def axis_names(self) -> tuple[str, ...]:
         """The axes' names, in order."""
         return tuple(a.name for a in self.axes)
+
+    @property
+    def limits(self) -> dict[str, AxisLimits]:
+        """Each axis' limits by name, in order."""
+        return {a.name: a.limits for a in self.axes}
 
     def axis(self, name: str) -> AxisSetup:
         """The axis of that name; ValueError names the machine's axes when there is none."""
@@ -263,14 +343,52 @@ def _axis(check: Checker, name: str, body: dict[str, Any]) -> AxisSetup:
 
 
 def _limits(check: Checker, data: Any) -> AxisLimits:
-    given = check.mapping(data, "limits", {"velocity", "acceleration", "jerk"})
+    given = check.mapping(data, "limits", {"velocity", "acceleration", "jerk", "travel"})
     values = {
         key: check.number(
             given.get(key, getattr(DEFAULT_LIMITS, key)), f"limits.{key}", positive=True
         )
         for key in ("velocity", "acceleration", "jerk")
     }
-    return AxisLimits(**values)
+    return AxisLimits(**values, travel=_travel(check, given.get("travel")))
+
+
+def _travel(check: Checker, data: Any) -> tuple[float, float] | None:
+    """The soft limits [low, high] (m) around the origin, where programs start; None: none."""
+    if data is None:
+        return None
+    if not (isinstance(data, list) and len(data) == 2):
+        raise check.fail("limits.travel", "[low, high] in m", data)
+    low = check.number(data[0], "limits.travel[0]")
+    high = check.number(data[1], "limits.travel[1]")
+    if not low <= 0.0 <= high or low == high:
+        raise check.fail(
+            "limits.travel", "[low, high] in m with low <= 0 <= high, low < high", data
+        )
+    return (low, high)
+
+
+def _interpolation(check: Checker, data: Any) -> tuple[float, PathControl, int]:
+    """The ``interpolation`` section: sample period (s), path control, look-ahead (blocks)."""
+    given = check.mapping(
+        data, "interpolation", {"sample_period", "path_mode", "tolerance", "look_ahead"}
+    )
+    period = check.number(
+        given.get("sample_period", 0.004), "interpolation.sample_period", positive=True
+    )
+    mode = given.get("path_mode", "G61")
+    if mode not in PATH_MODES:
+        raise check.fail("interpolation.path_mode", f"one of {list(PATH_MODES)}", mode)
+    tolerance = math.inf
+    if "tolerance" in given:
+        if mode != "G64":
+            raise check.fail("interpolation.tolerance", "no tolerance with G61 (exact stop)")
+        tolerance = check.number(given["tolerance"], "interpolation.tolerance", positive=True)
+    look_ahead = check.number(given.get("look_ahead", LOOK_AHEAD), "interpolation.look_ahead")
+    if look_ahead != int(look_ahead) or look_ahead < 1:
+        raise check.fail("interpolation.look_ahead", "a whole number of blocks >= 1", look_ahead)
+    merge = 0.0 if math.isinf(tolerance) else tolerance / 2
+    return period, PathControl(mode, tolerance, merge), int(look_ahead)
 
 
 def is_machine_scenario(path: Path | str) -> bool:
@@ -288,14 +406,20 @@ def load_machine(path: Path | str) -> MachineScenario:
         On malformed YAML, unknown keys, wrong types, non-finite or out-of-range values; the
         message names the file and the key path.
     """
+    source = find_scenario(path)
+    loaded = load_yaml(source)
+    if isinstance(loaded, dict) and "axes" not in loaded and SINGLE_AXIS_KEYS & set(loaded):
+        raise ScenarioError(
+            f"{source}: a single-axis scenario (plant, controller, reference); this command "
+            "needs a machine scenario, with axes: (X, Y and optionally Z), e.g. xy_table"
+        )
     check, data, name = read_top_level(
-        path, MACHINE_KEYS, "axes", "an axes section (X, Y and optionally Z)"
+        source, MACHINE_KEYS, "axes", "an axes section (X, Y and optionally Z)"
     )
-    source = Path(check.source)
     axes = axes_section(check, data["axes"])
-    interpolation = check.mapping(data.get("interpolation"), "interpolation", {"sample_period"})
-    sample_period = check.number(
-        interpolation.get("sample_period", 0.004), "interpolation.sample_period", positive=True
+    sample_period, path_control, look_ahead = _interpolation(check, data.get("interpolation"))
+    geometry = geometry_section(
+        check, data.get("geometry"), {a.name: a.limits.travel for a in axes}
     )
     try:
         check_periods(sample_period, axes[0].settings.position_period)
@@ -314,6 +438,9 @@ def load_machine(path: Path | str) -> MachineScenario:
         max_samples=int(
             check.number(run.get("max_samples", MAX_SAMPLES), "run.max_samples", minimum=2)
         ),
+        path_control=path_control,
+        look_ahead=look_ahead,
+        geometry=geometry,
         optimize=check.mapping(data.get("optimize"), "optimize"),
         diagnose=check.mapping(data.get("diagnose"), "diagnose"),
     )

@@ -1,4 +1,5 @@
-"""Part programs: the subset's semantics, and every line outside it refused by line and word."""
+"""Part programs: the subset's semantics, CAM words accepted and listed, path control, and every
+line outside the subset refused by line and word."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import math
 import pytest
 
 from twin_cosim.contour.gcode import Arc, Line, Motion, Pause, ProgramError, parse_program
+from twin_cosim.scenario.machine import PathControl
 
 
 def _motions(text: str, axes=("X", "Y")):
@@ -60,7 +62,7 @@ def test_comments_numbers_and_modal_motion():
         ("G01 Z1 F100", 1, "Z1"),
         ("G01 X1 X2 F1", 1, "X2"),
         ("G00 G01 X1 F1", 1, "G01"),
-        ("M3", 1, "M3"),
+        ("M98 P100", 1, "M98"),
         ("G01 X1 F100\nG02 X2 Y0 R0.1", 2, "R0.1"),
         ("G01 X10 F100\nG02 X0 Y0 I-4 J0\n", 2, "I-4"),
         ("G01 X10 F100\nG03 X0 Y10 R10 I1", 2, "R10"),
@@ -84,3 +86,79 @@ def test_a_line_outside_the_subset_is_refused_naming_line_and_word(text, line, w
 def test_an_arc_with_a_z_change_is_refused_on_a_three_axis_machine():
     with pytest.raises(ProgramError, match="line 2: Z1: .*helix"):
         parse_program("G01 X1 F100\nG02 X0 Y1 Z1 R1", axes=("X", "Y", "Z"))
+
+
+CAM = """%
+O1001 (POCKET)
+N10 G17 G21 G40 G49 G80 G90 G94
+N20 T1 M06
+N30 S12000 M03
+N40 G54 M08
+N50 G64 P0.005
+N60 G00 X5. Y0.
+N70 G01 X10. F1200.
+N80 Y5.
+N90 M09
+N100 M05
+N110 M30
+%
+"""
+
+
+def test_cam_words_that_do_not_move_the_axes_are_accepted_and_listed():
+    program = parse_program(CAM, "cam.nc")
+    assert [m.element.end[:2] for m in _motions(CAM)] == [
+        pytest.approx((0.005, 0.0)),
+        pytest.approx((0.01, 0.0)),
+        pytest.approx((0.01, 0.005)),
+    ]
+    words = [(w.line, w.word) for w in program.ignored]
+    assert words == [
+        (2, "O1001"),
+        (3, "G40"),
+        (3, "G49"),
+        (3, "G80"),
+        (4, "T1"),
+        (4, "M06"),
+        (5, "S12000"),
+        (5, "M03"),
+        (6, "G54"),
+        (6, "M08"),
+        (11, "M09"),
+        (12, "M05"),
+    ]
+    assert program.ignored_summary().startswith("O1001 (line 2), G40 (line 3)")
+
+
+def test_g64_and_g61_are_modal_path_control_with_p_and_q_in_program_units():
+    blocks = parse_program(
+        "G01 X1 F100\nG64 P0.01\nX2\nG64 P0.02 Q0.005\nX3\nG61\nX4\nG64\nX5\nG20 G64 P0.001\nX6"
+    ).blocks
+    controls = [b.path_control for b in blocks]
+    assert controls[0] is None  # before the program sets one: the machine's
+    assert controls[1] == PathControl("G64", 1e-5, 5e-6)  # Q: P/2 by default
+    assert controls[2] == PathControl("G64", 2e-5, 5e-6)
+    assert controls[3] == PathControl("G61")
+    assert controls[4].tolerance == math.inf and controls[4].merge_tolerance == 0.0
+    assert controls[5].tolerance == pytest.approx(0.0254e-3)  # inch
+    assert parse_program("G61.1\nG01 X1 F100").blocks[0].path_control == PathControl("G61")
+
+
+@pytest.mark.parametrize(
+    ("text", "word", "what"),
+    [
+        ("G64 Q0.01\nG01 X1 F100", "Q0.01", "needs P"),
+        ("G64 P0.01 Q0.02\nG01 X1 F100", "Q0.02", "0 <= Q < P"),
+        ("G64 P-1\nG01 X1 F100", "P-1", ">= 0"),
+        ("G61 P0.01", "P0.01", "belongs to G64"),
+        ("G04 G64 P1", "G64", "dwell"),
+        ("G01 X1 F100 Q2", "Q2", "belongs to G64"),
+        ("G43 H1 Z5", "H1", "outside the subset"),
+        ("G43 Z5", "G43", "outside the subset"),
+        ("G55", "G55", "outside the subset"),
+    ],
+)
+def test_path_control_words_are_checked(text, word, what):
+    with pytest.raises(ProgramError) as error:
+        parse_program(text, "p.nc", axes=("X", "Y", "Z"))
+    assert word in str(error.value) and what in str(error.value)

@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec
-from twin_cosim.contour.circle_diagnosis import diagnose_circle, synthesize_circle
+from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec, circle_motion
+from twin_cosim.contour.circle_diagnosis import diagnose_circle, synthesize_motion
 from twin_cosim.contour.machine_run import MachinePlants
 from twin_cosim.contour.measured_circle import read_measured_circle, replay_circle
 from twin_cosim.gap.synth import parse_effect
@@ -23,7 +23,7 @@ def machine():
 
 
 def _write(machine, tmp_path, effects=None, **noise):
-    table = synthesize_circle(machine, SPEC, effects or {}, **noise)
+    table = synthesize_motion(machine, circle_motion(machine, SPEC)[0], effects or {}, **noise)
     path = tmp_path / "measured.csv"
     table.frame().to_csv(path, index=False)
     return path

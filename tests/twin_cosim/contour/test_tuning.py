@@ -9,6 +9,7 @@ import textwrap
 import numpy as np
 import pytest
 
+from twin_cosim.commands.optimize_machine import _outcome
 from twin_cosim.contour.machine_run import contour_metrics
 from twin_cosim.contour.tuning import (
     ContourCampaignSpec,
@@ -60,6 +61,11 @@ def test_the_objective_scores_the_reference_at_its_own_value_and_caps_iau(machin
         own = objective(machine_vector(machine))
         assert own["status"] == "ok"
         assert own["fitness"] == pytest.approx(references[0]["G"])  # relative: case 0's units
+        runs = {run["case"]: run for run in own["metrics"]["runs"]}
+        metrics = own["metrics"]  # each figure beside the case it belongs to
+        assert metrics["worst_case_G"] == runs[metrics["worst_case"]]["G"]
+        assert metrics["G"] == max(run["G"] for run in runs.values())
+        assert metrics["G"] == runs[metrics["G_case"]]["G"]
         hungry = machine_vector(machine).copy()
         hungry[1] = hungry[7] = 1.4  # Kp_vel of both axes: more current
         scored = objective(EvaluationTask(hungry))
@@ -98,6 +104,10 @@ def test_a_campaign_resumes_to_the_same_result_and_refuses_another(machine_file,
     first = run_contour_campaign(spec, tmp_path / "a", workers=1, progress=False)
     assert set(first.best_params["axes"]) == {"X", "Y"}
     assert first.evaluations == 8 and first.details["reference_fitness"] > 0
+    said = _outcome(first)  # relative: a ratio, each figure beside its own case
+    ratio = first.fitness / first.details["reference_fitness"]
+    assert f"worst case {first.metrics['worst_case']} at {ratio:.3f} of the reference" in said
+    assert f"largest G {first.metrics['G']:.3f} um on {first.metrics['G_case']}" in said
     log = (tmp_path / "a" / "evaluations.jsonl").read_text().splitlines()
     (tmp_path / "b").mkdir()
     (tmp_path / "b" / "campaign.json").write_text((tmp_path / "a" / "campaign.json").read_text())

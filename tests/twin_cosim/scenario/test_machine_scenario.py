@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import textwrap
 
 import numpy as np
@@ -67,6 +68,15 @@ def test_each_axis_has_its_own_plant_parameters_and_controller(tmp_path):
         ),
         ("axes: {X: {controller: {parameters: zz}}, Y: {}}", "axes.X.controller.parameters"),
         ("axes: {X: {}, Y: {}}\ninterpolation: {sample_period: 0.0013}", "interpolation.sample"),
+        ("axes: {X: {limits: {travel: [0.1, 0.5]}}, Y: {}}", "axes.X.limits.travel: expected"),
+        ("axes: {X: {limits: {travel: 0.5}}, Y: {}}", "axes.X.limits.travel: expected [low"),
+        ("axes: {X: {}, Y: {}}\ninterpolation: {path_mode: G62}", "interpolation.path_mode"),
+        ("axes: {X: {}, Y: {}}\ninterpolation: {tolerance: 1.0e-5}", "interpolation.tolerance"),
+        ("axes: {X: {}, Y: {}}\ninterpolation: {look_ahead: 0}", "interpolation.look_ahead"),
+        ("axes: {X: {}, Y: {}}\ngeometry: {scale: {X: a}}", "geometry.scale.X: expected a number"),
+        ("axes: {X: {}, Y: {}}\ngeometry: {straightness: {X: 2}}", "axes.X.limits.travel"),
+        ("axes: {X: {}, Y: {}}\ngeometry: {cyclic: {Y: {amplitude_um: 1}}}", "cyclic.Y.period"),
+        ("axes: {X: {}, Y: {}}\ngeometry: {roll: 1}", "geometry: unknown key(s) ['roll']"),
     ],
 )
 def test_errors_name_the_file_and_the_key(tmp_path, text, message):
@@ -84,3 +94,54 @@ def test_an_axis_is_a_single_axis_scenario_once_its_reference_is_known():
     assert scenario.plant_parameters["load_position_start"] == 0.01
     assert scenario.tuned == machine.axis("Y").tuned
     assert scenario.reference is grid
+
+
+def test_travel_path_control_and_geometry_are_read_in_their_units(tmp_path):
+    path = _write(
+        tmp_path,
+        """
+        axes:
+          X: {limits: {travel: [-0.3, 0.5]}}
+          Y: {limits: {travel: [-0.2, 0.2]}}
+        interpolation: {path_mode: G64, tolerance: 1.0e-5, look_ahead: 50}
+        geometry:
+          squareness: 20.0
+          scale: {X: 15.0}
+          straightness: {Y: 3.0}
+          cyclic: {X: {amplitude_um: 1.5, period_mm: 5.0}}
+        """,
+    )
+    machine = load_machine(path)
+    assert machine.limits["X"].travel == (-0.3, 0.5)
+    assert machine.path_control.describe() == "G64 P0.01"
+    assert machine.path_control.merge_tolerance == 5e-6 and machine.look_ahead == 50
+    geometry = machine.geometry
+    assert geometry.squareness == pytest.approx(20e-6)
+    assert geometry.scale == {"X": pytest.approx(15e-6)}
+    assert geometry.straightness["Y"] == pytest.approx(3e-6)
+    assert geometry.cyclic["X"].amplitude == pytest.approx(1.5e-6)
+    assert geometry.cyclic["X"].period == pytest.approx(5e-3)
+    assert geometry.as_dict()["cyclic"] == {"X": {"amplitude_um": 1.5, "period_mm": 5.0}}
+    shipped = load_machine("xy_table")
+    assert shipped.path_control.describe() == "G61" and shipped.geometry.is_ideal
+    assert all(axis.limits.travel == (-0.4, 0.4) for axis in shipped.axes)
+
+
+def test_the_geometry_moves_the_tool_as_its_signs_say():
+    machine = load_machine("xy_table")
+    square = dataclasses.replace(machine.geometry, squareness=1e-3)  # the angle X-Y: obtuse
+    x, y = square.tool_point(np.array([0.0, 0.01]), np.array([0.01, 0.0]))
+    # +Y runs along (-1e-3, 1): the tool at Y = 10 mm leans towards -X
+    assert x[0] == pytest.approx(-1e-5) and y[0] == pytest.approx(0.01)
+    assert x[1] == pytest.approx(0.01) and y[1] == 0.0
+    bow = dataclasses.replace(machine.geometry, straightness={"X": 2e-6}, travel={"X": (-0.4, 0.4)})
+    _, y = bow.tool_point(np.array([-0.4, 0.0, 0.4]), np.zeros(3))
+    assert y == pytest.approx([0.0, 2e-6, 0.0], abs=1e-18)  # 0 at the ends, the bow mid-travel
+
+
+def test_a_single_axis_scenario_is_not_a_machine_and_the_error_says_so():
+    with pytest.raises(ScenarioError) as error:
+        load_machine("reference1")
+    message = str(error.value)
+    assert "needs a machine scenario" in message and "axes:" in message and "xy_table" in message
+    assert "unknown key" not in message
