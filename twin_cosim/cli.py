@@ -1,5 +1,5 @@
 """The ``twin`` command line: build, simulate, circle, optimize, compare, synth, diagnose, table3,
-ssp, bode, calibrate, autotune.
+ssp, bode, calibrate, autotune, serve, watch.
 
 Each command is a module of :mod:`twin_cosim.commands` (its arguments and ``run``). Only the
 standard library and the light registries are imported at start, so that ``twin --help`` answers
@@ -24,10 +24,12 @@ from twin_cosim.commands import (
     compare,
     diagnose,
     optimize,
+    serve,
     simulate,
     ssp,
     synth,
     table3,
+    watch,
 )
 from twin_cosim.commands.options import HelpFormatter
 from twin_cosim.environment import DATA_ENV
@@ -45,6 +47,8 @@ COMMANDS = (
     bode,
     calibrate,
     autotune,
+    serve,
+    watch,
 )  # in the help's order
 
 
