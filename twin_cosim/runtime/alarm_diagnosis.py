@@ -5,10 +5,16 @@ What it runs: :func:`twin_cosim.gap.diagnosis.diagnose` (the whole pipeline: flo
 rounds of fits judged on held-out data against the noise and calibration floors) of the
 baseline twin, with one effect at most and the hypotheses near the alarmed one: the tracked
 effects (the alarmed one among them), or the plant model's whole library for an alarm on the
-unexplained gap. The training data is the alarm's window; the held-out data the window before
-it when both ran the same reference, else the alarm's window is split in time. Its answer joins
-the alarm: the effect accepted (or none), the held-out gap before and after it, and how long it
-took.
+unexplained gap. The data: the first window from the alarm's on whose gap is at least
+:data:`DIAGNOSABLE_GAP` times the noise floor (the sequential test sees a drift of a fraction
+of the noise floor that no single window can show: the diagnosis waits for one that can, at
+most :data:`LONGEST_WAIT` windows), split in time: the fit on its first half, the judgement on
+its second (the window before ran another state of a drifting machine). The calibration
+tolerance is how well the baseline calibration knows the calibrated parameters (three of
+their standard errors, at least :data:`LEAST_TOLERANCE`; the datasheet tolerance of the
+diagnosis when the baseline came from a plant file): a drift since the baseline is not
+calibration error. Its answer joins the alarm: the effect accepted (or none), the held-out gap
+before and after it, and how long it took.
 """
 
 from __future__ import annotations
@@ -20,6 +26,20 @@ from typing import Any
 
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.scenario import Scenario
+
+DIAGNOSABLE_GAP = 1.5  # normalised RMS gap of a window worth diagnosing
+LONGEST_WAIT = 10  # windows after the alarm: the diagnosis runs then at the latest
+LEAST_TOLERANCE = 0.001  # relative
+
+
+def alarm_tolerance(precision: float | None) -> float:
+    """The calibration tolerance of an alarm's diagnosis from the baseline calibration's
+    precision (relative; None: no calibration, the diagnosis' own tolerance)."""
+    from twin_cosim.gap.settings import DiagnosisSettings
+
+    if precision is None:
+        return DiagnosisSettings().calibration_tolerance
+    return max(3.0 * precision, LEAST_TOLERANCE)
 
 
 @dataclass(frozen=True)
@@ -36,24 +56,28 @@ class AlarmJob:
         The alarmed effect (or ``unexplained``).
     scenario : Scenario
         The window's scenario with the baseline twin's plant parameters.
-    training : MeasuredRun
-        The alarm's window.
-    holdout : MeasuredRun or None
-        The window before it, when it ran the same reference.
+    run : MeasuredRun
+        The window diagnosed.
     hypotheses : tuple of str or None
         The hypotheses to fit (None: the whole library).
     fmu : str
         The plant FMU.
+    alarm_window : int
+        The window at which the alarm was raised (``window`` may come later: the first whose
+        gap is large enough to diagnose).
+    calibration_tolerance : float
+        How well the baseline twin's calibrated parameters are known (relative).
     """
 
     alarm: int
     window: int
     effect: str
     scenario: Scenario
-    training: MeasuredRun
-    holdout: MeasuredRun | None
+    run: MeasuredRun
     hypotheses: tuple[str, ...] | None
     fmu: str
+    alarm_window: int
+    calibration_tolerance: float
 
 
 def with_baseline(scenario: Scenario, parameters: dict[str, float]) -> Scenario:
@@ -69,9 +93,10 @@ def run_alarm_diagnosis(job: AlarmJob) -> dict[str, Any]:
     from twin_cosim.gap.settings import DiagnosisSettings
 
     start = time.perf_counter()
-    settings = DiagnosisSettings(max_effects=1, hypotheses=job.hypotheses)
-    holdout = [job.holdout] if job.holdout is not None else []
-    found = diagnose(job.scenario, [job.training], holdout, job.fmu, settings, workers=1)
+    settings = DiagnosisSettings(
+        max_effects=1, hypotheses=job.hypotheses, calibration_tolerance=job.calibration_tolerance
+    )
+    found = diagnose(job.scenario, [job.run], [], job.fmu, settings, workers=1)
     remaining = found.remaining
     accepted = [a if isinstance(a, str) else "+".join(a) for a in found.accepted]
     before, after = remaining.normalised_rms_before, remaining.times_noise_floor
@@ -79,9 +104,11 @@ def run_alarm_diagnosis(job: AlarmJob) -> dict[str, Any]:
         "event": "diagnosis",
         "alarm": job.alarm,
         "window": job.window,
+        "alarm_window": job.alarm_window,
         "alarmed_effect": job.effect,
+        "calibration_tolerance": job.calibration_tolerance,
         "hypotheses": list(job.hypotheses) if job.hypotheses else "library",
-        "held_out": "the window before" if job.holdout is not None else "time split",
+        "held_out": "the window's second half",
         "significant": bool(found.significant),
         "accepted": accepted,
         "effect": accepted[0] if accepted else None,

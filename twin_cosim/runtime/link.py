@@ -355,7 +355,8 @@ class MachineLink:
                 yield event
             self.last = read
             received = {
-                name: list(v) if v is not None else None for name, v in zip(arrays, values[1:])
+                name: list(v) if v is not None else None
+                for name, v in zip(arrays, values[1:], strict=True)
             }
             yield Received(read, received, time.time())
 

@@ -185,9 +185,11 @@ def report_text(entries: list[dict[str, Any]]) -> str:
         lines.append(f"- {alarm['text']}")
         found = diagnoses.get(alarm["alarm"])
         if found and not found.get("failed"):
+            tried = found["hypotheses"]
+            tried = tried if isinstance(tried, str) else ", ".join(tried)
             lines.append(
-                f"  - full diagnosis ({number(found['wall_s'])} s, hypotheses "
-                f"{found['hypotheses'] if isinstance(found['hypotheses'], str) else ', '.join(found['hypotheses'])}"
+                f"  - full diagnosis on window {found['window']} ({number(found['wall_s'])} s, "
+                f"hypotheses {tried}"
                 f", held out: {found['held_out']}): {found['effect'] or 'no effect accepted'}; "
                 f"held-out gap {number(found['gap_before'])} -> {number(found['gap_after'])} "
                 "times the noise floor"

@@ -70,12 +70,12 @@ DESIGN_ARL = 10_000.0  # windows: the average run length to a false alarm of all
 UNEXPLAINED = "unexplained"
 GAP_UNIT = "x noise floor"
 CACHED_LINEARISATIONS = 16
-# Beyond the linear range (a drift of many spreads), the update is refined (Gauss-Newton with
-# the baseline's J): the twin replayed with the values found, the update applied to what it
-# leaves, at most this many times, while the residual exceeds REFINE_ABOVE times what the
-# update leaves of it.
-MAX_REFINEMENTS = 3
-REFINE_ABOVE = 1.2
+# Beyond the linear range (a drift of many spreads), the update is refined (Gauss-Newton steps
+# with the baseline's J): the twin replayed with the values found and the update applied to
+# what it leaves, at most this many times, until a step moves the twin by less than REFINE_BELOW
+# times the noise floor (RMS); a stationary window's first update moves it far less.
+MAX_REFINEMENTS = 5
+REFINE_BELOW = 0.05
 
 
 @dataclass(frozen=True)
@@ -312,6 +312,7 @@ class Tracker:
         self.gathered: list[tuple[Window, WindowCase, int]] = []
         self.baseline: Baseline | None = None
         self._linearisations: OrderedDict[str, Linearisation] = OrderedDict()
+        self.precision: float | None = None  # of the calibration, relative (None: none made)
 
     @property
     def units(self) -> dict[str, str]:
@@ -408,7 +409,9 @@ class Tracker:
 
     def _calibrate(self, floors: Floors) -> dict[str, float]:
         """Relative corrections of the card's calibrated parameters (Gauss-Newton on the
-        baseline windows, a Gaussian prior of width the calibration tolerance)."""
+        baseline windows, a Gaussian prior of width the calibration tolerance); sets
+        :attr:`precision`, the largest standard error of a calibrated parameter moved alone
+        (relative) under noise at the floors."""
         names = [n for n in plant_model(self.model).calibrated if self.nominal.get(n, 0.0) != 0]
         tolerance = DiagnosisSettings().calibration_tolerance
         a = np.zeros(len(names))
@@ -434,6 +437,7 @@ class Tracker:
             system = np.vstack([jacobian, prior])
             rhs = np.concatenate([target, -prior @ a])
             a = a + np.linalg.lstsq(system, rhs, rcond=None)[0]
+        self.precision = float(np.max(1.0 / np.linalg.norm(jacobian, axis=0)))
         return {n: float(v) for n, v in zip(names, a, strict=True)}
 
     def _overrides(self, key_values: dict[str, float]) -> dict[str, float]:
@@ -492,9 +496,10 @@ class Tracker:
         r = np.concatenate([res.position / sx, res.current / si])
         theta = linear.pseudo_inverse @ r
         left = r - linear.jacobian @ theta
+        step = theta
         for _ in range(MAX_REFINEMENTS):
-            if np.sqrt(np.mean(r**2)) < REFINE_ABOVE * np.sqrt(np.mean(left**2)):
-                break  # the linear update is as good as the twin moved there would be
+            if np.sqrt(np.mean((linear.jacobian @ step) ** 2)) < REFINE_BELOW:
+                break  # the last step moves the twin by a small part of the noise
             moved = self._overrides(self._named(theta))
             res_at, _ = residuals(window, case, self.plant, moved)
             r = np.concatenate([res_at.position / sx, res_at.current / si])
@@ -576,6 +581,7 @@ class Tracker:
             "windows": [c.window for c in baseline.windows],
             "calibrated": self.calibrate,
             "corrections": baseline.corrections,
+            "calibration_precision": self.precision,
             "noise_floor_position_um": baseline.floors.sigma_position_m * 1e6,
             "noise_floor_current_ma": baseline.floors.sigma_current * 1e3,
             "repeating_cycle": baseline.repeating,

@@ -2,9 +2,10 @@
 
 Three tasks share one event loop: the link reads each window off the server
 (:mod:`twin_cosim.runtime.link`) into a short queue; the checker takes them in order and runs
-the tracker on each (:mod:`twin_cosim.runtime.tracker`; in a worker thread that owns the plant,
-so that the link keeps reading meanwhile); an alarm starts its diagnosis in a process of its own
-(:mod:`twin_cosim.runtime.alarm_diagnosis`), whose answer joins the log when it comes. The queue
+the tracker on each (:mod:`twin_cosim.runtime.tracker`; in a process of its own that owns the
+plant, so that a replay never holds up the link's reading); an alarm starts its diagnosis in
+another process (:mod:`twin_cosim.runtime.alarm_diagnosis`), whose answer joins the log when
+it comes. The queue
 absorbs a slow window (the calibration); a checker slower than the machine for long fills it,
 the link then reads late and counts the windows it missed. Everything goes to the log
 (:mod:`twin_cosim.runtime.watch_log`) as it happens, alarms also to stderr and, when the server
@@ -19,12 +20,13 @@ from __future__ import annotations
 
 import asyncio
 import multiprocessing
+import os
 import signal
 import sys
+import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,7 +34,14 @@ from typing import Any
 import numpy as np
 
 from twin_cosim.gap.report.verdict import number
-from twin_cosim.runtime.alarm_diagnosis import AlarmJob, run_alarm_diagnosis, with_baseline
+from twin_cosim.runtime.alarm_diagnosis import (
+    DIAGNOSABLE_GAP,
+    LONGEST_WAIT,
+    AlarmJob,
+    alarm_tolerance,
+    run_alarm_diagnosis,
+    with_baseline,
+)
 from twin_cosim.runtime.information_model import WindowError, window_of
 from twin_cosim.runtime.link import LinkEvent, MachineLink, Missed, Notice, Received
 from twin_cosim.runtime.security import Security
@@ -41,8 +50,9 @@ from twin_cosim.runtime.watch_log import LOG_NAME, WindowLog, quantity
 from twin_cosim.runtime.window_replay import measured_run, window_case
 from twin_cosim.scenario import Scenario
 
-QUEUE_WINDOWS = 4  # windows read and waiting to be checked
+QUEUE_WINDOWS = 8  # windows read and waiting to be checked
 DASHBOARD_POINTS = 1500  # samples of the last window the live page draws
+DIAGNOSIS_NICENESS = 10
 
 
 @dataclass(frozen=True)
@@ -149,7 +159,7 @@ def alarm_line(alarm: Alarm) -> str:
     )
 
 
-def alarm_entry(alarm: Alarm, number_: int, units: dict[str, str]) -> dict[str, Any]:
+def alarm_entry(alarm: Alarm, number_: int) -> dict[str, Any]:
     """An alarm as its log line."""
     return {
         "event": "alarm",
@@ -258,6 +268,7 @@ class _Diagnoses:
 def _diagnosis_process(job: AlarmJob, queue: Any) -> None:
     """A diagnosis process: runs the job, sends its result (or its error) back."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the watch stops it itself
+    os.nice(DIAGNOSIS_NICENESS)  # the checker keeps up with the machine meanwhile
     try:
         queue.put(run_alarm_diagnosis(job))
     except Exception as exc:  # noqa: BLE001 - reported in the log, the watch goes on
@@ -270,6 +281,85 @@ def _diagnosis_process(job: AlarmJob, queue: Any) -> None:
                 "text": f"{type(exc).__name__}: {exc}",
             }
         )
+
+
+class _Checker:
+    """The tracker in a process of its own (it owns the plant), so that the link's reading is
+    never held up by a replay: requests and answers over a pipe."""
+
+    def __init__(self, options: WatchOptions) -> None:
+        context = multiprocessing.get_context("spawn")
+        self._conn, child = context.Pipe()
+        self.process = context.Process(
+            target=_checker_main,
+            args=(
+                child,
+                options.scenario,
+                options.fmu,
+                options.tracked,
+                options.baseline,
+                options.calibrate,
+                options.design_arl,
+            ),
+            daemon=True,
+        )
+        self.process.start()
+        child.close()
+        self._lock = threading.Lock()
+
+    def call(self, request: tuple) -> Any:
+        """Send a request, wait for its answer (from a worker thread of the event loop)."""
+        with self._lock:
+            self._conn.send(request)
+            kind, answer = self._conn.recv()
+        if kind == "error":
+            raise answer
+        if kind == "failed":
+            raise RuntimeError(f"the checker failed: {answer}")
+        return answer
+
+    def stop(self) -> None:
+        """End the process."""
+        self.process.terminate()
+        self.process.join(2.0)
+        if self.process.is_alive():
+            self.process.kill()
+
+
+def _checker_main(conn: Any, scenario, fmu, tracked, baseline, calibrate, design_arl) -> None:
+    """The checker process: a tracker answering ``("check", index, window, label)`` with the
+    check, its alarms and its CPU-side time, and ``("baseline",)`` with the baseline's log line."""
+    import traceback
+
+    from twin_cosim.plant import Plant
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the watch stops it itself
+    with Plant(fmu) as plant:
+        tracker = Tracker(scenario, plant, tracked, baseline, calibrate, design_arl)
+        conn.send(("ok", None))
+        while True:
+            try:
+                request = conn.recv()
+            except EOFError:  # the watch has gone
+                return
+            try:
+                if request[0] == "check":
+                    started = time.perf_counter()
+                    check, alarms = tracker.check(*request[1:])
+                    elapsed = time.perf_counter() - started
+                    answer: Any = (_with_time(check, elapsed), alarms, tracker.ready)
+                else:
+                    started = time.perf_counter()
+                    tracker.make_baseline()
+                    answer = tracker.describe_baseline() | {
+                        "wall_s": time.perf_counter() - started,
+                        "parameters": tracker.baseline.parameters,
+                    }
+                conn.send(("ok", answer))
+            except WindowError as exc:
+                conn.send(("error", exc))
+            except Exception:  # noqa: BLE001 - sent to the watch, which stops with it
+                conn.send(("failed", traceback.format_exc(limit=6)))
 
 
 class Watch:
@@ -289,9 +379,10 @@ class Watch:
         )
         self.dashboard: Any = None
         self.state: dict[str, Any] = {"windows": [], "alarms": [], "last": None, "status": ""}
-        self._recent: deque[tuple[int, Any, Any]] = deque(maxlen=2)  # (index, window, case)
+        self._last: tuple[int, Any, Any] | None = None  # the last window: index, window, case
         self._index = 0
         self._read_done = False
+        self._undiagnosed: list[tuple[Alarm, int]] = []
 
     def _say(self, text: str) -> None:
         if not self.options.quiet:
@@ -317,31 +408,33 @@ class Watch:
                 f"({number(result['wall_s'])} s)",
                 file=sys.stderr,
             )
-        self.state["alarms"] = self.summary.alarms
+        self._publish()
+
+    def _publish(self) -> None:
+        """Hand the live page a new state (replaced whole: its server reads it meanwhile)."""
+        if self.dashboard is not None:
+            self.dashboard.state = {
+                "windows": list(self.state["windows"]),
+                "alarms": [dict(a) for a in self.summary.alarms],
+                "last": self.state["last"],
+                "units": self.state.get("units", {}),
+                "status": self.state["status"],
+            }
 
     async def run(self) -> WatchSummary:
         """Watch until the window limit, a signal, or the link gives up."""
-        from twin_cosim.plant import Plant
-
         loop = asyncio.get_running_loop()
         if self.options.dashboard_port is not None:
             from twin_cosim.runtime.dashboard import Dashboard
 
-            self.dashboard = Dashboard(self.options.dashboard_port, self.state)
+            self.dashboard = Dashboard(self.options.dashboard_port)
             self.dashboard.start()
         queue: asyncio.Queue[LinkEvent | None] = asyncio.Queue(QUEUE_WINDOWS)
-        executor = ThreadPoolExecutor(1, thread_name_prefix="twin-check")
-        plant = await loop.run_in_executor(executor, Plant, self.options.fmu)
-        tracker = Tracker(
-            self.options.scenario,
-            plant,
-            self.options.tracked,
-            self.options.baseline,
-            self.options.calibrate,
-            self.options.design_arl,
-        )
+        checker_process = _Checker(self.options)
+        self.checker = checker_process
+        await loop.run_in_executor(None, checker_process._conn.recv)  # the plant is loaded
         reader = asyncio.create_task(self._read(queue))
-        checker = asyncio.create_task(self._check(queue, tracker, executor))
+        checker = asyncio.create_task(self._check(queue))
         stop = asyncio.Event()
         for signum in (signal.SIGINT, signal.SIGTERM):
             loop.add_signal_handler(signum, self._stopped, signum, stop)
@@ -358,9 +451,7 @@ class Watch:
             for signum in (signal.SIGINT, signal.SIGTERM):
                 loop.remove_signal_handler(signum)
             self.diagnoses.stop()
-            executor.shutdown(wait=self.summary.stopped_by is None)
-            if self.summary.stopped_by is None:
-                plant.close()
+            checker_process.stop()
             self._finish()
         return self.summary
 
@@ -391,6 +482,7 @@ class Watch:
         self.log.close()
         if self.dashboard is not None:
             self.state["status"] = f"ended: {reason}"
+            self._publish()
             self.dashboard.stop()
 
     async def _read(self, queue: asyncio.Queue) -> None:
@@ -418,11 +510,8 @@ class Watch:
             except asyncio.QueueFull:
                 pass  # the checker sees _read_done once the queue is empty
 
-    async def _check(
-        self, queue: asyncio.Queue, tracker: Tracker, executor: ThreadPoolExecutor
-    ) -> None:
+    async def _check(self, queue: asyncio.Queue) -> None:
         """Check the windows in order; log everything; start the alarms' diagnoses."""
-        loop = asyncio.get_running_loop()
         while True:
             try:
                 event = await asyncio.wait_for(queue.get(), 0.5)
@@ -455,7 +544,7 @@ class Watch:
                     file=sys.stderr,
                 )
             else:
-                await self._window(event, tracker, executor, loop)
+                await self._window(event)
 
     async def _drain_diagnoses(self) -> None:
         """Wait for the diagnoses still to come (the watch ended by its window limit)."""
@@ -466,20 +555,20 @@ class Watch:
     def _notice(self, notice: Notice) -> None:
         self.log.write({"event": notice.kind, "text": notice.text, "time": time.time()})
         self.state["status"] = notice.text
+        self._publish()
         if notice.kind in ("lost", "restarted", "twin_namespace"):
             print(f"twin watch: {notice.text}", file=sys.stderr)
 
-    async def _window(self, event: Received, tracker: Tracker, executor, loop) -> None:
+    async def _window(self, event: Received) -> None:
+        loop = asyncio.get_running_loop()
         index = self._index
         self._index += 1
         label = f"window {index} (Sequence {event.sequence})"
         try:
             window = window_of(event.sequence, event.arrays, label)
-            started = time.perf_counter()
-            check, alarms = await loop.run_in_executor(
-                executor, tracker.check, index, window, label
+            check, alarms, ready = await loop.run_in_executor(
+                None, self.checker.call, ("check", index, window, label)
             )
-            elapsed = time.perf_counter() - started
         except WindowError as exc:
             self.summary.skipped += 1
             self.log.write(
@@ -492,66 +581,66 @@ class Watch:
             )
             print(f"twin watch: warning: skipped {exc}", file=sys.stderr)
             return
-        if tracker.ready:
-            started = time.perf_counter()
-            await loop.run_in_executor(executor, tracker.make_baseline)
-            self.summary.baseline = tracker.describe_baseline()
-            self.summary.baseline["wall_s"] = time.perf_counter() - started
-        check = _with_time(check, elapsed)
         self.summary.checked += 1
         entry = window_entry(check, window.duration, time.time() - event.received_at)
         self.summary.real_time_factors.append(entry["real_time_factor"])
         self.log.write(entry)
-        self._remember(index, window, tracker, label)
-        if self.summary.baseline is not None and self.summary.baseline["windows"][-1] == index:
-            self.log.write(self.summary.baseline)
-            self._say(
-                f"baseline of windows {self.summary.baseline['windows'][0]}-"
-                f"{self.summary.baseline['windows'][-1]} ready "
-                f"({number(self.summary.baseline['calibration_s'])} s): watching for drift"
-            )
+        self._remember(index, window, label)
         self._say(
             f"{label}: gap {number(check.gap.normalised_rms)} x noise floor"
-            f" ({check.phase}), checked in {number(elapsed)} s"
+            f" ({check.phase}), checked in {number(check.check_s)} s"
             f" (real-time factor {number(entry['real_time_factor'])})"
         )
         self._show(entry, window, check)
+        if ready:
+            baseline = await loop.run_in_executor(None, self.checker.call, ("baseline",))
+            self.summary.baseline = baseline
+            self.log.write({k: v for k, v in baseline.items() if k != "parameters"})
+            self.state["units"] = baseline["units"]
+            self._say(
+                f"baseline of windows {baseline['windows'][0]}-{baseline['windows'][-1]} ready "
+                f"({number(baseline['wall_s'])} s): watching for drift"
+            )
         for alarm in alarms:
-            self._alarm(alarm, tracker)
-        await self._write_twin(check, tracker)
+            self._alarm(alarm)
+        self._ask_diagnoses(check)
+        await self._write_twin(check)
 
-    def _remember(self, index: int, window: Any, tracker: Tracker, label: str) -> None:
-        case = window_case(self.options.scenario, window, label)
-        self._recent.append((index, window, case))
+    def _ask_diagnoses(self, check: WindowCheck) -> None:
+        """Start the diagnosis of each alarm waiting for a window that can show its drift."""
+        for alarm, number_ in list(self._undiagnosed):
+            late = check.window - alarm.window >= LONGEST_WAIT
+            if check.gap.normalised_rms >= DIAGNOSABLE_GAP or late:
+                self._undiagnosed.remove((alarm, number_))
+                self.diagnoses.submit(self._job(alarm, number_))
 
-    def _alarm(self, alarm: Alarm, tracker: Tracker) -> None:
+    def _remember(self, index: int, window: Any, label: str) -> None:
+        self._last = (index, window, window_case(self.options.scenario, window, label))
+
+    def _alarm(self, alarm: Alarm) -> None:
         number_ = len(self.summary.alarms)
-        entry = alarm_entry(alarm, number_, tracker.units)
+        entry = alarm_entry(alarm, number_)
         self.summary.alarms.append(entry)
         self.log.write(entry)
         print(f"twin watch: {entry['text']}", file=sys.stderr)
-        self.state["alarms"] = self.summary.alarms
+        self._publish()
         if self.options.diagnose:
-            self.diagnoses.submit(self._job(alarm, number_, tracker))
+            self._undiagnosed.append((alarm, number_))
 
-    def _job(self, alarm: Alarm, number_: int, tracker: Tracker) -> AlarmJob:
-        index, window, case = self._recent[-1]
-        before = self._recent[0] if len(self._recent) == 2 else None
-        holdout = None
-        if before is not None and before[2].digest == case.digest:
-            holdout = measured_run(before[1], f"window {before[0]} (Sequence {before[1].sequence})")
+    def _job(self, alarm: Alarm, number_: int) -> AlarmJob:
+        index, window, case = self._last
         hypotheses = None if alarm.effect == UNEXPLAINED else tuple(self.options.tracked)
-        baseline = tracker.baseline
-        assert baseline is not None
+        assert self.summary.baseline is not None
         return AlarmJob(
             number_,
             index,
             alarm.effect,
-            with_baseline(case.scenario, baseline.parameters),
+            with_baseline(case.scenario, self.summary.baseline["parameters"]),
             measured_run(window, f"window {index} (Sequence {window.sequence})"),
-            holdout,
             hypotheses,
             self.options.fmu,
+            alarm.window,
+            alarm_tolerance(self.summary.baseline["calibration_precision"]),
         )
 
     def _show(self, entry: dict[str, Any], window: Any, check: WindowCheck) -> None:
@@ -570,10 +659,9 @@ class Watch:
             "current": window.current[::step].tolist(),
             "twin_current": twin_i[::step].tolist() if twin_i is not None else [],
         }
-        if self.summary.baseline is not None:
-            self.state["units"] = self.summary.baseline["units"]
+        self._publish()
 
-    async def _write_twin(self, check: WindowCheck, tracker: Tracker) -> None:
+    async def _write_twin(self, check: WindowCheck) -> None:
         """The window's figures (and the last alarm) into the server's twin namespace."""
         values: dict[str, Any] = {
             "Window": int(check.sequence),
