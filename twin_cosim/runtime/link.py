@@ -204,7 +204,7 @@ class MachineLink:
             axes = await self._axes(client, ns)
             raise LinkRefused(
                 f"{self.endpoint}: no Objects/{MACHINE}/{self.axis}/{TRACE} in namespace "
-                f"{MACHINE_NAMESPACE} (axes found: {axes or 'none'})"
+                f"{MACHINE_NAMESPACE} (axes found: {', '.join(axes) or 'none'})"
             ) from None
         nodes: dict[str, Any] = {}
         for name in (*REQUIRED_ARRAYS, *OPTIONAL_ARRAYS, SEQUENCE):

@@ -31,3 +31,50 @@ def machine(
     return draw_machine(
         scenario, str(scenario.plant_fmu()), [], drifts or [], start, perturb=0.02, seed=seed
     )
+
+
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 now."""
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+class ServerThread:
+    """A :class:`~twin_cosim.runtime.server.MachineServer` on its own event loop in a thread,
+    driven by the test: publish windows, stop, start again on the same port."""
+
+    def __init__(self, port: int, security=None, with_motor_speed: bool = True) -> None:
+        import asyncio
+        import threading
+
+        from twin_cosim.runtime.server import MachineServer
+
+        self.loop = asyncio.new_event_loop()
+        self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)
+        self.thread.start()
+        self.server = MachineServer(port, security=security, with_motor_speed=with_motor_speed)
+        self.call(self.server.start())
+
+    def call(self, coroutine, timeout: float = 20.0):
+        import asyncio
+
+        return asyncio.run_coroutine_threadsafe(coroutine, self.loop).result(timeout)
+
+    def publish(self, arrays) -> int:
+        return self.call(self.server.publish(arrays))
+
+    def twin_value(self, name: str):
+        return self.call(self.server.twin_value(name))
+
+    def restart(self) -> None:
+        """Stop, then listen again on the same port (Sequence carries on)."""
+        self.call(self.server.stop())
+        self.call(self.server.start())
+
+    def close(self) -> None:
+        self.call(self.server.stop())
+        self.loop.call_soon_threadsafe(self.loop.stop)
+        self.thread.join(5.0)
