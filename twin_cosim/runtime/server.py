@@ -92,8 +92,13 @@ class MachineServer:
         return endpoint_of(self.port)
 
     async def start(self) -> None:
-        """Build the address space and listen on 127.0.0.1."""
+        """Build the address space (the first time) and listen on 127.0.0.1; after
+        :meth:`stop`, listen again with the same address space and Sequence."""
         from asyncua import Server, ua
+
+        if self._server is not None:
+            await self._server.start()
+            return
 
         logging.getLogger("asyncua").setLevel(logging.ERROR)
         security = self.security
@@ -144,10 +149,9 @@ class MachineServer:
         self._server = server
 
     async def stop(self) -> None:
-        """Stop listening (clients see the connection close)."""
+        """Stop listening and close every connection (clients see it go)."""
         if self._server is not None:
             await self._server.stop()
-            self._server = None
 
     async def publish(
         self, arrays: dict[str, Any], axis: str = "X", sequence: int | None = None

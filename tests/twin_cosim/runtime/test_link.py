@@ -65,7 +65,8 @@ def test_windows_are_read_once_each_and_jumps_are_counted_as_missed(server) -> N
     assert link.missed == 2
 
 
-def test_a_server_that_goes_away_and_comes_back_is_followed_without_reading_twice(server) -> None:
+def test_a_server_that_goes_away_and_comes_back_is_followed_without_reading_twice() -> None:
+    server = ServerThread(free_port())
     server.publish(arrays(1.0))
     link = MachineLink(server.server.endpoint, "X", poll_s=0.1, reconnect_timeout_s=20.0)
 
@@ -78,7 +79,10 @@ def test_a_server_that_goes_away_and_comes_back_is_followed_without_reading_twic
         await asyncio.to_thread(server.publish, arrays(3.0))
         return await reading
 
-    events = asyncio.run(scenario())
+    try:
+        events = asyncio.run(scenario())
+    finally:
+        server.close()
     kinds = [e.kind for e in events if isinstance(e, Notice)]
     assert kinds[0] == "connected" and "lost" in kinds and "restored" in kinds
     received = [e.sequence for e in events if isinstance(e, Received)]

@@ -9,13 +9,13 @@ from runtime_cases import cycle
 
 from twin_cosim.plant import Plant
 from twin_cosim.runtime.information_model import Window
+from twin_cosim.runtime.virtual_machine import draw_machine
 from twin_cosim.runtime.window_replay import (
     gap_of,
     reference_grid,
     residuals,
     window_case,
 )
-from twin_cosim.runtime.virtual_machine import draw_machine
 
 
 def test_the_reference_grid_gives_the_derivatives_of_a_smooth_motion() -> None:
