@@ -8,8 +8,10 @@ effects (the alarmed one among them), or the plant model's whole library for an 
 unexplained gap. The data: the first window from the alarm's on whose gap is at least
 :data:`DIAGNOSABLE_GAP` times the noise floor (the sequential test sees a drift of a fraction
 of the noise floor that no single window can show: the diagnosis waits for one that can, at
-most :data:`LONGEST_WAIT` windows), split in time: the fit on its first half, the judgement on
-its second (the window before ran another state of a drifting machine). The calibration
+most :data:`LONGEST_WAIT` windows) and the one after it: the fit on the first, the judgement
+on the second (a cycle's half may hold no reversal, which the diagnosis needs in each part);
+when the two ran different references, or the wait ran out, the last window is split in
+time. The calibration
 tolerance is how well the baseline calibration knows the calibrated parameters (three of
 their standard errors, at least :data:`LEAST_TOLERANCE`; the datasheet tolerance of the
 diagnosis when the baseline came from a plant file): a drift since the baseline is not
@@ -56,8 +58,10 @@ class AlarmJob:
         The alarmed effect (or ``unexplained``).
     scenario : Scenario
         The window's scenario with the baseline twin's plant parameters.
-    run : MeasuredRun
-        The window diagnosed.
+    training : MeasuredRun
+        The window the effects are fitted on.
+    holdout : MeasuredRun or None
+        The window they are judged on (None: ``training`` is split in time).
     hypotheses : tuple of str or None
         The hypotheses to fit (None: the whole library).
     fmu : str
@@ -73,7 +77,8 @@ class AlarmJob:
     window: int
     effect: str
     scenario: Scenario
-    run: MeasuredRun
+    training: MeasuredRun
+    holdout: MeasuredRun | None
     hypotheses: tuple[str, ...] | None
     fmu: str
     alarm_window: int
@@ -96,7 +101,8 @@ def run_alarm_diagnosis(job: AlarmJob) -> dict[str, Any]:
     settings = DiagnosisSettings(
         max_effects=1, hypotheses=job.hypotheses, calibration_tolerance=job.calibration_tolerance
     )
-    found = diagnose(job.scenario, [job.run], [], job.fmu, settings, workers=1)
+    holdout = [job.holdout] if job.holdout is not None else []
+    found = diagnose(job.scenario, [job.training], holdout, job.fmu, settings, workers=1)
     remaining = found.remaining
     accepted = [a if isinstance(a, str) else "+".join(a) for a in found.accepted]
     before, after = remaining.normalised_rms_before, remaining.times_noise_floor
@@ -108,7 +114,7 @@ def run_alarm_diagnosis(job: AlarmJob) -> dict[str, Any]:
         "alarmed_effect": job.effect,
         "calibration_tolerance": job.calibration_tolerance,
         "hypotheses": list(job.hypotheses) if job.hypotheses else "library",
-        "held_out": "the window's second half",
+        "held_out": "the next window" if job.holdout is not None else "the window's second half",
         "significant": bool(found.significant),
         "accepted": accepted,
         "effect": accepted[0] if accepted else None,

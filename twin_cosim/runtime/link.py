@@ -114,8 +114,11 @@ class _Wake:
 
 
 def _refusal(exc: BaseException) -> str | None:
-    """The refusal's status name when ``exc`` is the server refusing this client."""
+    """The refusal's status name when ``exc`` is the server refusing this client (an endpoint
+    list without the client's security policy counts as BadSecurityPolicyRejected)."""
     text = f"{type(exc).__name__} {exc}"
+    if "No matching endpoints" in text:
+        return "BadSecurityPolicyRejected: no endpoint with this security"
     return next((code for code in REFUSALS if code in text), None)
 
 

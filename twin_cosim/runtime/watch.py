@@ -383,6 +383,7 @@ class Watch:
         self._index = 0
         self._read_done = False
         self._undiagnosed: list[tuple[Alarm, int]] = []
+        self._diagnosable: tuple[int, Any, Any] | None = None  # the last window worth diagnosing
 
     def _say(self, text: str) -> None:
         if not self.options.quiet:
@@ -607,12 +608,24 @@ class Watch:
         await self._write_twin(check)
 
     def _ask_diagnoses(self, check: WindowCheck) -> None:
-        """Start the diagnosis of each alarm waiting for a window that can show its drift."""
+        """Start the diagnosis of each alarm waiting for windows that can show its drift: two
+        in a row of one reference whose gaps reach :data:`DIAGNOSABLE_GAP` (the first fits,
+        the second judges), or the last one when the wait has run out."""
+        index, window, case = self._last
+        diagnosable = check.gap.normalised_rms >= DIAGNOSABLE_GAP
+        before = self._diagnosable
+        self._diagnosable = (index, window, case) if diagnosable else None
         for alarm, number_ in list(self._undiagnosed):
-            late = check.window - alarm.window >= LONGEST_WAIT
-            if check.gap.normalised_rms >= DIAGNOSABLE_GAP or late:
+            paired = (
+                diagnosable
+                and before is not None
+                and before[0] == index - 1
+                and before[2].digest == case.digest
+                and before[0] >= alarm.window
+            )
+            if paired or check.window - alarm.window >= LONGEST_WAIT:
                 self._undiagnosed.remove((alarm, number_))
-                self.diagnoses.submit(self._job(alarm, number_))
+                self.diagnoses.submit(self._job(alarm, number_, before if paired else None))
 
     def _remember(self, index: int, window: Any, label: str) -> None:
         self._last = (index, window, window_case(self.options.scenario, window, label))
@@ -627,16 +640,25 @@ class Watch:
         if self.options.diagnose:
             self._undiagnosed.append((alarm, number_))
 
-    def _job(self, alarm: Alarm, number_: int) -> AlarmJob:
+    def _job(self, alarm: Alarm, number_: int, fit_on: tuple | None) -> AlarmJob:
+        """The diagnosis of an alarm: fitted on ``fit_on`` and judged on the last window, or
+        on the last window split in time."""
         index, window, case = self._last
         hypotheses = None if alarm.effect == UNEXPLAINED else tuple(self.options.tracked)
         assert self.summary.baseline is not None
+        last = measured_run(window, f"window {index} (Sequence {window.sequence})")
+        if fit_on is not None:
+            first = measured_run(fit_on[1], f"window {fit_on[0]} (Sequence {fit_on[1].sequence})")
+            training, holdout = first, last
+        else:
+            training, holdout = last, None
         return AlarmJob(
             number_,
             index,
             alarm.effect,
             with_baseline(case.scenario, self.summary.baseline["parameters"]),
-            measured_run(window, f"window {index} (Sequence {window.sequence})"),
+            training,
+            holdout,
             hypotheses,
             self.options.fmu,
             alarm.window,

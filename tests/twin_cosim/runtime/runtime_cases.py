@@ -66,6 +66,17 @@ class ServerThread:
     def publish(self, arrays) -> int:
         return self.call(self.server.publish(arrays))
 
+    def publish_burst(self, windows) -> int:
+        """Publish windows one after the other in one go of the server's loop: a client reads
+        at most the last (the others are missed); the last Sequence."""
+
+        async def burst() -> int:
+            for arrays in windows:
+                sequence = await self.server.publish(arrays)
+            return sequence
+
+        return self.call(burst())
+
     def twin_value(self, name: str):
         return self.call(self.server.twin_value(name))
 
