@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from twin_cosim.gap.report.verdict import number
+from twin_cosim.gap.verdict import number
 from twin_cosim.runtime.watch_log import read_log, readable
 
 TREND_NAME = "trend.png"

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from twin_cosim.gap.report.verdict import number
+from twin_cosim.gap.verdict import number
 from twin_cosim.runtime.alarm_diagnosis import (
     DIAGNOSABLE_GAP,
     LONGEST_WAIT,

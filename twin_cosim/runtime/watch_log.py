@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from twin_cosim.gap.report.verdict import number
+from twin_cosim.gap.verdict import number
 
 LOG_NAME = "windows.jsonl"
 # How people read a tracked value: unit -> (factor, unit shown).
