@@ -4,14 +4,17 @@
 :class:`MachineServer` holds the model's nodes and publishes a window: it writes the arrays, then
 increments ``Sequence``, so that a client that reads after the increment reads that window. The
 twin's namespace (``Twin``) is writable, as the twin writes its alarms there. :func:`serve_machine`
-publishes the virtual machine's windows one after the other (each computed in a worker thread
-while the server answers), a window lasting its duration over ``speed``.
+publishes the virtual machine's windows one after the other (each computed in a process of its
+own while the server answers: a replay in a thread would hold the interpreter's lock and starve
+the server's loop, which clients see as a lost connection), a window lasting its duration over
+``speed``.
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
+import multiprocessing
 import time
 from collections.abc import Callable
 from typing import Any
@@ -149,8 +152,12 @@ class MachineServer:
         self._server = server
 
     async def stop(self) -> None:
-        """Stop listening and close every connection (clients see it go)."""
+        """Stop listening and drop every connection at once (clients see it go): a connection
+        is aborted, not closed, so that the stop never waits for a slow client to take the
+        data still buffered for it (asyncua's stop waits for every connection to end)."""
         if self._server is not None:
+            for transport in list(self._server.iserver.asyncio_transports):
+                transport.abort()
             await self._server.stop()
 
     async def publish(
@@ -190,22 +197,29 @@ async def serve_machine(
     cancelled), each when its duration over ``speed`` has passed since the one before (or as
     soon as it is computed, when that takes longer); the windows published.
 
-    ``make_window(k)`` computes window k; it runs in a worker thread while the server answers.
+    ``make_window(k)`` computes window k (picklable: it runs in a worker process while the
+    server answers).
     """
+    from concurrent.futures import ProcessPoolExecutor
+
     loop = asyncio.get_running_loop()
     published = 0
     due = time.monotonic()
     k = first
-    next_window = loop.run_in_executor(None, make_window, k)
-    while windows is None or published < windows:
-        window = await next_window
-        due += window.duration / speed
-        k += 1
-        if windows is None or published + 1 < windows:
-            next_window = loop.run_in_executor(None, make_window, k)
-        await asyncio.sleep(max(0.0, due - time.monotonic()))
-        sequence = await server.publish(window.arrays())
-        published += 1
-        if announce:
-            announce(f"window {k - 1} published (Sequence {sequence}, {window.samples} samples)")
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(1, mp_context=context) as worker:
+        next_window = loop.run_in_executor(worker, make_window, k)
+        while windows is None or published < windows:
+            window = await next_window
+            due += window.duration / speed
+            k += 1
+            if windows is None or published + 1 < windows:
+                next_window = loop.run_in_executor(worker, make_window, k)
+            await asyncio.sleep(max(0.0, due - time.monotonic()))
+            sequence = await server.publish(window.arrays())
+            published += 1
+            if announce:
+                announce(
+                    f"window {k - 1} published (Sequence {sequence}, {window.samples} samples)"
+                )
     return published
