@@ -22,8 +22,11 @@ one replay and one matrix product, not a fit. What the update leaves, r - J thet
 the tracked effects do not explain.
 
 **Tests.** The baseline windows' values set each statistic's mean and spread
-(:mod:`twin_cosim.runtime.sequential`); after them every window feeds a two-sided CUSUM per
-tracked parameter and a one-sided one on the unexplained gap. An alarm names the statistic
+(:mod:`twin_cosim.runtime.sequential`), a spread never below the smallest change worth an
+alarm (a thousandth of the nominal value of the calibrated parameter the effect changes, by
+the card's ``relative_size``: the twin calibrated on the baseline windows is placed less
+precisely than those windows measure a backlash); after them every window feeds a two-sided
+CUSUM per tracked parameter and a one-sided one on the unexplained gap. An alarm names the statistic
 that crossed (the effect; ``unexplained`` for the gap), since which window, at what rate, and
 each test alarms once. Windows whose reference differs from that of baseline windows that all
 shared one reference are checked (gap, values) but not tested: a cycle the baseline never saw.
@@ -67,6 +70,12 @@ STEP_SHARE = 0.01  # finite-difference step of a tracked parameter: this share o
 CALIBRATION_STEP = 0.001  # relative step of a calibrated parameter
 CALIBRATION_ITERATIONS = 2
 DESIGN_ARL = 10_000.0  # windows: the average run length to a false alarm of all tests together
+# The smallest change of a calibrated parameter worth an alarm, relative to its nominal value
+# (by the card's relative_size): a test's spread is at least that change. The baseline windows
+# measure some parameters (backlash: about 1.6 nm on reference1) far more precisely than the
+# calibration on those same windows places the twin; a drift of a thousandth of the nominal
+# value still shows within two windows.
+SMALLEST_RELEVANT_CHANGE = 0.001
 UNEXPLAINED = "unexplained"
 GAP_UNIT = "x noise floor"
 CACHED_LINEARISATIONS = 16
@@ -92,12 +101,17 @@ class TrackedParameter:
         The parameter's unit.
     step : float
         The finite-difference step, in its unit.
+    relevant_per_unit : float or None
+        The card's relative size of a change of one unit of the parameter (the others at
+        their initial values), 1/unit; None for an effect that changes no calibrated
+        parameter.
     """
 
     effect: str
     name: str
     unit: str
     step: float
+    relevant_per_unit: float | None = None
 
     @property
     def key(self) -> str:
@@ -105,8 +119,11 @@ class TrackedParameter:
         return f"{self.effect}.{self.name}"
 
 
-def tracked_parameters(model: str, effects: tuple[str, ...]) -> list[TrackedParameter]:
-    """The parameters of the tracked effects of a plant model's card.
+def tracked_parameters(
+    model: str, effects: tuple[str, ...], nominal: dict[str, float] | None = None
+) -> list[TrackedParameter]:
+    """The parameters of the tracked effects of a plant model's card (``nominal``: the FMU
+    parameters their relative sizes are taken against; None: no relative sizes).
 
     Raises
     ------
@@ -125,11 +142,17 @@ def tracked_parameters(model: str, effects: tuple[str, ...]) -> list[TrackedPara
             )
         if hypothesis.kind != "continuous":
             raise ValueError(f"--track {effect}: fitted by a scan of discrete values; not tracked")
-        for p in hypothesis.parameters:
+        initial = np.array([p.initial for p in hypothesis.parameters])
+        for k, p in enumerate(hypothesis.parameters):
             step = STEP_SHARE * (p.upper - p.lower)
             if p.initial + step > p.upper:
                 step = -step
-            found.append(TrackedParameter(effect, p.name, p.unit, step))
+            per_unit = None
+            if hypothesis.relative_size is not None and nominal is not None:
+                moved = initial.copy()
+                moved[k] += step
+                per_unit = hypothesis.relative_size(moved, nominal) / abs(step)
+            found.append(TrackedParameter(effect, p.name, p.unit, step, per_unit))
     return found
 
 
@@ -303,12 +326,12 @@ class Tracker:
         self.scenario = scenario
         self.plant = plant
         self.model = plant.description.coSimulation.modelIdentifier
-        self.parameters = tracked_parameters(self.model, tuple(tracked))
+        self.nominal = {**plant.start_values(), **scenario.plant_parameters}
+        self.parameters = tracked_parameters(self.model, tuple(tracked), self.nominal)
         self.hypotheses = {h.name: h for h in plant_model(self.model).hypotheses}
         self.baseline_windows = baseline_windows
         self.calibrate = calibrate
         self.design_arl = design_arl
-        self.nominal = {**plant.start_values(), **scenario.plant_parameters}
         self.gathered: list[tuple[Window, WindowCase, int]] = []
         self.baseline: Baseline | None = None
         self._linearisations: OrderedDict[str, Linearisation] = OrderedDict()
@@ -522,17 +545,24 @@ class Tracker:
 
     def _design_tests(self, checks: list[WindowCheck]) -> dict[str, Cusum]:
         """A CUSUM per tracked parameter (two-sided) and on the unexplained gap (upwards),
-        their means and spreads from the baseline windows, thresholds for the design ARL."""
+        their means and spreads from the baseline windows (a spread at least the smallest
+        relevant change, :data:`SMALLEST_RELEVANT_CHANGE`), thresholds for the design ARL."""
         tests = {p.key: Cusum(p.key, 0.0, 1.0, 0.0, two_sided=True) for p in self.parameters} | {
             UNEXPLAINED: Cusum(UNEXPLAINED, 0.0, 1.0, 0.0, two_sided=False)
         }
         threshold = threshold_for(self.design_arl * one_sided_tests(list(tests.values())))
+        relevant = {
+            p.key: SMALLEST_RELEVANT_CHANGE / p.relevant_per_unit
+            for p in self.parameters
+            if p.relevant_per_unit
+        }
         for name, test in tests.items():
             values = np.array(
                 [c.unexplained if name == UNEXPLAINED else c.values[name] for c in checks]
             )
             test.mean = float(np.mean(values))
-            test.spread = baseline_spread(values, floor=_least_spread(test.mean))
+            floor = max(_least_spread(test.mean), relevant.get(name, 0.0))
+            test.spread = baseline_spread(values, floor=floor)
             test.threshold = threshold
         return tests
 

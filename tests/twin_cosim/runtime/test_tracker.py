@@ -7,7 +7,7 @@ import pytest
 from runtime_cases import cycle, machine
 
 from twin_cosim.plant import Plant
-from twin_cosim.runtime.tracker import Tracker, tracked_parameters
+from twin_cosim.runtime.tracker import SMALLEST_RELEVANT_CHANGE, Tracker, tracked_parameters
 from twin_cosim.runtime.virtual_machine import Drift
 
 
@@ -63,3 +63,21 @@ def test_an_unknown_or_scanned_effect_is_refused() -> None:
         tracked_parameters("drive2mass", ("wear",))
     with pytest.raises(ValueError, match="scan"):
         tracked_parameters("drive2mass", ("dead_time",))
+
+
+def test_the_smallest_relevant_change_is_a_thousandth_of_the_nominal_value() -> None:
+    nominal = {"backlash": 12.2e-6, "coulomb_friction": 0.625}
+    found = {
+        p.key: p
+        for p in tracked_parameters(
+            "drive2mass", ("backlash_change", "coulomb_change", "torque_ripple"), nominal
+        )
+    }
+    smallest = {
+        k: SMALLEST_RELEVANT_CHANGE / p.relevant_per_unit
+        for k, p in found.items()
+        if p.relevant_per_unit
+    }
+    assert smallest["backlash_change.delta_backlash"] == pytest.approx(12.2e-9)
+    assert smallest["coulomb_change.delta_coulomb"] == pytest.approx(0.625e-3)
+    assert found["torque_ripple.cos_part"].relevant_per_unit is None  # no calibrated parameter
