@@ -45,29 +45,27 @@ def test_a_window_that_starts_moving_leaves_out_the_settling_samples(tmp_path) -
     assert moving_case.scenario.plant_parameters["load_position_start"] == 1e-6
 
 
-def test_the_twin_against_a_noise_free_run_of_itself_has_no_gap(tmp_path) -> None:
-    scenario = cycle(tmp_path)
+def noise_free_residuals(folder):
+    """The twin's residual against a noise-free window of itself (an exact machine)."""
+    scenario = cycle(folder)
     machine = draw_machine(
         scenario, str(scenario.plant_fmu()), [], [], noise_position=0.0, noise_current=0.0
     )
     window = machine.window(0)
     case = window_case(scenario, window, "window 0")
     with Plant(scenario.plant_fmu()) as plant:
-        res, _ = residuals(window, case, plant, {})
+        return residuals(window, case, plant, {})[0]
+
+
+def test_the_twin_against_a_noise_free_run_of_itself_has_no_gap(tmp_path) -> None:
+    res = noise_free_residuals(tmp_path)
     assert np.max(np.abs(res.position)) < 1e-12 and np.max(np.abs(res.current)) < 1e-9
     gap = gap_of(res, 20e-9, 5e-3)
     assert gap.normalised_rms < 1e-3 and gap.where == {}
 
 
 def test_where_the_gap_lies_is_the_regime_of_a_residual_put_there(tmp_path) -> None:
-    scenario = cycle(tmp_path)
-    machine = draw_machine(
-        scenario, str(scenario.plant_fmu()), [], [], noise_position=0.0, noise_current=0.0
-    )
-    window = machine.window(0)
-    case = window_case(scenario, window, "window 0")
-    with Plant(scenario.plant_fmu()) as plant:
-        res, _ = residuals(window, case, plant, {})
+    res = noise_free_residuals(tmp_path)
     bumped = res.minus(res.position, np.where(res.regimes == 4, 0.05, 0.0))  # reversal
     gap = gap_of(bumped, 20e-9, 5e-3)
     assert gap.lies == "reversal" and gap.current_normalised > 1
