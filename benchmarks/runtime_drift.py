@@ -131,7 +131,15 @@ def run_case(case: str, speed: float, out: Path, seed: int) -> dict:
         figures["diagnoses"].append(
             {
                 key: found.get(key)
-                for key in ("effect", "gap_before", "gap_after", "seconds", "wall_s", "failed")
+                for key in (
+                    "effect",
+                    "gap_before",
+                    "gap_after",
+                    "seconds",
+                    "idle_wall_s",
+                    "wall_s",
+                    "failed",
+                )
             }
         )
     first = figures["alarms"][0] if figures["alarms"] else None

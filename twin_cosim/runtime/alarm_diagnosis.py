@@ -11,12 +11,13 @@ of the noise floor that no single window can show: the diagnosis waits for one t
 most :data:`LONGEST_WAIT` windows) and the one after it: the fit on the first, the judgement
 on the second (a cycle's half may hold no reversal, which the diagnosis needs in each part);
 when the two ran different references, or the wait ran out, the last window is split in
-time. The calibration
-tolerance is how well the baseline calibration knows the calibrated parameters (three of
-their standard errors, at least :data:`LEAST_TOLERANCE`; the datasheet tolerance of the
-diagnosis when the baseline came from a plant file): a drift since the baseline is not
-calibration error. Its answer joins the alarm: the effect accepted (or none), the held-out gap
-before and after it, and how long it took.
+time. The calibration tolerance is how well the baseline calibration knows the calibrated
+parameters (three of their standard errors, at least :data:`LEAST_TOLERANCE`; the datasheet
+tolerance of the diagnosis when the baseline came from a plant file): a drift since the
+baseline is not calibration error. Its replays run on :data:`WORKERS` processes. Its answer
+joins the alarm: the effect accepted (or none), the held-out gap before and after it, and how
+long it took (the wall time, and the diagnosis' own estimate of the wall time on otherwise
+idle cores).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from twin_cosim.scenario import Scenario
 DIAGNOSABLE_GAP = 1.5  # normalised RMS gap of a window worth diagnosing
 LONGEST_WAIT = 10  # windows after the alarm: the diagnosis runs then at the latest
 LEAST_TOLERANCE = 0.001  # relative
+WORKERS = 2  # replay processes of the diagnosis: the two cores a small machine beside a CNC has
 
 
 def alarm_tolerance(precision: float | None) -> float:
@@ -102,7 +104,7 @@ def run_alarm_diagnosis(job: AlarmJob) -> dict[str, Any]:
         max_effects=1, hypotheses=job.hypotheses, calibration_tolerance=job.calibration_tolerance
     )
     holdout = [job.holdout] if job.holdout is not None else []
-    found = diagnose(job.scenario, [job.training], holdout, job.fmu, settings, workers=1)
+    found = diagnose(job.scenario, [job.training], holdout, job.fmu, settings, workers=WORKERS)
     remaining = found.remaining
     accepted = [a if isinstance(a, str) else "+".join(a) for a in found.accepted]
     before, after = remaining.normalised_rms_before, remaining.times_noise_floor
@@ -126,6 +128,8 @@ def run_alarm_diagnosis(job: AlarmJob) -> dict[str, Any]:
         "position_rms_um_after": remaining.position_rms_um,
         "verdict": found.verdict,
         "seconds": time.perf_counter() - start,
+        "idle_wall_s": found.times["diagnosis"]["idle_wall_estimate_s"],
+        "workers": WORKERS,
     }
 
 

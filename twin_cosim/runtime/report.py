@@ -89,7 +89,8 @@ def draw_trend(entries: list[dict[str, Any]], path: Path) -> None:
         ax.set_ylabel(f"{parameter}\n[{label}]", fontsize=8)
         ax.set_title(effect, fontsize=9, loc="left")
     ax = axes[-1]
-    ax.plot(*data["gap"], ".-", color="tab:gray", lw=1, ms=3, label="gap to the twin")
+    # the gap drawn wide under the gap left, which often covers it (nothing drifts)
+    ax.plot(*data["gap"], ".-", color="tab:gray", lw=3, ms=6, label="gap to the twin")
     if data["unexplained"][0]:
         ax.plot(
             *data["unexplained"],

@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+import urllib.request
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +64,17 @@ def wait_for(out: Path, condition, timeout: float = 120.0) -> list[dict]:
     raise AssertionError(f"timed out; log: {log_lines(out)[-3:]}")
 
 
+def page_state(port: int, condition, timeout: float = 20.0) -> dict:
+    """The live page's state once ``condition(state)`` holds (bounded in time)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/state.json", timeout=10) as answer:
+            state = json.load(answer)
+        if condition(state) or time.monotonic() > deadline:
+            return state
+        time.sleep(0.1)
+
+
 def checked(sequence: int):
     return lambda lines: any(
         line.get("sequence") == sequence and ("window" in line) for line in lines
@@ -74,14 +86,20 @@ def test_a_drift_is_alarmed_named_diagnosed_and_written_where_it_belongs(tmp_pat
     vm = machine(scenario, [Drift("coulomb_change", "delta_coulomb", 0.02)], start=5)
     server = ServerThread(free_port())
     out = tmp_path / "watch"
+    page = free_port()
     watch = start_watch(
-        cycle_file(tmp_path), server.server.endpoint, out, "--baseline", "4", "--windows", "8"
+        cycle_file(tmp_path),
+        server.server.endpoint,
+        out,
+        *("--baseline", "4", "--windows", "8", "--dashboard", str(page)),
     )
     try:
         wait_for(out, lambda lines: any(line.get("event") == "connected" for line in lines))
         for w in range(8):
             sequence = server.publish(vm.window(w).arrays())
             wait_for(out, checked(sequence))
+            if w == 6:  # the live page follows the windows
+                state = page_state(page, lambda s: len(s["windows"]) == 7 and s["alarms"])
         stdout, stderr = watch.communicate(timeout=180)
         alarms = server.twin_value("Alarms")
         alarm_text = server.twin_value("Alarm")
@@ -104,6 +122,9 @@ def test_a_drift_is_alarmed_named_diagnosed_and_written_where_it_belongs(tmp_pat
     assert (out / "trend.png").stat().st_size > 10_000
     assert "coulomb_change drifts" in (out / "report.md").read_text()
     assert alarms == 1 and json.loads(alarm_text)["effect"] == "coulomb_change"
+    assert [w["window"] for w in state["windows"]] == list(range(7))
+    assert state["alarms"] and state["alarms"][0]["effect"] == "coulomb_change"
+    assert len(state["last"]["twin_position"]) == len(state["last"]["position"]) > 100
 
 
 def test_bad_windows_are_skipped_and_a_server_that_goes_and_comes_back_is_followed(
