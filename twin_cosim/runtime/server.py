@@ -154,8 +154,13 @@ class MachineServer:
     async def stop(self) -> None:
         """Stop listening and drop every connection at once (clients see it go): a connection
         is aborted, not closed, so that the stop never waits for a slow client to take the
-        data still buffered for it (asyncua's stop waits for every connection to end)."""
+        data still buffered for it (asyncua's stop waits for every connection to end); the
+        listening socket is closed first, so that a client reconnecting at once is not let in
+        while the stop waits."""
         if self._server is not None:
+            listener = getattr(self._server.bserver, "_server", None)  # asyncio's server
+            if listener is not None:
+                listener.close()
             for transport in list(self._server.iserver.asyncio_transports):
                 transport.abort()
             await self._server.stop()
