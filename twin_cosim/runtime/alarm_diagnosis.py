@@ -33,7 +33,7 @@ from twin_cosim.scenario import Scenario
 DIAGNOSABLE_GAP = 1.5  # normalised RMS gap of a window worth diagnosing
 LONGEST_WAIT = 10  # windows after the alarm: the diagnosis runs then at the latest
 LEAST_TOLERANCE = 0.001  # relative
-WORKERS = 1  # replay processes of the diagnosis: its own (a daemon process has no children)
+WORKERS = 2  # replay processes of the diagnosis: the two cores of a small machine
 
 
 def alarm_tolerance(precision: float | None) -> float:

@@ -226,7 +226,8 @@ class _Diagnoses:
         context = multiprocessing.get_context("spawn")
         job = self.waiting.popleft()
         queue = context.SimpleQueue()
-        process = context.Process(target=_diagnosis_process, args=(job, queue), daemon=True)
+        # not a daemon: its replay workers are its children (they die with it, see workers.py)
+        process = context.Process(target=_diagnosis_process, args=(job, queue), daemon=False)
         process.start()
         self.running = (process, queue, job, time.perf_counter())
 
