@@ -82,8 +82,14 @@ def security_options(parser: argparse.ArgumentParser, who: str) -> None:
         help=f"the Basic256Sha256 mode {who}; a user name and password come from "
         f"${USER_ENV} and ${PASSWORD_ENV} when set",
     )
-    parser.add_argument("--certificate", metavar="FILE", help="application certificate (DER/PEM)")
-    parser.add_argument("--private-key", metavar="FILE", help="its private key (PEM)")
+    parser.add_argument(
+        "--certificate",
+        metavar="FILE",
+        help="application certificate, DER or PEM (default: none; needed with --security)",
+    )
+    parser.add_argument(
+        "--private-key", metavar="FILE", help="its private key, PEM (default: none)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -67,7 +67,10 @@ def add_arguments(subparsers) -> None:
         help="seconds without a connection before giving up",
     )
     parser.add_argument(
-        "--dashboard", type=whole_number(1), metavar="PORT", help="live page on 127.0.0.1:PORT"
+        "--dashboard",
+        type=whole_number(1),
+        metavar="PORT",
+        help="live page on 127.0.0.1:PORT (default: none)",
     )
     parser.add_argument("--no-diagnosis", action="store_true", help="no full diagnosis on an alarm")
     security_options(parser, "to connect with")
