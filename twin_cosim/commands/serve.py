@@ -21,7 +21,7 @@ from twin_cosim.commands.synth import EFFECTS_HELP, _error_options
 def add_arguments(subparsers) -> None:
     """The ``serve`` command and its options."""
     parser = command_parser(
-        subparsers, "serve", "the virtual machine behind an OPC UA server on 127.0.0.1"
+        subparsers, "serve", "the virtual machine behind an OPC UA server on 127.0.0.1", run
     )
     parser.epilog = EFFECTS_HELP
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
@@ -68,7 +68,6 @@ def add_arguments(subparsers) -> None:
     plant_option(parser)
     plant_parameters_option(parser)
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def security_options(parser: argparse.ArgumentParser, who: str) -> None:

@@ -21,7 +21,10 @@ from twin_cosim.commands.serve import security_options
 def add_arguments(subparsers) -> None:
     """The ``watch`` command and its options."""
     parser = command_parser(
-        subparsers, "watch", "the twin beside the running machine: gap and drift, window by window"
+        subparsers,
+        "watch",
+        "the twin beside the running machine: gap and drift, window by window",
+        run,
     )
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     parser.add_argument(
@@ -78,7 +81,6 @@ def add_arguments(subparsers) -> None:
     no_plots_option(parser)
     plant_option(parser)
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
