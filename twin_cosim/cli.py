@@ -1,5 +1,5 @@
 """The ``twin`` command line: build, simulate, circle, optimize, compare, synth, diagnose, table3,
-ssp, bode, calibrate, autotune, step, kv, friction.
+ssp, bode, calibrate, autotune, step, kv, friction, serve, watch.
 
 Each command is a module of :mod:`twin_cosim.commands` (its arguments and ``run``). Only the
 standard library and the light registries are imported at start, so that ``twin --help`` answers
@@ -26,11 +26,13 @@ from twin_cosim.commands import (
     friction,
     kv,
     optimize,
+    serve,
     simulate,
     ssp,
     step,
     synth,
     table3,
+    watch,
 )
 from twin_cosim.commands.options import HelpFormatter
 from twin_cosim.environment import DATA_ENV
@@ -51,6 +53,8 @@ COMMANDS = (
     step,
     kv,
     friction,
+    serve,
+    watch,
 )  # in the help's order
 
 

@@ -338,7 +338,11 @@ def _diagnose(
             judging,
             settings.calibration_tolerance,
         ),
-        {h.name: h for h in library_for(context.model)},
+        {
+            h.name: h
+            for h in library_for(context.model)
+            if settings.hypotheses is None or h.name in settings.hypotheses
+        },
         judging,
         settings,
         sum(float(r.t[-1] - r.t[0]) for r in context.train),
