@@ -254,9 +254,7 @@ def read_card(path: Path, name: str, table: VariableTable) -> PlantModel:
     )
 
 
-def _constraints(
-    check: Checker, data: Any, parameters: tuple[str, ...]
-) -> tuple[Constraint, ...]:
+def _constraints(check: Checker, data: Any, parameters: tuple[str, ...]) -> tuple[Constraint, ...]:
     """The card's ``constraints``: a list of ``{holds: FORMULA, says: TEXT}``."""
     if not isinstance(data, list):
         raise check.fail("constraints", "a list of {holds: formula, says: text}", data)
