@@ -3,6 +3,7 @@ axis runs as it would alone, any contract FMU runs, failures stop with the log."
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import zipfile
 from pathlib import Path
@@ -339,3 +340,12 @@ def test_an_open_loop_run_steps_the_plant_with_the_given_command(plants, grids, 
     expected = np.array(expected)
     assert np.array_equal(found.position_loop["x"], expected[:, 0])
     assert np.array_equal(found.position_loop["motor_speed"], expected[:, 1])
+
+
+def test_a_reference_sampled_off_the_position_period_is_refused(plants, grids):
+    """A controller set may change the position period: the run refuses a reference sampled at
+    another period instead of stepping with the wrong speed-loop step."""
+    axes = _axes(plants, grids)
+    settings = dataclasses.replace(axes[0].settings, position_period=500e-6)
+    with pytest.raises(ValueError, match="axis X: its reference is sampled every 0.00025 s"):
+        run_axes([dataclasses.replace(axes[0], settings=settings)])

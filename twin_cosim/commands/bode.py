@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-from twin_cosim.commands.console import command_line, warn_plant_mismatch, write_json
+from twin_cosim.commands.console import command_line, warn_plant_mismatch, write_summary
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
     number_above,
     out_folder,
+    output_options,
     params_option,
     plant_option,
     plant_parameters_option,
@@ -25,7 +25,7 @@ LOOP_CHOICES = ("plant", "current", "speed", "position")  # current: the plant, 
 def add_arguments(subparsers) -> None:
     """The ``bode`` command and its options."""
     parser = command_parser(
-        subparsers, "bode", "measure a loop's frequency response in closed loop, with margins"
+        subparsers, "bode", "measure a loop's frequency response in closed loop, with margins", run
     )
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     parser.add_argument(
@@ -53,12 +53,8 @@ def add_arguments(subparsers) -> None:
     params_option(parser)
     plant_option(parser)
     plant_parameters_option(parser)
-    parser.add_argument(
-        "--out", metavar="DIR", help="output folder (default: out/bode-<scenario>-<loop>-<kind>)"
-    )
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    output_options(parser, "output folder (default: out/bode-<scenario>-<loop>-<kind>)")
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def _excitation_options(parser: argparse.ArgumentParser) -> None:
@@ -70,7 +66,10 @@ def _excitation_options(parser: argparse.ArgumentParser) -> None:
         "commands 5 %% of the current limit at high frequency)",
     )
     parser.add_argument(
-        "--averages", type=whole_number(2), default=8, help="multisine realisations averaged"
+        "--averages",
+        type=whole_number(2),
+        default=8,
+        help="multisine realisations averaged",
     )
     parser.add_argument(
         "--speed",
@@ -123,10 +122,7 @@ def run(args: argparse.Namespace) -> int:
         "warnings": mismatch,
         "versions": versions(),
     }
-    write_json(out / "bode.json", summary)
-    if args.json:
-        print(json.dumps(summary))
-    else:
+    if write_summary(out / "bode.json", summary, args.json):
         print("\n".join(describe(result)))
         print(f"wrote {', '.join(files.values())}, {out / 'bode.json'}")
     return 0

@@ -12,11 +12,14 @@ from typing import TYPE_CHECKING, Any
 
 from twin_cosim.commands.console import warn_plant_mismatch
 from twin_cosim.commands.options import (
+    column_map,
+    columns_option,
     command_parser,
     data_option,
     fraction,
     no_plots_option,
     out_folder,
+    output_options,
     plant_option,
     plant_path,
     whole_number,
@@ -29,17 +32,21 @@ if TYPE_CHECKING:
 
 def add_arguments(subparsers) -> None:
     """The ``diagnose`` command and its options."""
-    parser = command_parser(subparsers, "diagnose", "where the twin is wrong, why, and by how much")
+    parser = command_parser(
+        subparsers, "diagnose", "where the twin is wrong, why, and by how much", run
+    )
     parser.add_argument("scenario", help="scenario YAML file (or shipped name) the runs followed")
     parser.add_argument(
         "--measured",
         action="append",
         required=True,
-        help="measured run, CSV or EMPS .mat (repeatable; required, no default)",
+        help="measured run: CSV (units in its header, TwinCAT Scope export), EMPS or HSM150 "
+        ".mat (repeatable; required, no default)",
     )
     parser.add_argument(
         "--holdout", action="append", help="held-out run(s) (default: a time split)"
     )
+    columns_option(parser)
     parser.add_argument(
         "--split",
         type=fraction(0.1, 0.9),
@@ -53,12 +60,11 @@ def add_arguments(subparsers) -> None:
     )
     plant_option(parser)
     parser.add_argument(
-        "--workers", type=whole_number(1), help="local processes for the fits (default: all cores)"
+        "--workers",
+        type=whole_number(1),
+        help="local processes for the fits (default: all cores)",
     )
-    parser.add_argument(
-        "--out", metavar="DIR", help="report folder (default: out/diagnosis-<scenario name>)"
-    )
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    output_options(parser, "report folder (default: out/diagnosis-<scenario name>)")
     parser.add_argument(
         "--quiet",
         action="store_true",
@@ -66,7 +72,6 @@ def add_arguments(subparsers) -> None:
     )
     no_plots_option(parser)
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -96,15 +101,18 @@ def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     scenario = resolve_scenario(args.scenario)
     mismatch = warn_plant_mismatch(scenario, plant_path(args))
     out = out_folder(args.out, Path("out") / f"diagnosis-{scenario.name}")
-    measured = [read_measured(path) for path in args.measured]
-    holdout = [read_measured(path) for path in args.holdout or []]
+    columns, open_loop = column_map(args, scenario), scenario.drive is not None
+    measured = [read_measured(path, columns, open_loop) for path in args.measured]
+    holdout = [read_measured(path, columns, open_loop) for path in args.holdout or []]
     settings = settings_from(scenario, args.split, args.max_effects)
     start = time.perf_counter()
     progress = _ProgressBars(args)
-    result = diagnose(
-        scenario, measured, holdout, args.plant, settings, progress=progress, pool=pool
-    )
-    progress.finish()
+    try:
+        result = diagnose(
+            scenario, measured, holdout, args.plant, settings, progress=progress, pool=pool
+        )
+    finally:
+        progress.finish()
     wall_s = time.perf_counter() - start
     summary = {
         **summary_of(result),
@@ -169,7 +177,7 @@ class _ProgressBars:
 def _print_text(result: Diagnosis) -> None:
     """The verdict and each accepted effect's held-out gaps, numbers for people."""
     from twin_cosim.gap.report.pages import hypothesis_units
-    from twin_cosim.gap.report.verdict import names, number, parameters
+    from twin_cosim.gap.verdict import names, number, parameters
 
     units = hypothesis_units(result.context.model)
     print(result.verdict)

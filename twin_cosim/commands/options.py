@@ -27,9 +27,14 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
         return f"{text} (default: %(default)s)"
 
 
-def command_parser(subparsers, name: str, help: str) -> argparse.ArgumentParser:
-    """The parser of command ``name`` among ``subparsers`` (help shows the defaults)."""
-    return subparsers.add_parser(name, help=help, formatter_class=HelpFormatter)
+def command_parser(
+    subparsers, name: str, help: str, handler: Callable[[argparse.Namespace], int]
+) -> argparse.ArgumentParser:
+    """The parser of command ``name`` among ``subparsers`` (help shows the defaults); the
+    command runs ``handler`` with the parsed arguments and exits with what it returns."""
+    parser = subparsers.add_parser(name, help=help, formatter_class=HelpFormatter)
+    parser.set_defaults(handler=handler)
+    return parser
 
 
 def whole_number(low: int) -> Callable[[str], int]:
@@ -87,6 +92,15 @@ def params_option(parser: argparse.ArgumentParser) -> None:
         help="ft|ga|ce|sa (paper Table 3) or a YAML/JSON file: the six parameters, or what "
         "twin autotune or twin optimize wrote (with its filters and feedforwards) "
         "(default: the scenario's)",
+    )
+
+
+def output_options(parser: argparse.ArgumentParser, folder: str, printed: str = "summary") -> None:
+    """``--out DIR`` (``folder``: what the folder is and its default, for the help) and
+    ``--json`` (print the ``printed`` as one JSON object)."""
+    parser.add_argument("--out", metavar="DIR", help=folder)
+    parser.add_argument(
+        "--json", action="store_true", help=f"print the {printed} as one JSON object"
     )
 
 

@@ -5,7 +5,6 @@ open-loop scenario's replay of a measured run (``twin simulate hsm150 --machine 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -14,8 +13,8 @@ from typing import TYPE_CHECKING, Any
 from twin_cosim.commands.console import (
     command_line,
     warn_plant_mismatch,
-    write_json,
     write_record_csv,
+    write_summary,
 )
 from twin_cosim.commands.options import (
     column_map,
@@ -24,6 +23,7 @@ from twin_cosim.commands.options import (
     data_option,
     no_plots_option,
     out_folder,
+    output_options,
     params_option,
     plant_option,
     plant_parameters_option,
@@ -43,7 +43,7 @@ if TYPE_CHECKING:
 
 def add_arguments(subparsers) -> None:
     """The ``simulate`` command and its options."""
-    parser = command_parser(subparsers, "simulate", "run a scenario in closed loop")
+    parser = command_parser(subparsers, "simulate", "run a scenario in closed loop", run)
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     params_option(parser)
     plant_option(parser)
@@ -64,8 +64,7 @@ def add_arguments(subparsers) -> None:
         help="part program (G-code subset, docs/contouring.md) for a machine scenario (axes:) "
         "(default: the scenario's program)",
     )
-    parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<scenario name>)")
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    output_options(parser, "output folder (default: out/<scenario name>)")
     parser.add_argument(
         "--reference-path",
         action="store_true",
@@ -73,7 +72,6 @@ def add_arguments(subparsers) -> None:
     )
     no_plots_option(parser)
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -114,10 +112,7 @@ def _run_scenario(args: argparse.Namespace, painter: Painter | None) -> int:
     unusable, loop = loop_warnings(record, scenario)
     summary = _summary(args, scenario, tuned, record, metrics, ran, mismatch + loop, out)
     write_record_csv(out / "record.csv", record)
-    write_json(out / "summary.json", summary)
-    if args.json:
-        print(json.dumps(summary))
-    else:
+    if write_summary(out / "summary.json", summary, args.json):
         _print_text(scenario.name, metrics, summary, args.machine)
     for warning in loop:  # the plant mismatch was said as it was found
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
@@ -168,10 +163,7 @@ def _run_open_loop(args: argparse.Namespace, scenario: Scenario, painter: Painte
         "versions": versions(),
     }
     write_record_csv(out / "record.csv", with_measured(record, run))
-    write_json(out / "summary.json", summary)
-    if args.json:
-        print(json.dumps(summary))
-    else:
+    if write_summary(out / "summary.json", summary, args.json):
         _print_open_loop(scenario.name, comparison, ran["wall_s"])
     drawn = True
     if painter is not None:
@@ -370,10 +362,7 @@ def _run_program(args: argparse.Namespace) -> int:
         "warnings": warnings,
         "versions": versions(),
     }
-    write_json(out / "summary.json", summary)
-    if args.json:
-        print(json.dumps(summary))
-    else:
+    if write_summary(out / "summary.json", summary, args.json):
         print(
             f"{machine.name} {source.name}: contour error max "
             f"{summary['contour_error_max_um']:.2f} um, RMS {summary['contour_error_rms_um']:.2f}"
