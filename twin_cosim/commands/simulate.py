@@ -146,21 +146,12 @@ def _run_open_loop(args: argparse.Namespace, scenario: Scenario, painter: Painte
     out.mkdir(parents=True, exist_ok=True)
     record, ran = _simulate(scenario, scenario.tuned, plant_path(args), not args.reference_path)
     comparison = compare_open_loop(run, record, scenario.settings.travel_per_rad)
-    from twin_cosim.versions import versions
-
     summary = {
         "scenario": str(scenario.source),
         "fmu": ran["fmu"],
         "plant_parameters_file": args.plant_parameters,
         "open_loop": comparison.as_dict(),
-        "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
-        "wall_s": ran["wall_s"],
-        "outputs": {
-            "record": str(out / "record.csv"),
-            "plot": None if args.no_plots else str(out / "run.png"),
-        },
-        "warnings": mismatch,
-        "versions": versions(),
+        **_run_facts(args, ran, out, mismatch),
     }
     write_record_csv(out / "record.csv", with_measured(record, run))
     if write_summary(out / "summary.json", summary, args.json):
@@ -180,6 +171,25 @@ def _run_open_loop(args: argparse.Namespace, scenario: Scenario, painter: Painte
         plot = "run.png, " if painter is not None and drawn else ""
         print(f"wrote {out}/record.csv, {plot}summary.json")
     return 0 if drawn else 1
+
+
+def _run_facts(
+    args: argparse.Namespace, ran: dict[str, Any], out: Path, warnings: list[str]
+) -> dict[str, Any]:
+    """The entries of a single-axis run's summary.json after its results: the path, the wall
+    time (s), the files written, the warnings and the versions."""
+    from twin_cosim.versions import versions
+
+    return {
+        "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
+        "wall_s": ran["wall_s"],
+        "outputs": {
+            "record": str(out / "record.csv"),
+            "plot": None if args.no_plots else str(out / "run.png"),
+        },
+        "warnings": warnings,
+        "versions": versions(),
+    }
 
 
 def _print_open_loop(name: str, comparison: OpenLoopComparison, wall_s: float) -> None:
@@ -232,7 +242,6 @@ def _summary(
 
     ``ran`` is what :func:`_simulate` tells of the run (FMU, wall time in s).
     """
-    from twin_cosim.versions import versions
 
     return {
         "scenario": str(scenario.source),
@@ -243,14 +252,7 @@ def _summary(
         "validation": _validation(scenario, record),
         "machine": _on_machine(scenario, tuned, args.machine, metrics),
         "metrics_window_s": list(scenario.metrics_window),
-        "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
-        "wall_s": ran["wall_s"],
-        "outputs": {
-            "record": str(out / "record.csv"),
-            "plot": None if args.no_plots else str(out / "run.png"),
-        },
-        "warnings": warnings,
-        "versions": versions(),
+        **_run_facts(args, ran, out, warnings),
     }
 
 
