@@ -250,7 +250,7 @@ def _summary(
         "params": tuned.as_dict(),
         "metrics": metrics.as_dict(),
         "validation": _validation(scenario, record),
-        "machine": _on_machine(scenario, tuned, args.machine, metrics),
+        "machine": _on_machine(scenario, tuned, args, metrics),
         "metrics_window_s": list(scenario.metrics_window),
         **_run_facts(args, ran, out, warnings),
     }
@@ -271,14 +271,16 @@ def _validation(scenario: Scenario, record: RunRecord) -> dict[str, Any] | None:
 
 
 def _on_machine(
-    scenario: Scenario, tuned: TunedParameters, machine: str | None, metrics: Metrics
+    scenario: Scenario, tuned: TunedParameters, args: argparse.Namespace, metrics: Metrics
 ) -> dict[str, Any] | None:
-    """The twin's prediction against ``--machine`` (a measured run or a virtual machine)."""
+    """The twin's prediction against ``--machine`` (a measured run, its columns by
+    ``--columns``, or a virtual machine)."""
+    machine = args.machine
     if not machine:
         return None
     from twin_cosim.machine import machine_metrics, prediction
 
-    judged, kind = machine_metrics(scenario, tuned, machine)
+    judged, kind = machine_metrics(scenario, tuned, machine, column_map(args, scenario))
     return {"source": machine, "kind": kind, **prediction(metrics, judged)}
 
 
