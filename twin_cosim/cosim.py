@@ -20,13 +20,14 @@ One master, two paths that give the same trajectories:
 
 The options of a run are signals injected into an axis' loops (:class:`Injections`: a load
 torque, a current added to the controller's command, a speed or position setpoint offset, noise
-on the measured speed), and a record per speed-loop sample beside the one per position-loop
-sample. What runs on the master: :func:`run_scenario` (one axis: a scenario's reference and its
-disturbances), a machine's axes (:mod:`twin_cosim.contour.machine_run`), the frequency-response
-measurement (:mod:`twin_cosim.frequency.measurement`). An option is an array of the compiled
-master's one signature, empty when off (a branch that goes the same way through a whole run);
-another (a command read from an array in place of the controller's, for an open-loop plant; a
-record of the plant's outputs per speed-loop sample) joins the same way.
+on the measured speed, a current command read from an array in place of the speed loop's: an
+open-loop run), and a record per speed-loop sample beside the one per position-loop sample.
+What runs on the master: :func:`run_scenario` (one axis: a scenario's reference and its
+disturbances, or its open-loop drive), a machine's axes
+(:mod:`twin_cosim.contour.machine_run`), the frequency-response measurement
+(:mod:`twin_cosim.frequency.measurement`). An option is an array of the compiled master's one
+signature, empty when off (a branch that goes the same way through a whole run);
+another (a record of the plant's outputs per speed-loop sample) joins the same way.
 """
 
 from __future__ import annotations
@@ -115,6 +116,10 @@ class Injections:
         ``error`` is then the setpoint minus the measured position.
     speed_noise : numpy.ndarray or None
         Added to the motor speed the speed loop reads per speed-loop sample, rad/s.
+    open_loop : numpy.ndarray or None
+        The plant's current command per speed-loop sample in place of the speed loop's (A, or
+        the command's unit): an open-loop run, the controller out of the loop. The record's
+        ``current`` is this command (``current`` still adds to it).
     """
 
     load_torque: np.ndarray | None = None
@@ -122,6 +127,7 @@ class Injections:
     speed: np.ndarray | None = None
     position: np.ndarray | None = None
     speed_noise: np.ndarray | None = None
+    open_loop: np.ndarray | None = None
 
 
 # Each injection's rate: True per speed-loop sample, False per position-loop sample.
@@ -131,6 +137,7 @@ _AT_SPEED_RATE = {
     "speed": True,
     "position": False,
     "speed_noise": True,
+    "open_loop": True,
 }
 
 
@@ -353,6 +360,7 @@ def _step_compiled(run: _Prologue) -> tuple[int, int, int]:
         injected["speed"],
         injected["position"],
         injected["speed_noise"],
+        injected["open_loop"],
         run.abort_error,
         run.record,
         run.speed_record,
@@ -370,7 +378,7 @@ def _step_reference(run: _Prologue) -> tuple[int, int, int]:
     injected = {name: rows if rows.shape[1] else None for name, rows in run.injections.items()}
     load_torque, at_current = injected["load_torque"], injected["current"]
     at_speed, at_position = injected["speed"], injected["position"]
-    speed_noise = injected["speed_noise"]
+    speed_noise, open_loop = injected["speed_noise"], injected["open_loop"]
     recording = speed_record.shape[1] > 0
     vr_in = [[int(v) for v in row] for row in run.vr_in]
     vr_out = [[int(v) for v in row] for row in run.vr_out]
@@ -414,7 +422,10 @@ def _step_reference(run: _Prologue) -> tuple[int, int, int]:
                     sa[controller.SPEED_CMD] = command + at_speed[a, k]
                 if recording:
                     speed_record[a, k, 0] = sa[controller.SPEED_CMD]
-                current = controller.speed_loop(pa, sa, k * h, speed)
+                if open_loop is not None:
+                    current = open_loop[a, k]
+                else:
+                    current = controller.speed_loop(pa, sa, k * h, speed)
                 if at_speed is not None:
                     sa[controller.SPEED_CMD] = command
                 current_sum += current
@@ -509,7 +520,8 @@ def run_scenario(
     plant_overrides: Mapping[str, float] | None = None,
     abort_error: float = math.inf,
 ) -> RunRecord:
-    """Run a scenario's reference in closed loop; one row per position-loop sample, columns
+    """Run a scenario's reference (in closed loop, or open loop on its drive signal); one row
+    per position-loop sample, columns
     :data:`RECORD_COLUMNS`.
 
     Parameters
@@ -530,7 +542,9 @@ def run_scenario(
     The scenario's signal conventions apply (``reference.disturbance``): its disturbance torque
     (N.m) and its disturbance at the command, per position sample, are held over each position
     period; the one at the command is added to the controller's output, and the record's
-    ``current`` includes it when the scenario says the measured command does.
+    ``current`` includes it when the scenario says the measured command does. An open-loop
+    scenario (``reference.drive``) drives the plant with its command per position sample, held
+    over each position period, in place of the controller's.
     """
     ratio = scenario.settings.speed_steps_per_position_step
     n = len(scenario.reference.position)
@@ -554,6 +568,7 @@ def run_scenario(
         Injections(
             load_torque=held(scenario.disturbance, "disturbance torque"),
             current=held(scenario.command_disturbance, "command disturbance"),
+            open_loop=held(scenario.open_loop, "open-loop command"),
         ),
     )
     record = run_axes([axis], fast, abort_error)[axis.name].position_loop

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -69,9 +70,13 @@ def _truth_plant(scenario: Scenario, truth: Path) -> dict[str, float]:
 
 
 def machine_metrics(
-    scenario: Scenario, tuned: TunedParameters, machine: Path | str
+    scenario: Scenario,
+    tuned: TunedParameters,
+    machine: Path | str,
+    columns: Mapping[str, str] | None = None,
 ) -> tuple[Metrics, str]:
-    """Metrics of ``tuned`` on the machine over the scenario's window, and the machine's kind.
+    """Metrics of ``tuned`` on the machine over the scenario's window, and the machine's kind;
+    a measured run's columns named by ``columns`` (signal -> the file's column).
 
     Raises
     ------
@@ -81,7 +86,7 @@ def machine_metrics(
     """
     machine = Path(machine)
     if machine.suffix.lower() in MEASURED_SUFFIXES:
-        run = read_measured(machine)
+        run = read_measured(machine, columns)
         check_against_reference(run, scenario.reference)
         record = RunRecord.from_columns(
             {"t": run.t, "error": run.x_ref - run.x, "current": run.current},

@@ -1,21 +1,47 @@
 """Measured runs: files of a real (or virtual) axis, their checks, and their match to a scenario.
 
-CSV (the project's format): ``t`` [s], ``x_ref`` [m], ``x`` [m] (measured load position),
-``current`` [A]; optional ``motor_speed`` [rad/s]; extra columns are ignored.
+One reader (:func:`read_measured`) for every format; each gives a :class:`MeasuredRun` in the SI
+units of the twin (a unit per signal):
 
-EMPS benchmark .mat files (as published, Janot, Gautier, Brunot 2019): ``t`` [s], ``qg``
-(reference, m), ``qm`` (motor position in load units, m), ``vir`` (drive command, V) and the
-scalars ``gtau`` [N/V], ``kp`` [1/s], ``kv`` [V/(m/s)]; the validation run also holds ``pulses_N``
-(a signal of its record, N). ``current`` then holds the drive command vir in V.
+- **CSV** (the project's format): ``t`` [s], ``x_ref`` [m], ``x`` [m] (measured load
+  position), ``current`` [A]; optional ``motor_speed`` [rad/s], ``motor_angle`` [rad],
+  ``load_speed`` [m/s], ``input_torque`` and ``measured_torque`` [N.m]. A header may carry each
+  column's unit (``t [ms]``, ``x [mm]``, ``current (mA)``, ``motor_speed [rpm]``; the units of
+  :mod:`twin_cosim.signal_units`), converted on reading; a column without a unit is in the SI
+  unit above; an unknown unit, or one of another quantity, is an error naming the column. Other
+  names map onto these by a column map (``--columns x=ActPos,t=Time``, or the scenario's
+  ``measured_columns``). Extra columns are kept when their header names a known unit (another
+  run's disturbance or drive signal) and otherwise ignored.
+- **TwinCAT Scope CSV export** (Beckhoff TwinCAT 3 Scope View, *Export to CSV*): a header block
+  (the scope's ``Name``, ``File``, ``Starttime of export`` and ``Endtime of export``), a blank
+  line, one row per channel property (``Name``, ``SymbolName``, ``SampleTime[ms]``, ``Unit``,
+  ... ; each row a key and a value per channel, the key repeated at the start of every group of
+  channels that share a time column), a blank line, then the samples: per group its time in ms
+  and its channels' values, tab- or semicolon-separated, decimal comma or point, an optional
+  ``EOF`` line. Channels are named by their ``Name`` (or ``SymbolName``) through the column map
+  and converted from their ``Unit`` (``mm (Millimeter)``: the unit before its name in
+  parentheses; ``(None)``: the signal's SI unit); the channels a run uses must be sampled at
+  the same times (one time column per channel, or one per group). Example:
+  ``docs/examples/twincat_scope_export.csv``.
+- **EMPS benchmark .mat** (as published, Janot, Gautier, Brunot 2019): ``t`` [s], ``qg``
+  (reference, m), ``qm`` (motor position in load units, m), ``vir`` (drive command, V) and the
+  scalars ``gtau`` [N/V], ``kp`` [1/s], ``kv`` [V/(m/s)]; the validation run also holds
+  ``pulses_N`` (N). ``current`` then holds the drive command vir in V.
+- **HSM150 .mat** (the HSM150 bench's runs as published): a 7-column array ``data`` of time
+  [s], position reference [rad], position [rad], velocity [rad/s], input torque [N.m], measured
+  torque [N.m] and motor current [A], and the bench's scalars (``J``, ``B``, ``Cu``, ...): the
+  signals ``t``, ``angle_ref``, ``motor_angle``, ``motor_speed``, ``input_torque``,
+  ``measured_torque``, ``current``. An open-loop run: the plant is driven by one of its signals
+  (a scenario's ``reference.drive``), and its position is the rotor's angle.
 
-A run's samples are a :class:`~twin_cosim.run_record.RunRecord` (a unit per column). Time must be
-strictly increasing and regular. Every problem gets an error naming the file, the column and
-what was expected, or, where the data can still be used, an explicit warning that the report
-repeats.
+Time must be strictly increasing and regular. Every problem gets an error naming the file, the
+column and what was expected, or, where the data can still be used, an explicit warning that the
+report repeats.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,18 +50,41 @@ import numpy as np
 
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.run_record import RunRecord
+from twin_cosim.signal_units import QUANTITY_OF, SI_UNIT, UnitError, split_header, to_si
 
 REQUIRED = ("t", "x_ref", "x", "current")
-OPTIONAL = ("motor_speed",)
-SIGNAL_UNITS = {"t": "s", "x_ref": "m", "x": "m", "current": "A", "motor_speed": "rad/s"}
+# An open-loop run needs its motor speed and a position: x, or the rotor's angle.
+OPEN_LOOP_REQUIRED = ("t", "motor_speed")
+OPEN_LOOP_POSITIONS = ("x", "motor_angle")
+SIGNALS = tuple(QUANTITY_OF)
 REGULARITY_TOLERANCE = 1e-3  # relative jitter of the sample period
 MIN_SAMPLES = 100
 UNIT_FACTORS = {1e3: "mm instead of m", 1e6: "um instead of m"}
+# The columns of an open-loop comparison: the position and the motor speed (a closed-loop
+# run's second signal is its command, ``current``).
+OPEN_LOOP_COMPARED = "motor_speed"
+CLOSED_LOOP_COMPARED = "current"
 
 
 def _signal(name: str, doc: str) -> property:
-    """A signal of a run's record as an attribute of the run (the column itself, a view)."""
-    return property(lambda run: run.record[name], doc=doc)
+    """A signal of a run's record as an attribute of the run (the column itself, a view);
+    MeasuredDataError naming the file when the run has none."""
+
+    def get(run: MeasuredRun) -> np.ndarray:
+        values = run.record.get(name)
+        if values is None:
+            raise MeasuredDataError(
+                f"{run.source}: no column {name!r} (it holds {list(run.record.columns)})"
+                + (
+                    "; an open-loop run (a rotor's angle and speed) needs a scenario with "
+                    "reference.drive"
+                    if "motor_angle" in run.record.columns
+                    else ""
+                )
+            )
+        return values
+
+    return property(get, doc=doc)
 
 
 class MeasuredDataError(ValueError):
@@ -51,19 +100,24 @@ class MeasuredRun:
     source : str
         File it came from.
     record : RunRecord
-        The samples: ``t`` [s], ``x_ref`` and ``x`` (reference and measured carriage position,
-        m), ``current`` (current command, A; the drive command in V for an EMPS run), optionally
-        ``motor_speed`` [rad/s] and further signals of the file (e.g. EMPS ``pulses_N``, N).
+        The samples, SI units: ``t`` [s], ``x_ref`` and ``x`` (reference and measured carriage
+        position, m), ``current`` (current command, A; the drive command in V for an EMPS run),
+        optionally ``motor_speed`` [rad/s], ``motor_angle`` [rad] and further signals of the
+        file (e.g. EMPS ``pulses_N``, N; HSM150 ``input_torque``, N.m).
     warnings : list of str
         Problems that did not stop the diagnosis.
     scalars : dict
         Numbers the file holds besides its signals (e.g. EMPS ``gtau``, ``kp``, ``kv``).
+    drive : str or None
+        For an open-loop run: the signal that drove the plant (its current command, in place of
+        a controller's); None for a run in closed loop.
     """
 
     source: str
     record: RunRecord
     warnings: list[str] = field(default_factory=list)
     scalars: dict[str, float] = field(default_factory=dict)
+    drive: str | None = None
 
     @classmethod
     def from_signals(
@@ -74,8 +128,9 @@ class MeasuredRun:
         scalars: Mapping[str, float] | None = None,
     ) -> MeasuredRun:
         """A run of ``signals`` by name (``t``, ``x_ref``, ``x``, ``current`` and any further
-        ones), in :data:`SIGNAL_UNITS` unless ``units`` names another."""
-        known = {name: unit for name, unit in SIGNAL_UNITS.items() if name in signals}
+        ones), in the SI units of :data:`twin_cosim.signal_units.SI_UNIT` unless ``units``
+        names another."""
+        known = {name: unit for name, unit in SI_UNIT.items() if name in signals}
         record = RunRecord.from_columns(signals, {**known, **(units or {})})
         return cls(source, record, scalars=dict(scalars or {}))
 
@@ -90,62 +145,335 @@ class MeasuredRun:
         return self.record.get("motor_speed")
 
     @property
+    def compared(self) -> str:
+        """The signal compared beside the position: the motor speed of an open-loop run, the
+        command (``current``) of a closed-loop one."""
+        return OPEN_LOOP_COMPARED if self.drive else CLOSED_LOOP_COMPARED
+
+    @property
     def period(self) -> float:
         """Sample period, s."""
         return float((self.t[-1] - self.t[0]) / (len(self.t) - 1))
 
     def select(self, mask: np.ndarray) -> MeasuredRun:
-        """The samples where ``mask`` is True (same source, warnings and scalars)."""
-        return MeasuredRun(self.source, self.record.rows(mask), self.warnings, self.scalars)
+        """The samples where ``mask`` is True (same source, warnings, scalars and drive)."""
+        return MeasuredRun(
+            self.source, self.record.rows(mask), self.warnings, self.scalars, self.drive
+        )
 
     def with_signals(self, signals: Mapping[str, np.ndarray]) -> MeasuredRun:
         """The run with ``signals`` (by name, one value per sample) in place of its own."""
         return MeasuredRun(
-            self.source, self.record.with_columns(signals), self.warnings, self.scalars
+            self.source, self.record.with_columns(signals), self.warnings, self.scalars, self.drive
+        )
+
+    def open_loop(self, drive: str, travel_per_rad: float) -> MeasuredRun:
+        """The run as an open-loop run driven by its signal ``drive``: ``x`` (m) from its
+        ``motor_angle`` (rad) times ``travel_per_rad`` (m/rad) when it has no ``x``, and its
+        measured motion as its reference (``x_ref`` = ``x``: what the twin must reproduce).
+
+        Raises
+        ------
+        MeasuredDataError
+            When it lacks the drive signal, the motor speed or a position.
+        """
+        missing = [n for n in (drive, *OPEN_LOOP_REQUIRED) if n not in self.record.columns]
+        if not any(n in self.record.columns for n in OPEN_LOOP_POSITIONS):
+            missing.append(" or ".join(OPEN_LOOP_POSITIONS))
+        if missing:
+            raise MeasuredDataError(
+                f"{self.source}: an open-loop run driven by {drive!r} needs the column(s) "
+                f"{missing}; it holds {list(self.record.columns)}"
+            )
+        x = self.record.get("x")
+        if x is None:
+            x = self.record["motor_angle"] * travel_per_rad
+        units = {"x": "m", "x_ref": "m"}
+        record = self.record.with_columns({"x": x, "x_ref": x}, units)
+        return MeasuredRun(self.source, record, self.warnings, self.scalars, drive)
+
+
+def parse_columns(text: str, option: str = "--columns") -> dict[str, str]:
+    """A column map ``signal=column,signal=column`` (``x=ActPos,t=Time``) as a mapping from the
+    run's signals (:data:`SIGNALS`) to the file's column names.
+
+    Raises
+    ------
+    ValueError
+        Naming the option and the item for an item that is not ``signal=name`` or a signal the
+        twin does not know.
+    """
+    found = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        signal, equals, column = (p.strip() for p in item.partition("="))
+        if not equals or not signal or not column:
+            raise ValueError(f"{option} {text!r}: {item!r} must be signal=column")
+        if signal not in SIGNALS:
+            raise ValueError(
+                f"{option} {text!r}: {signal!r} is not a signal; expected one of {SIGNALS}"
+            )
+        found[signal] = column
+    return found
+
+
+def _numeric_column(path: Path, column: str, raw) -> np.ndarray:
+    """A column of text or numbers as float64; MeasuredDataError naming the bad lines."""
+    import pandas as pd
+
+    values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
+    bad = np.flatnonzero(~np.isfinite(values))
+    if len(bad):
+        rows = ", ".join(str(r + 2) for r in bad[:5])  # +2: header line and 1-based rows
+        raise MeasuredDataError(
+            f"{path}: column {column!r} has {len(bad)} missing, non-numeric or non-finite "
+            f"value(s) (file lines {rows}{', ...' if len(bad) > 5 else ''}); "
+            "gaps must be filled"
+        )
+    return values
+
+
+def _roles(path: Path, headers: list[str], columns: Mapping[str, str]) -> dict[str, str]:
+    """Signal -> header of the file: the column map's names first, then the signals' own."""
+    names = {split_header(h)[0]: h for h in headers}
+    found = {}
+    for signal, name in columns.items():
+        header = names.get(name) if name in names else (name if name in headers else None)
+        if header is None:
+            raise MeasuredDataError(
+                f"{path}: the column map names {name!r} for {signal!r}, but the file has no such "
+                f"column (it has {headers})"
+            )
+        found[signal] = header
+    taken = set(found.values())
+    for signal in SIGNALS:
+        if signal not in found and signal in names and names[signal] not in taken:
+            found[signal] = names[signal]
+    return found
+
+
+def _converted(path: Path, signal: str, header: str, values: np.ndarray) -> tuple[np.ndarray, str]:
+    """A column in its header's unit (the signal's SI unit without one) as SI values."""
+    _, unit = split_header(header)
+    if unit is None or unit == "":
+        return values, SI_UNIT.get(signal, "1")
+    try:
+        return to_si(values, unit, signal, header)
+    except UnitError as exc:
+        raise MeasuredDataError(f"{path}: {exc}") from None
+
+
+def _checked_signals(
+    path: Path, signals: dict[str, np.ndarray], open_loop: bool, found: list[str]
+) -> None:
+    """The signals a run of its kind needs; MeasuredDataError naming what is missing."""
+    if open_loop:
+        missing = [c for c in OPEN_LOOP_REQUIRED if c not in signals]
+        if not any(p in signals for p in OPEN_LOOP_POSITIONS):
+            missing.append(" or ".join(OPEN_LOOP_POSITIONS))
+        expected = "t [s], motor_speed [rad/s] and x [m] or motor_angle [rad]"
+    else:
+        missing = [c for c in REQUIRED if c not in signals]
+        expected = "t [s], x_ref [m], x [m], current [A] (optional motor_speed [rad/s])"
+    if missing:
+        raise MeasuredDataError(
+            f"{path}: missing column(s) {missing}; expected {expected}, found {found} (other "
+            "names: a column map, --columns signal=name)"
         )
 
 
-def read_measured_csv(path: Path | str) -> MeasuredRun:
-    """Read and check a measured-run CSV.
+def read_measured_csv(
+    path: Path | str, columns: Mapping[str, str] | None = None, open_loop: bool = False
+) -> MeasuredRun:
+    """Read and check a measured-run CSV (units from its header, names by ``columns``).
 
     Raises
     ------
     MeasuredDataError
-        On an unreadable file, missing columns, non-numeric or non-finite values (rows named),
-        non-monotonic or irregular time, or too few samples.
+        On an unreadable file, missing columns, unknown units, non-numeric or non-finite values
+        (rows named), non-monotonic or irregular time, or too few samples.
     """
     import pandas as pd  # a CSV run only: pandas stays off the start of other commands
 
     path = Path(path)
+    if _is_twincat_export(path):
+        return read_twincat_scope_csv(path, columns, open_loop)
     try:
         table = pd.read_csv(path)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise MeasuredDataError(f"{path}: cannot read as CSV: {exc}") from exc
-    missing = [c for c in REQUIRED if c not in table.columns]
+    headers = [str(c) for c in table.columns]
+    roles = _roles(path, headers, columns or {})
+    _checked_signals(path, dict.fromkeys(roles), open_loop, headers)
+    signals, units = {}, {}
+    for signal, header in roles.items():
+        values = _numeric_column(path, header, table[header])
+        signals[signal], units[signal] = _converted(path, signal, header, values)
+    for header in headers:
+        name, unit = split_header(header)
+        if header in roles.values() or not unit or name in signals:
+            continue
+        try:  # an extra signal of a known unit (a disturbance, a drive signal)
+            values, units[name] = to_si(
+                _numeric_column(path, header, table[header]), unit, name, header
+            )
+        except (UnitError, MeasuredDataError):
+            continue
+        signals[name] = values
+    run = MeasuredRun.from_signals(str(path), signals, units)
+    check_time(run)
+    return run
+
+
+_TWINCAT_EOF = "EOF"
+
+
+def _is_twincat_export(path: Path) -> bool:
+    """A TwinCAT Scope CSV export: its first line is the scope's ``Name`` and a
+    ``SampleTime[ms]`` row follows before the samples."""
+    try:
+        with path.open(encoding="utf-8-sig", errors="replace") as handle:
+            head = [handle.readline() for _ in range(40)]
+    except OSError:
+        return False
+    first = re.split(r"[\t;]", head[0].strip(), maxsplit=1)[0] if head and head[0] else ""
+    return first == "Name" and any(re.match(r"SampleTime\[ms\][\t;]", h) for h in head)
+
+
+def _twincat_number(text: str, decimal_comma: bool) -> float:
+    text = text.strip()
+    if decimal_comma:
+        text = text.replace(".", "").replace(",", ".")
+    return float(text) if text else float("nan")
+
+
+def _blocks(lines: list[str]) -> list[list[int]]:
+    """The indices of the lines of each block of non-blank lines (blocks parted by one or more
+    blank lines)."""
+    blocks: list[list[int]] = []
+    previous_blank = True
+    for index, line in enumerate(lines):
+        if not line.strip():
+            previous_blank = True
+            continue
+        if previous_blank:
+            blocks.append([])
+        blocks[-1].append(index)
+        previous_blank = False
+    return blocks
+
+
+def _twincat_unit(cell: str) -> str:
+    """A TwinCAT Scope ``Unit`` cell as a unit: ``"mm (Millimeter)"`` gives ``"mm"``,
+    ``"(None)"`` and an empty cell give ``""``."""
+    return re.sub(r"\s*\([^)]*\)\s*$", "", cell.strip())
+
+
+def read_twincat_scope_csv(
+    path: Path | str, columns: Mapping[str, str] | None = None, open_loop: bool = False
+) -> MeasuredRun:
+    """Read a TwinCAT Scope CSV export (see the module docstring) as a measured run.
+
+    Channels become the run's signals through ``columns`` (signal -> the channel's ``Name`` or
+    ``SymbolName``; a channel named as a signal needs no entry), each converted from its
+    ``Unit`` (none: the signal's SI unit); the time column of their group, in ms, becomes ``t``
+    (s) from 0.
+
+    Raises
+    ------
+    MeasuredDataError
+        On a malformed export, channels the run needs that are missing or on different time
+        columns, unknown units or non-numeric samples (lines named).
+    """
+    path = Path(path)
+    lines = path.read_text(encoding="utf-8-sig", errors="replace").splitlines()
+    separator = "\t" if any("\t" in line for line in lines[:40]) else ";"
+    rows = [line.split(separator) for line in lines]
+    blocks = _blocks(lines)
+    if len(blocks) < 3:
+        raise MeasuredDataError(
+            f"{path}: not a TwinCAT Scope export: expected a header block, a blank line, the "
+            "channel rows, a blank line and the samples"
+        )
+    channel_rows = {r[0].strip(): [c.strip() for c in r] for r in (rows[i] for i in blocks[1]) if r}
+    if "Name" not in channel_rows:
+        raise MeasuredDataError(f"{path}: the channel rows hold no 'Name' row")
+    names = channel_rows["Name"]
+    groups = [i for i, cell in enumerate(names) if cell == "Name"]
+    channel_of: dict[str, int] = {}
+    time_column: dict[int, int] = {}
+    for index, start in enumerate(groups):
+        stop = groups[index + 1] if index + 1 < len(groups) else len(names)
+        for column in range(start + 1, stop):
+            for key in ("Name", "SymbolName"):
+                cells = channel_rows.get(key, [])
+                if column < len(cells) and cells[column]:
+                    channel_of.setdefault(cells[column], column)
+            time_column[column] = start
+    data = [rows[i] for i in range(blocks[2][0], len(rows)) if any(c.strip() for c in rows[i])]
+    if data and data[-1][0].strip() == _TWINCAT_EOF:
+        data = data[:-1]
+    sample = [c for r in data[:20] for c in r if c.strip()]
+    decimal_comma = separator != "," and any("," in c for c in sample)
+    wanted = dict(columns or {})
+    for signal in SIGNALS:
+        if signal not in wanted and signal in channel_of:
+            wanted[signal] = signal
+    missing = {s: n for s, n in wanted.items() if n not in channel_of}
     if missing:
         raise MeasuredDataError(
-            f"{path}: missing column(s) {missing}; expected t [s], x_ref [m], x [m], current [A] "
-            f"(optional motor_speed [rad/s]), found {list(table.columns)}"
+            f"{path}: no channel named {sorted(missing.values())} (for {sorted(missing)}); the "
+            f"export has {sorted(channel_of)}"
         )
-    columns = {}
-    for name in REQUIRED + tuple(c for c in OPTIONAL if c in table.columns):
-        values = pd.to_numeric(table[name], errors="coerce").to_numpy(dtype=np.float64)
-        bad = np.flatnonzero(~np.isfinite(values))
-        if len(bad):
-            rows = ", ".join(str(r + 2) for r in bad[:5])  # +2: header line and 1-based rows
+    _checked_signals(path, dict.fromkeys([*wanted, "t"]), open_loop, sorted(channel_of))
+
+    def column(index: int, label: str) -> np.ndarray:
+        values = []
+        for line, row in enumerate(data):
+            try:
+                values.append(_twincat_number(row[index], decimal_comma))
+            except (ValueError, IndexError):
+                raise MeasuredDataError(
+                    f"{path}: channel {label!r}: sample {line + 1} is not a number"
+                ) from None
+        result = np.array(values)
+        if not np.all(np.isfinite(result)):
+            raise MeasuredDataError(f"{path}: channel {label!r} has missing or non-finite samples")
+        return result
+
+    clocks = sorted({time_column[channel_of[n]] for n in wanted.values()})
+    milliseconds = column(clocks[0], "time")
+    for clock in clocks[1:]:  # each channel its own time column: the same sample times
+        if not np.allclose(column(clock, "time"), milliseconds, rtol=0.0, atol=1e-9):
             raise MeasuredDataError(
-                f"{path}: column {name!r} has {len(bad)} missing, non-numeric or non-finite "
-                f"value(s) (file lines {rows}{', ...' if len(bad) > 5 else ''}); "
-                "gaps must be filled"
+                f"{path}: the channels {sorted(wanted.values())} are sampled at different "
+                "times; export them at one sample time"
             )
-        columns[name] = values
-    run = MeasuredRun.from_signals(str(path), columns)
+    signals = {"t": (milliseconds - milliseconds[0]) * 1e-3}
+    units = {"t": "s"}
+    unit_cells = channel_rows.get("Unit", [])
+    for signal, name in wanted.items():
+        index = channel_of[name]
+        unit = _twincat_unit(unit_cells[index] if index < len(unit_cells) else "")
+        header = f"{name} [{unit}]" if unit else name
+        signals[signal], units[signal] = _converted(path, signal, header, column(index, name))
+    run = MeasuredRun.from_signals(str(path), signals, units)
     check_time(run)
     return run
 
 
 EMPS_SIGNALS = {"t": "t", "qg": "x_ref", "qm": "x", "vir": "current"}
 EMPS_SCALARS = ("gtau", "kp", "kv")
+# The columns of an HSM150 run's ``data`` array, as its README gives them.
+HSM150_SIGNALS = (
+    "t",
+    "angle_ref",
+    "motor_angle",
+    "motor_speed",
+    "input_torque",
+    "measured_torque",
+    "current",
+)
+HSM150_SCALARS = ("J", "B", "Mn", "Mmax", "N", "KFI", "Cu", "Tn", "Tvz", "Tgm", "Tsim")
 
 
 def _numeric(path: Path, name: str, value: object) -> np.ndarray:
@@ -162,6 +490,15 @@ def _numeric(path: Path, name: str, value: object) -> np.ndarray:
     return values
 
 
+def _load_mat(path: Path) -> dict:
+    from scipy.io import loadmat
+
+    try:
+        return loadmat(str(path))
+    except (OSError, ValueError, NotImplementedError) as exc:
+        raise MeasuredDataError(f"{path}: cannot read as a MATLAB file: {exc}") from exc
+
+
 def read_emps_mat(path: Path | str) -> MeasuredRun:
     """Read an EMPS benchmark .mat file as it is published (with or without ``pulses_N``).
 
@@ -171,13 +508,8 @@ def read_emps_mat(path: Path | str) -> MeasuredRun:
         On an unreadable file, a missing variable, signals of different lengths or non-finite
         values.
     """
-    from scipy.io import loadmat
-
     path = Path(path)
-    try:
-        data = loadmat(str(path))
-    except (OSError, ValueError, NotImplementedError) as exc:
-        raise MeasuredDataError(f"{path}: cannot read as a MATLAB file: {exc}") from exc
+    data = _load_mat(path)
     missing = [name for name in EMPS_SIGNALS if name not in data]
     if missing:
         raise MeasuredDataError(
@@ -204,18 +536,70 @@ def read_emps_mat(path: Path | str) -> MeasuredRun:
     return run
 
 
-def read_measured(path: Path | str) -> MeasuredRun:
-    """Read a measured run: .csv (the project's format) or .mat (EMPS benchmark)."""
+def read_hsm150_mat(path: Path | str) -> MeasuredRun:
+    """Read an HSM150 bench run (.mat, as published: ``data`` and the bench's scalars).
+
+    Raises
+    ------
+    MeasuredDataError
+        On an unreadable file, a ``data`` array that is not 7 numeric columns, non-finite values,
+        or irregular time.
+    """
+    path = Path(path)
+    data = _load_mat(path)
+    array = np.asarray(data.get("data", np.empty((0, 0))))
+    if array.ndim != 2 or array.shape[1] != len(HSM150_SIGNALS):
+        raise MeasuredDataError(
+            f"{path}: variable 'data' must be an array of {len(HSM150_SIGNALS)} columns "
+            f"({', '.join(HSM150_SIGNALS)}), got shape {array.shape}"
+        )
+    values = _numeric(path, "data", array).reshape(array.shape)
+    signals = {}
+    for index, name in enumerate(HSM150_SIGNALS):
+        if not np.all(np.isfinite(values[:, index])):
+            raise MeasuredDataError(f"{path}: column {index + 1} of 'data' ({name}) is not finite")
+        signals[name] = values[:, index]
+    scalars = {
+        name: float(_numeric(path, name, data[name])[0]) for name in HSM150_SCALARS if name in data
+    }
+    run = MeasuredRun.from_signals(str(path), signals, scalars=scalars)
+    check_time(run)
+    return run
+
+
+def read_mat(path: Path | str) -> MeasuredRun:
+    """A .mat run in the format its variables show: EMPS (``qg``, ``qm``, ``vir``) or HSM150
+    (a ``data`` array)."""
+    path = Path(path)
+    from scipy.io import whosmat
+
+    try:
+        names = {name for name, _, _ in whosmat(str(path))}
+    except (OSError, ValueError, NotImplementedError) as exc:
+        raise MeasuredDataError(f"{path}: cannot read as a MATLAB file: {exc}") from exc
+    if "data" in names and not {"qg", "qm"} & names:
+        return read_hsm150_mat(path)
+    return read_emps_mat(path)
+
+
+def read_measured(
+    path: Path | str, columns: Mapping[str, str] | None = None, open_loop: bool = False
+) -> MeasuredRun:
+    """Read a measured run: .csv (the project's format with units and a column map ``columns``,
+    or a TwinCAT Scope export) or .mat (EMPS benchmark, HSM150 bench). ``open_loop``: the run
+    drove its plant open loop (a position and the motor speed, no reference or command needed).
+    """
     path = Path(path)
     if not path.is_file():
         raise MeasuredDataError(f"{path}: file not found")
-    readers = {".csv": read_measured_csv, ".mat": read_emps_mat}
-    reader = readers.get(path.suffix.lower())
-    if reader is None:
-        raise MeasuredDataError(
-            f"{path}: unknown measured-run type {path.suffix!r}; expected .csv or .mat"
-        )
-    return reader(path)
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return read_measured_csv(path, columns, open_loop)
+    if suffix == ".mat":
+        return read_mat(path)
+    raise MeasuredDataError(
+        f"{path}: unknown measured-run type {path.suffix!r}; expected .csv or .mat"
+    )
 
 
 def check_time(run: MeasuredRun) -> None:

@@ -12,7 +12,11 @@ A plant model is a folder ``models/<model>/`` with its C sources, its variable t
 - ``effects``: the hypotheses of the gap diagnosis (:mod:`twin_cosim.hypotheses`);
 - ``linear`` (optional): for the frequency analysis (:mod:`twin_cosim.frequency`), the parameter
   values that switch the nonlinearities off (``nonlinear_off``) and the linear two-mass system
-  (``two_mass``: :data:`TWO_MASS` as formulas of the parameters).
+  (``two_mass``: :data:`TWO_MASS` as formulas of the parameters);
+- ``constraints`` (optional): what the FMU refuses at initialisation although each parameter lies
+  in its range (``{holds: FORMULA, says: TEXT}``: the formula of the parameters must be >= 0,
+  e.g. ``coulomb_friction - abs(coulomb_asymmetry)``), so that such values are refused before
+  any FMU runs (:meth:`PlantModel.broken_constraints`), naming the values.
 
 :func:`plant_model` reads and checks both files once per process. Adding an effect to a model's
 library touches its folder (the FMU block in ``model.c`` and ``variables.yaml``, its entry in
@@ -35,7 +39,8 @@ from twin_cosim.schema import Checker, load_yaml
 
 # What the drive assumes about the plant, each a formula of the plant parameters in the card.
 DRIVE_FACTS = ("travel_per_rad", "inertia", "torque_constant", "friction_torque", "speed_period")
-CARD_KEYS = {"model", "drive", "motor_per_screw", "calibrated", "effects", "linear"}
+CARD_KEYS = {"model", "drive", "motor_per_screw", "calibrated", "effects", "linear", "constraints"}
+CONSTRAINT_KEYS = {"holds", "says"}
 # The linear two-mass system of a card's ``linear.two_mass``, motor-referred: J_M [kg.m2],
 # J_L [kg.m2], coupling stiffness [N.m/rad] and damping [N.m.s/rad], viscous friction on the load
 # [N.m.s/rad], torque constant [N.m/A], carriage travel per load radian at the scale [m/rad],
@@ -63,6 +68,15 @@ class PlantModelError(ValueError):
 
 
 @dataclass(frozen=True)
+class Constraint:
+    """A relation of parameter values the FMU needs: ``holds`` (a formula of the parameters)
+    must be >= 0; ``says`` is the relation in words."""
+
+    holds: Formula
+    says: str
+
+
+@dataclass(frozen=True)
 class PlantModel:
     """One plant model: its variable table and its card.
 
@@ -84,6 +98,8 @@ class PlantModel:
         Parameter values that switch every nonlinearity off; empty without a linear model.
     two_mass : dict
         Quantity (:data:`TWO_MASS`) -> formula of the parameters; empty without a linear model.
+    constraints : tuple of Constraint
+        Relations of parameter values the FMU refuses to start without.
     """
 
     name: str
@@ -94,6 +110,7 @@ class PlantModel:
     hypotheses: tuple[Hypothesis, ...]
     nonlinear_off: dict[str, float]
     two_mass: dict[str, Formula]
+    constraints: tuple[Constraint, ...] = ()
 
     @property
     def parameters(self) -> dict[str, Variable]:
@@ -149,6 +166,23 @@ class PlantModel:
         """The screw angle (rad) of a motor angle (rad, a number or an array)."""
         values = {**self.start_values(), **(parameters or {})}
         return motor_angle / self.motor_per_screw(values)
+
+    def broken_constraints(
+        self, parameters: Mapping[str, float]
+    ) -> list[tuple[str, tuple[str, ...]]]:
+        """The constraints that ``parameters`` (on top of the start values) break: each in
+        words with the values of its parameters, and those parameters; empty when the FMU can
+        start with them."""
+        values = {**self.start_values(), **parameters}
+        broken = []
+        for constraint in self.constraints:
+            if not constraint.holds(values) >= 0.0:
+                names = tuple(sorted(constraint.holds.uses & set(self.parameters)))
+                used = ", ".join(
+                    f"{name} = {values[name]:g} {self.parameters[name].unit}" for name in names
+                )
+                broken.append((f"{constraint.says} ({used})", names))
+        return broken
 
     def hypothesis(self, name: str) -> Hypothesis:
         """The hypothesis of that name; PlantModelError lists the library when there is none."""
@@ -211,6 +245,7 @@ def read_card(path: Path, name: str, table: VariableTable) -> PlantModel:
         raise check.fail("calibrated", "parameters of variables.yaml", stray)
     effects = check.mapping(data.get("effects"), "effects")
     nonlinear_off, two_mass = _linear(check, data.get("linear"), parameters)
+    constraints = _constraints(check, data.get("constraints", []), parameters)
     return PlantModel(
         name=name,
         table=table,
@@ -224,7 +259,25 @@ def read_card(path: Path, name: str, table: VariableTable) -> PlantModel:
         ),
         nonlinear_off=nonlinear_off,
         two_mass=two_mass,
+        constraints=constraints,
     )
+
+
+def _constraints(check: Checker, data: Any, parameters: tuple[str, ...]) -> tuple[Constraint, ...]:
+    """The card's ``constraints``: a list of ``{holds: FORMULA, says: TEXT}``."""
+    if not isinstance(data, list):
+        raise check.fail("constraints", "a list of {holds: formula, says: text}", data)
+    found = []
+    for index, entry in enumerate(data):
+        key = f"constraints[{index}]"
+        entry = check.mapping(entry, key, CONSTRAINT_KEYS)
+        found.append(
+            Constraint(
+                _formula(check, f"{key}.holds", entry.get("holds"), parameters),
+                check.text(entry.get("says"), f"{key}.says"),
+            )
+        )
+    return tuple(found)
 
 
 def _linear(

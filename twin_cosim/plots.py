@@ -15,6 +15,7 @@ from matplotlib.figure import Figure
 from twin_cosim.metrics import UM_PER_M, Metrics
 
 if TYPE_CHECKING:
+    from twin_cosim.open_loop import OpenLoopComparison
     from twin_cosim.run_record import RunRecord
 
 # The close-up on a peak: the event starts tens of ms before it and settles within 0.2 s after
@@ -94,6 +95,56 @@ def plot_run(record: RunRecord, metrics: Metrics, title: str, path: Path) -> Pat
         ax.grid(alpha=0.3)
     # fixed margins that hold these labels: tight_layout would draw the figure once more
     fig.subplots_adjust(left=0.08, right=0.92, top=0.96, bottom=0.05, hspace=0.45)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def plot_open_loop(
+    record: RunRecord, comparison: OpenLoopComparison, title: str, path: Path
+) -> Path:
+    """An open-loop replay: measured and twin motor speed, their difference, the current
+    command that drove the plant. Returns the written path.
+
+    ``record`` holds the twin's columns and the measured ones beside them
+    (:func:`twin_cosim.open_loop.with_measured`).
+    """
+    fig = Figure(figsize=(10, 9))
+    axes = fig.subplots(3, 1, sharex=True)
+    t = record["t"]
+    c = comparison
+    axes[0].plot(t, record["measured_motor_speed"], color="k", lw=0.6, label="measured")
+    axes[0].plot(t, record["motor_speed"], color="tab:blue", lw=1.2, label="twin")
+    steady = "\n".join(
+        f"at {level.drive:.3g} {c.drive_unit}: steady {level.measured_rad_s:.0f} rad/s measured, "
+        f"{level.twin_rad_s:.0f} twin ({level.relative_error_pct:+.1f} %)"
+        for level in c.levels
+    )
+    forwards = not c.levels or c.levels[0].drive >= 0
+    axes[0].text(
+        0.01,
+        0.96 if forwards else 0.04,
+        steady,
+        transform=axes[0].transAxes,
+        va="top" if forwards else "bottom",
+        fontsize=8,
+        bbox={"facecolor": "white", "edgecolor": "0.8", "alpha": 0.9},
+    )
+    axes[0].set_ylabel("motor speed [rad/s]")
+    axes[0].legend(loc="lower right" if forwards else "upper right")
+    axes[0].set_title(title)
+    axes[1].plot(t, record["measured_motor_speed"] - record["motor_speed"], lw=0.6)
+    axes[1].set_ylabel("measured - twin [rad/s]")
+    axes[1].set_title(
+        f"velocity gap RMS {c.speed_rms_gap_rad_s:.3g} rad/s "
+        f"({c.speed_relative_error_pct:.3g} % of the measured speed's norm)"
+    )
+    axes[2].plot(t, record["current"], color="tab:green", lw=0.8)
+    axes[2].set_ylabel("current command [A]")
+    axes[2].set_title(f"the drive: {c.drive} as the plant's current command")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[2].set_xlabel("t [s]")
+    fig.subplots_adjust(left=0.09, right=0.97, top=0.95, bottom=0.06, hspace=0.35)
     fig.savefig(path, dpi=110)
     return path
 

@@ -10,7 +10,7 @@ import pytest
 
 from fmu_build.build import FMI_VERSIONS, build_fmu
 
-MODELS = ("drive2mass", "emps")
+MODELS = ("drive2mass", "emps", "hsm150")
 
 
 class BuiltFmu(NamedTuple):

@@ -185,7 +185,8 @@ def test_unknown_fmi_version_is_an_error():
 @pytest.mark.parametrize("debug_logging", [True, False])
 def test_events_reach_fmpys_logger_only_with_debug_logging(any_fmu, debug_logging):
     """fmpy instantiates with loggingOn = debug_logging and passes our logger callback; a push
-    then a release of the axis logs its breakaway and its sticking only when logging is on."""
+    then a release of the axis logs its breakaway and its sticking only when logging is on (a
+    model whose catalogue has no breakaway level, hsm150, gets a Coulomb friction)."""
     messages = []
 
     def logger(*arguments):
@@ -205,6 +206,7 @@ def test_events_reach_fmpys_logger_only_with_debug_logging(any_fmu, debug_loggin
         input=signal,
         debug_logging=debug_logging,
         logger=logger,
+        start_values={"coulomb_friction": 0.03} if any_fmu.model == "hsm150" else {},
     )
     events = [m for c, m in messages if c == "logEvents"]
     if debug_logging:

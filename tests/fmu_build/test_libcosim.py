@@ -25,6 +25,11 @@ RUNS = {
         lambda k: 2.5 if k < 200 else -2.5,
     ),
     "emps": (1_000_000, {"load_position_start": 0.1, "dead_time_steps": 2}, lambda k: 3.0 - k / 50),
+    "hsm150": (
+        1_000_000,
+        {"load_position_start": 0.1, "coulomb_friction": 0.03, "dead_time_steps": 2},
+        lambda k: 1.5 - k / 100,
+    ),
 }
 
 
@@ -83,7 +88,7 @@ def test_libcosim_runs_the_fmu_as_fmpy_does(model_fmu):
     assert worst <= 1e-13, worst
 
 
-@pytest.mark.parametrize("model", ["drive2mass", "emps"])
+@pytest.mark.parametrize("model", ["drive2mass", "emps", "hsm150"])
 def test_libcosim_sees_parameters_set_before_initialization(model):
     fmu_path = build_fmu(model)
     step_ns, parameters, _ = RUNS[model]

@@ -79,7 +79,9 @@ def test_default_experiment_step_is_the_sample_period(any_fmu):
     description = read_model_description(str(fmu_path))
     sample_period = next(v for v in description.modelVariables if v.name == "sample_period")
     assert float(description.defaultExperiment.stepSize) == float(sample_period.start)
-    assert float(sample_period.start) == {"drive2mass": 62.5e-6, "emps": 1e-3}[model]
+    assert (
+        float(sample_period.start) == {"drive2mass": 62.5e-6, "emps": 1e-3, "hsm150": 1e-3}[model]
+    )
 
 
 def test_log_categories_are_declared(any_fmu):

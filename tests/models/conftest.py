@@ -16,7 +16,7 @@ from fmpy.fmi3 import FMU3Slave
 from fmu_build.build import FMI_VERSIONS, build_fmu
 from twin_cosim.plant import Plant, PlantError, extracted_fmu
 
-MODELS = ("drive2mass", "emps")
+MODELS = ("drive2mass", "emps", "hsm150")
 
 
 class Fmi2Slave:
@@ -27,6 +27,7 @@ class Fmi2Slave:
     real_type, integer_type = "Real", "Integer"
 
     def __init__(self, model: str) -> None:
+        self.model = model
         self.plant = Plant(build_fmu(model), model)
         self.fmu = self.plant.fmu
         self.description = self.plant.description
@@ -77,6 +78,7 @@ class Fmi3Slave:
     FUNCTIONS = {"GetReal": "GetFloat64", "SetReal": "SetFloat64", "SetInteger": "SetInt32"}
 
     def __init__(self, model: str, event_mode_used: bool = False) -> None:
+        self.model = model
         fmu_path = build_fmu(model, fmi_version=3)
         self.description = read_model_description(str(fmu_path))
         self.variables = {v.name: v for v in self.description.modelVariables}
@@ -143,8 +145,21 @@ RUNS = {
         lambda k: 2.5 if k < 1500 else -2.5,
     ),
     "emps": (1e-3, {"load_position_start": 0.1, "dead_time_steps": 2}, lambda k: 3.0 - k / 300),
+    "hsm150": (
+        1e-3,
+        {
+            "load_position_start": 0.1,
+            "coulomb_friction": 0.03,
+            "stribeck_friction": 0.01,
+            "dead_time_steps": 2,
+        },
+        lambda k: 1.5 - k / 1000,
+    ),
 }
 STEPS = 3000
+# Parameters that give a model's axis a breakaway level where its catalogue has none (the
+# stick-slip tests need the axis to stick).
+BREAKAWAY = {"hsm150": {"coulomb_friction": 0.03}}
 
 
 def outputs_of_a_run(slave: Fmi2Slave | Fmi3Slave, model: str) -> np.ndarray:

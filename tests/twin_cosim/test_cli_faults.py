@@ -112,3 +112,42 @@ def test_an_out_folder_that_cannot_be_made_is_named(scenario, tmp_path, capsys):
     err = capsys.readouterr().err
     assert str(taken / "sub") in err
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("effect", "says"),
+    [
+        (
+            "stribeck:stribeck_friction=0.2,stribeck_speed=-0.4",
+            "--effect stribeck:stribeck_friction=0.2,stribeck_speed=-0.4: sets stribeck_speed: "
+            "-0.4 rad/s outside the model's range (0, ",
+        ),
+        (
+            "plant:coulomb_asymmetry=0.7",
+            "--effect plant:coulomb_asymmetry=0.7: the plant would break |coulomb_asymmetry| <= "
+            "coulomb_friction (coulomb_asymmetry = 0.7 N.m, coulomb_friction = 0.625 N.m)",
+        ),
+    ],
+)
+def test_synth_refuses_what_the_fmu_would_refuse_before_it_runs(
+    scenario, tmp_path, capsys, effect, says
+):
+    """Issue 31, item 8: a value the FMU would refuse is named with its option and range, not
+    answered with the FMU's path and an fmi2SetReal status."""
+    run = tmp_path / "run.csv"
+    assert main(["synth", str(scenario), "--effect", effect, "--out", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert says in err
+    assert "fmi2" not in err
+    assert not run.exists()
+
+
+def test_plant_parameters_the_fmu_would_refuse_are_named_before_it_runs(scenario, tmp_path, capsys):
+    plant = tmp_path / "plant.yaml"
+    plant.write_text("model: drive2mass\nparameters: {coulomb_asymmetry: -0.7}\n")
+    out = tmp_path / "out"
+    code = main(["simulate", str(scenario), "--plant-parameters", str(plant), "--out", str(out)])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert f"{plant}: parameters.coulomb_asymmetry: the plant would break" in err
+    assert "fmi2" not in err

@@ -303,6 +303,45 @@ def test_a_failing_fmi3_call_stops_the_run_with_its_message(fmi3_fmu, reference1
         run_scenario(plant, reference1, plant_overrides={"backlash": -1.0})
 
 
+@pytest.mark.parametrize("fast", [True, False])
+def test_an_open_loop_run_steps_the_plant_with_the_given_command(plants, grids, fast):
+    """The open-loop option: the plant receives the command array in place of the speed loop's
+    (plus a current injection), sample by sample, exactly as a loop that sets it and steps the
+    FMU itself; the record's current is that command."""
+    scenario = load_scenario("reference1")
+    ratio = scenario.settings.speed_steps_per_position_step
+    n = len(grids[0].position)
+    rng = np.random.default_rng(3)
+    command = np.repeat(rng.normal(0.0, 2.0, n), ratio)
+    added = rng.normal(0.0, 0.1, n * ratio)
+    axis = AxisRun(
+        "X",
+        plants[0],
+        grids[0],
+        TABLE3["ft"],
+        scenario.settings,
+        {},
+        Injections(open_loop=command, current=added),
+    )
+    found = run_axes([axis], fast, speed_loop_record=True)["X"]
+    assert np.array_equal(found.speed_loop["current"], command + added)
+    assert np.max(np.abs(found.position_loop["current"] - command[::ratio])) < 1e-12
+    plant = plants[2]
+    plant.start_run({})
+    vr_in = [plant.value_reference("current_cmd")]
+    vr_out = [plant.value_reference(n) for n in ("load_position", "motor_speed")]
+    h = scenario.settings.speed_period
+    expected = []
+    for k, value in enumerate(command + added):
+        if k % ratio == 0:
+            expected.append(plant.get_reals(vr_out))
+        plant.set_reals(vr_in, [float(value)])
+        plant.do_step(k * h, h)
+    expected = np.array(expected)
+    assert np.array_equal(found.position_loop["x"], expected[:, 0])
+    assert np.array_equal(found.position_loop["motor_speed"], expected[:, 1])
+
+
 def test_a_reference_sampled_off_the_position_period_is_refused(plants, grids):
     """A controller set may change the position period: the run refuses a reference sampled at
     another period instead of stepping with the wrong speed-loop step."""

@@ -75,3 +75,23 @@ def test_measured_run_is_judged_from_its_own_record(scenario, tmp_path):
     figures = prediction(twin_metrics(scenario), judged)
     for name in ("E_pk_um", "ITAE", "IAU"):
         assert abs(figures[name]["relative_error_pct"]) < 1e-6
+
+
+def test_a_measured_run_in_other_units_and_names_is_judged_alike(scenario, tmp_path):
+    """The same run written in um, mm and mA under a drive's column names, read through a
+    column map: the same metrics as the SI file (issue 31, item 12)."""
+    run = synthesize(scenario, [], seed=2).run
+    si = tmp_path / "run.csv"
+    run.frame().to_csv(si, index=False)
+    frame = run.frame()
+    other = tmp_path / "trace.csv"
+    frame.assign(x=frame["x"] * 1e6, x_ref=frame["x_ref"] * 1e3, current=frame["current"] * 1e3)[
+        ["t", "x_ref", "x", "current"]
+    ].rename(
+        columns={"x": "ActPos [um]", "x_ref": "SetPos [mm]", "current": "Iq [mA]", "t": "t [s]"}
+    ).to_csv(other, index=False)
+    by_si, _ = machine_metrics(scenario, paper.FINE_TUNE, si)
+    columns = {"x": "ActPos", "x_ref": "SetPos", "current": "Iq"}
+    by_other, _ = machine_metrics(scenario, paper.FINE_TUNE, other, columns)
+    for name in ("E_pk_um", "ITAE", "IAU"):
+        assert getattr(by_other, name) == pytest.approx(getattr(by_si, name), rel=1e-9)

@@ -12,12 +12,16 @@ from twin_cosim.measured import (
     MeasuredDataError,
     check_against_reference,
     current_warnings,
+    parse_columns,
     read_emps_mat,
+    read_measured,
     read_measured_csv,
 )
 from twin_cosim.scenario import load_scenario
 
-REFERENCE1 = Path(__file__).resolve().parents[2] / "scenarios" / "reference1.yaml"
+ROOT = Path(__file__).resolve().parents[2]
+REFERENCE1 = ROOT / "scenarios" / "reference1.yaml"
+TWINCAT_EXAMPLE = ROOT / "docs" / "examples" / "twincat_scope_export.csv"
 
 
 @pytest.fixture(scope="module")
@@ -138,3 +142,131 @@ def test_mat_with_string_signals_is_named(tmp_path):
     )
     with pytest.raises(MeasuredDataError, match=r"strings.mat: variable 'qg' is not numeric"):
         read_emps_mat(path)
+
+
+def with_speed(frame: pd.DataFrame) -> pd.DataFrame:
+    """The good run with a motor speed (rad/s) and a current that moves (A)."""
+    t = frame["t"].to_numpy()
+    return frame.assign(motor_speed=30.0 * np.sin(7.0 * t), current=0.8 * np.cos(5.0 * t))
+
+
+def in_other_units(frame: pd.DataFrame) -> pd.DataFrame:
+    """The same run in ms, mm, um, mA and rpm, each unit in its column's header."""
+    return pd.DataFrame(
+        {
+            "t [ms]": frame["t"] * 1e3,
+            "x_ref (mm)": frame["x_ref"] * 1e3,
+            "x [um]": frame["x"] * 1e6,
+            "current [mA]": frame["current"] * 1e3,
+            "motor_speed [rpm]": frame["motor_speed"] * 60.0 / (2.0 * np.pi),
+        }
+    )
+
+
+def test_unit_headers_are_converted_to_the_si_units(tmp_path, scenario):
+    """A run written in ms, mm, um, mA and rpm with its units in the header reads as the same
+    run written in SI (issue 31, item 12)."""
+    frame = with_speed(good_frame(scenario))
+    si = read_measured_csv(write(tmp_path, frame))
+    path = tmp_path / "units.csv"
+    in_other_units(frame).to_csv(path, index=False)
+    converted = read_measured_csv(path)
+    for signal in ("t", "x_ref", "x", "current", "motor_speed"):
+        np.testing.assert_allclose(converted.record[signal], si.record[signal], rtol=1e-12)
+        assert converted.record.units[signal] == si.record.units[signal]
+    check_against_reference(converted, scenario.reference)
+
+
+@pytest.mark.parametrize(
+    ("header", "message"),
+    [
+        ("x [furlong]", r"column 'x \[furlong\]': unknown unit 'furlong'"),
+        ("x [rpm]", r"column 'x \[rpm\]': unit 'rpm' is a angular speed, but x is a length"),
+        ("current [N.m]", r"unit 'N.m' is a torque, but current is a current or a voltage"),
+    ],
+)
+def test_an_unknown_or_foreign_unit_is_an_error_naming_the_column(
+    tmp_path, scenario, header, message
+):
+    frame = good_frame(scenario)
+    frame = frame.rename(columns={header.split(" ")[0]: header})
+    with pytest.raises(MeasuredDataError, match=message):
+        read_measured_csv(write(tmp_path, frame))
+
+
+def test_a_column_map_names_the_files_columns(tmp_path, scenario):
+    frame = with_speed(good_frame(scenario))
+    renamed = in_other_units(frame).rename(
+        columns={"x [um]": "ActPos [um]", "t [ms]": "Time [ms]", "x_ref (mm)": "SetPos (mm)"}
+    )
+    path = tmp_path / "renamed.csv"
+    renamed.to_csv(path, index=False)
+    with pytest.raises(MeasuredDataError, match=r"missing column"):
+        read_measured(path)
+    columns = parse_columns("x=ActPos, t=Time,x_ref=SetPos")
+    run = read_measured(path, columns)
+    np.testing.assert_allclose(run.x, frame["x"], rtol=1e-12)
+    np.testing.assert_allclose(run.t, frame["t"], rtol=1e-12)
+    with pytest.raises(MeasuredDataError, match=r"names 'Nope' for 'x'"):
+        read_measured(path, {"x": "Nope"})
+    with pytest.raises(ValueError, match=r"--columns 'speed=v': 'speed' is not a signal"):
+        parse_columns("speed=v")
+
+
+def twincat_export(frame: pd.DataFrame, separator: str) -> str:
+    """``frame`` (SI) as a TwinCAT Scope export: a time column per channel in ms, decimal comma,
+    positions in mm, the current in mA, the speed in rpm."""
+    channels = [
+        ("SetPos", "x_ref", "mm (Millimeter)", 1e3),
+        ("ActPos", "x", "mm (Millimeter)", 1e3),
+        ("ActCurrent", "current", "mA (Milliampere)", 1e3),
+        ("ActVelo", "motor_speed", "rpm", 60.0 / (2.0 * np.pi)),
+    ]
+    lines = [f"Name{separator}trace", f"File{separator}trace.csv", "", ""]
+    for key, cell in (("Name", 0), ("SampleTime[ms]", None), ("Unit", 2)):
+        lines.append(
+            separator.join(
+                f"{key}{separator}{'0,25' if cell is None else c[cell]}" for c in channels
+            )
+        )
+    lines.append("")
+    t_ms = frame["t"].to_numpy() * 1e3
+    columns = [frame[signal].to_numpy() * factor for _, signal, _, factor in channels]
+    for k, t in enumerate(t_ms):
+        lines.append(
+            separator.join(
+                f"{float(t)!r}{separator}{float(values[k])!r}".replace(".", ",")
+                for values in columns
+            )
+        )
+    return "\n".join([*lines, "EOF", ""])
+
+
+@pytest.mark.parametrize("separator", ["\t", ";"])
+def test_a_twincat_scope_export_reads_as_the_si_run(tmp_path, scenario, separator):
+    frame = with_speed(good_frame(scenario))
+    si = read_measured_csv(write(tmp_path, frame))
+    path = tmp_path / "scope.csv"
+    path.write_text(twincat_export(frame, separator), encoding="utf-8")
+    run = read_measured(
+        path,
+        {"x_ref": "SetPos", "x": "ActPos", "current": "ActCurrent"} | {"motor_speed": "ActVelo"},
+    )
+    for signal in ("t", "x_ref", "x", "current", "motor_speed"):
+        np.testing.assert_allclose(run.record[signal], si.record[signal], rtol=1e-12, atol=1e-15)
+    check_against_reference(run, scenario.reference)
+
+
+def test_the_documented_twincat_example_reads():
+    run = read_measured(
+        TWINCAT_EXAMPLE,
+        parse_columns("x_ref=SetPos,x=ActPos,current=ActCurrent,motor_speed=ActVelo"),
+    )
+    assert run.period == pytest.approx(1e-3)
+    assert run.t[-1] == pytest.approx(0.399)
+    assert np.max(run.x_ref) == pytest.approx(0.010, rel=1e-6)  # a 10 mm move, in m
+    # its peak speed 2 x 10 mm / 0.3 s at 2 mm per revolution: 33.3 rev/s = 209 rad/s
+    assert np.max(run.motor_speed) == pytest.approx(2 * 10 / 0.3 / 2 * 2 * np.pi, rel=1e-3)
+    assert np.max(run.current) < 1.0  # written in mA, read in A
+    with pytest.raises(MeasuredDataError, match=r"no channel named \['Pos'\]"):
+        read_measured(TWINCAT_EXAMPLE, {"x": "Pos"})

@@ -10,8 +10,9 @@ import pytest
 from emps_data import needs_emps_data
 from fmpy import read_model_description
 
-from fmu_build.build import MODELS_DIR
+from fmu_build.build import MODELS_DIR, build_fmu
 from twin_cosim.controller import ControllerSettings
+from twin_cosim.plant import Plant, PlantError
 from twin_cosim.plant_model import (
     PlantModelError,
     effects_table,
@@ -133,6 +134,31 @@ def test_a_bad_card_is_refused_naming_the_file_and_key(tmp_path, edit, message):
         read_card(card, "drive2mass", plant_model("drive2mass").table)
     assert str(error.value).startswith(f"{card}: ")
     assert message in str(error.value)
+
+
+@pytest.mark.parametrize(
+    ("model", "values", "says"),
+    [
+        ("drive2mass", {"coulomb_friction": 0.01, "coulomb_asymmetry": 0.02}, "coulomb"),
+        ("emps", {"viscous_friction": 100.0, "viscous_asymmetry": -150.0}, "viscous"),
+        ("hsm150", {"coulomb_friction": 0.02, "coulomb_asymmetry": -0.03}, "coulomb"),
+        ("hsm150", {"viscous_asymmetry": 1e-4}, "viscous"),
+    ],
+)
+def test_the_cards_constraints_are_what_the_fmu_refuses(model, values, says):
+    """Values within their ranges that break a constraint of the card: the card names the
+    relation and the values, and the FMU refuses them too; halved, both accept them."""
+    card = plant_model(model)
+    [(text, names)] = card.broken_constraints(values)
+    assert f"|{says}_asymmetry| <= {says}_friction" in text
+    assert set(names) == {f"{says}_asymmetry", f"{says}_friction"}
+    with Plant(build_fmu(model), model) as plant:
+        with pytest.raises(PlantError, match="asymmetr"):
+            plant.start_run(values)
+        fine = {**values, f"{says}_asymmetry": values[f"{says}_asymmetry"] / 2}
+        fine = fine if f"{says}_friction" in values else values | {f"{says}_asymmetry": 3e-5}
+        assert card.broken_constraints(fine) == []
+        plant.start_run(fine)
 
 
 def test_an_unknown_model_is_refused_with_the_known_ones():

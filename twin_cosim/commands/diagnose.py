@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Any
 
 from twin_cosim.commands.console import warn_plant_mismatch
 from twin_cosim.commands.options import (
+    column_map,
+    columns_option,
     command_parser,
     data_option,
     fraction,
@@ -38,11 +40,13 @@ def add_arguments(subparsers) -> None:
         "--measured",
         action="append",
         required=True,
-        help="measured run, CSV or EMPS .mat (repeatable; required, no default)",
+        help="measured run: CSV (units in its header, TwinCAT Scope export), EMPS or HSM150 "
+        ".mat (repeatable; required, no default)",
     )
     parser.add_argument(
         "--holdout", action="append", help="held-out run(s) (default: a time split)"
     )
+    columns_option(parser)
     parser.add_argument(
         "--split",
         type=fraction(0.1, 0.9),
@@ -97,8 +101,9 @@ def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     scenario = resolve_scenario(args.scenario)
     mismatch = warn_plant_mismatch(scenario, plant_path(args))
     out = out_folder(args.out, Path("out") / f"diagnosis-{scenario.name}")
-    measured = [read_measured(path) for path in args.measured]
-    holdout = [read_measured(path) for path in args.holdout or []]
+    columns, open_loop = column_map(args, scenario), scenario.drive is not None
+    measured = [read_measured(path, columns, open_loop) for path in args.measured]
+    holdout = [read_measured(path, columns, open_loop) for path in args.holdout or []]
     settings = settings_from(scenario, args.split, args.max_effects)
     start = time.perf_counter()
     progress = _ProgressBars(args)

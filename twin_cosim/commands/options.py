@@ -6,8 +6,12 @@ import argparse
 import math
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from twin_cosim.environment import DATA_ENV
+
+if TYPE_CHECKING:
+    from twin_cosim.scenario import Scenario
 
 
 class HelpFormatter(argparse.RawDescriptionHelpFormatter):
@@ -208,3 +212,22 @@ def no_plots_option(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="write no figures (PNG); every other file and the printed result are the same",
     )
+
+
+def columns_option(parser: argparse.ArgumentParser) -> None:
+    """``--columns``: the measured files' column names per signal."""
+    parser.add_argument(
+        "--columns",
+        metavar="SIGNAL=NAME,...",
+        help="column names of the measured files, per signal, e.g. x=ActPos,t=Time "
+        "(docs/gap.md, Measured runs) (default: the scenario's measured_columns, else the "
+        "signals' own names)",
+    )
+
+
+def column_map(args: argparse.Namespace, scenario: Scenario) -> dict[str, str]:
+    """The column map of a command: the scenario's ``measured_columns``, ``--columns`` on top."""
+    from twin_cosim.measured import parse_columns
+
+    given = parse_columns(args.columns) if getattr(args, "columns", None) else {}
+    return {**scenario.measured_columns, **given}

@@ -1,5 +1,6 @@
 """``twin simulate``: run a scenario in closed loop, judge the run, write its record and plot; a
-part program on a machine of several axes (``twin simulate MACHINE --program PART.nc``)."""
+part program on a machine of several axes (``twin simulate MACHINE --program PART.nc``); an
+open-loop scenario's replay of a measured run (``twin simulate hsm150 --machine RUN.mat``)."""
 
 from __future__ import annotations
 
@@ -16,6 +17,8 @@ from twin_cosim.commands.console import (
     write_summary,
 )
 from twin_cosim.commands.options import (
+    column_map,
+    columns_option,
     command_parser,
     data_option,
     feed_override_option,
@@ -33,6 +36,7 @@ _SINGLE_AXIS_OPTIONS = ("plant", "plant_parameters", "machine")  # not for a mac
 if TYPE_CHECKING:
     from twin_cosim.controller import TunedParameters
     from twin_cosim.metrics import Metrics
+    from twin_cosim.open_loop import OpenLoopComparison
     from twin_cosim.painter import Painter
     from twin_cosim.run_record import RunRecord
     from twin_cosim.scenario import Scenario
@@ -50,8 +54,11 @@ def add_arguments(subparsers) -> None:
         metavar="RUN_OR_PLANT",
         help="judge on a machine: a measured run (CSV/.mat) made with these gains, or a virtual "
         "machine (a scenario or plant.yaml whose plant stands for the machine, e.g. the "
-        "RUN.machine.yaml or RUN.truth.json twin synth writes) (default: none)",
+        "RUN.machine.yaml or RUN.truth.json twin synth writes); for an open-loop scenario "
+        "(reference.drive), the measured run whose drive signal the twin replays and whose "
+        "speeds it is compared with (default: none; an open-loop scenario's own run)",
     )
+    columns_option(parser)
     parser.add_argument(
         "--program",
         metavar="PART.nc",
@@ -98,6 +105,8 @@ def _run_scenario(args: argparse.Namespace, painter: Painter | None) -> int:
     scenario = resolve_scenario(args.scenario, args.plant_parameters, args.plant)
     if args.params:
         scenario = with_controller_set(scenario, load_controller_set(args.params))
+    if scenario.drive is not None:
+        return _run_open_loop(args, scenario, painter)
     tuned = scenario.tuned
     mismatch = warn_plant_mismatch(scenario, plant_path(args))
     out = out_folder(args.out, Path("out") / scenario.name)
@@ -122,6 +131,85 @@ def _run_scenario(args: argparse.Namespace, painter: Painter | None) -> int:
         plot = "run.png, " if painter is not None and drawn else ""
         print(f"wrote {out}/record.csv, {plot}summary.json")
     return 1 if unusable or not drawn else 0
+
+
+def _run_open_loop(args: argparse.Namespace, scenario: Scenario, painter: Painter | None) -> int:
+    """:func:`run` of an open-loop scenario: replay the measured run's drive signal (``--machine``,
+    else the scenario's own run), write record.csv with the measured position and speed beside
+    the twin's, summary.json with the velocity gap and the steady speeds, and run.png."""
+    from twin_cosim.measured import read_measured
+    from twin_cosim.open_loop import compare_open_loop, with_measured
+    from twin_cosim.scenario import for_measured_run
+
+    mismatch = warn_plant_mismatch(scenario, plant_path(args))
+    source = Path(args.machine) if args.machine else scenario.measured
+    run = read_measured(source, column_map(args, scenario), open_loop=True)
+    scenario = for_measured_run(scenario, run)
+    run = scenario.measured_run(run)
+    out = out_folder(args.out, Path("out") / scenario.name)
+    out.mkdir(parents=True, exist_ok=True)
+    record, ran = _simulate(scenario, scenario.tuned, plant_path(args), not args.reference_path)
+    comparison = compare_open_loop(run, record, scenario.settings.travel_per_rad)
+    summary = {
+        "scenario": str(scenario.source),
+        "fmu": ran["fmu"],
+        "plant_parameters_file": args.plant_parameters,
+        "open_loop": comparison.as_dict(),
+        **_run_facts(args, ran, out, mismatch),
+    }
+    write_record_csv(out / "record.csv", with_measured(record, run))
+    if write_summary(out / "summary.json", summary, args.json):
+        _print_open_loop(scenario.name, comparison, ran["wall_s"])
+    drawn = True
+    if painter is not None:
+        sys.stdout.flush()
+        title = f"{scenario.name}: {Path(run.source).name}, driven by {run.drive}"
+        drawn = painter.draw(
+            "twin_cosim.plots:plot_open_loop",
+            with_measured(record, run),
+            comparison,
+            title,
+            out / "run.png",
+        )
+    if not args.json:
+        plot = "run.png, " if painter is not None and drawn else ""
+        print(f"wrote {out}/record.csv, {plot}summary.json")
+    return 0 if drawn else 1
+
+
+def _run_facts(
+    args: argparse.Namespace, ran: dict[str, Any], out: Path, warnings: list[str]
+) -> dict[str, Any]:
+    """The entries of a single-axis run's summary.json after its results: the path, the wall
+    time (s), the files written, the warnings and the versions."""
+    from twin_cosim.versions import versions
+
+    return {
+        "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
+        "wall_s": ran["wall_s"],
+        "outputs": {
+            "record": str(out / "record.csv"),
+            "plot": None if args.no_plots else str(out / "run.png"),
+        },
+        "warnings": warnings,
+        "versions": versions(),
+    }
+
+
+def _print_open_loop(name: str, comparison: OpenLoopComparison, wall_s: float) -> None:
+    """An open-loop replay for a reader: the velocity gap and each level's steady speeds."""
+    c = comparison
+    print(
+        f"{name}: {Path(c.run).name} driven by {c.drive}: velocity gap RMS "
+        f"{c.speed_rms_gap_rad_s:.3g} rad/s ({c.speed_relative_error_pct:.3g} %), angle gap RMS "
+        f"{c.angle_rms_gap_rad:.4g} rad ({wall_s:.2f} s wall)"
+    )
+    for level in c.levels:
+        print(
+            f"  {level.start_s:.4g}-{level.end_s:.4g} s at {level.drive:.4g} {c.drive_unit}: "
+            f"steady speed measured {level.measured_rad_s:.4g} rad/s, twin "
+            f"{level.twin_rad_s:.4g} rad/s ({level.relative_error_pct:+.1f} %)"
+        )
 
 
 def _simulate(
@@ -158,7 +246,6 @@ def _summary(
 
     ``ran`` is what :func:`_simulate` tells of the run (FMU, wall time in s).
     """
-    from twin_cosim.versions import versions
 
     return {
         "scenario": str(scenario.source),
@@ -167,16 +254,9 @@ def _summary(
         "params": tuned.as_dict(),
         "metrics": metrics.as_dict(),
         "validation": _validation(scenario, record),
-        "machine": _on_machine(scenario, tuned, args.machine, metrics),
+        "machine": _on_machine(scenario, tuned, args, metrics),
         "metrics_window_s": list(scenario.metrics_window),
-        "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
-        "wall_s": ran["wall_s"],
-        "outputs": {
-            "record": str(out / "record.csv"),
-            "plot": None if args.no_plots else str(out / "run.png"),
-        },
-        "warnings": warnings,
-        "versions": versions(),
+        **_run_facts(args, ran, out, warnings),
     }
 
 
@@ -195,14 +275,16 @@ def _validation(scenario: Scenario, record: RunRecord) -> dict[str, Any] | None:
 
 
 def _on_machine(
-    scenario: Scenario, tuned: TunedParameters, machine: str | None, metrics: Metrics
+    scenario: Scenario, tuned: TunedParameters, args: argparse.Namespace, metrics: Metrics
 ) -> dict[str, Any] | None:
-    """The twin's prediction against ``--machine`` (a measured run or a virtual machine)."""
+    """The twin's prediction against ``--machine`` (a measured run, its columns by
+    ``--columns``, or a virtual machine)."""
+    machine = args.machine
     if not machine:
         return None
     from twin_cosim.machine import machine_metrics, prediction
 
-    judged, kind = machine_metrics(scenario, tuned, machine)
+    judged, kind = machine_metrics(scenario, tuned, machine, column_map(args, scenario))
     return {"source": machine, "kind": kind, **prediction(metrics, judged)}
 
 

@@ -11,8 +11,9 @@ and the printed verdict are written from its fields):
    when the scenario's reference comes from a measured file, e.g. the EMPS validation run), or
    every measured run is split in time at ``split``. The fit never sees a held-out sample.
 2. **Replay and noise** (:mod:`twin_cosim.gap.floors.noise`): the twin replays the scenario;
-   the measured noise at standstill becomes plant parameters; the noise floors normalise all
-   residuals, with their source.
+   the measured noise at standstill becomes plant parameters; the noise floors (from repeats of
+   one input, else from the residual's high-frequency part) normalise all residuals, with their
+   source.
 3. **Where** (:mod:`twin_cosim.gap.location`): regimes, along the axis, orders and
    frequencies.
 4. **Which** (:mod:`twin_cosim.gap.which.selector`): rounds of fits, each looking again at the
@@ -40,9 +41,10 @@ from twin_cosim.gap.data.context import (
     build_context,
     estimate_resolution,
     library_for,
+    repeated_residuals,
     training_residuals,
 )
-from twin_cosim.gap.data.regimes import REGIMES
+from twin_cosim.gap.data.regimes import REGIMES, drive_steps
 from twin_cosim.gap.data.residuals import (
     Residuals,
     joined,
@@ -314,7 +316,9 @@ def _diagnose(
     noise, nominal, start = _noise_stage(context)
     resolution = estimate_resolution(np.concatenate([r.x for r in context.train]))
     train0 = training_residuals(context, start.training)
-    floors = noise_floors(train0, context.dt, resolution)
+    floors = noise_floors(
+        train0, context.dt, resolution, repeated_residuals(context, start.training)
+    )
     judging = Judging(
         context.judged,
         context.scenario_of_run,
@@ -406,11 +410,15 @@ def _replay_spec(
     training = TrainingData(
         [r.t for r in context.train],
         [r.x for r in context.train],
-        [r.current for r in context.train],
+        [r.record[r.compared] for r in context.train],
         context.train_scenario_of_run,
         floors.sigma_position_m,
         floors.sigma_current,
         context.train_end,
+        context.train[0].compared,
+        None
+        if context.train[0].drive is None
+        else [drive_steps(r.record[r.drive]) for r in context.train],
     )
     return ReplaySpec(
         context.training_scenarios,

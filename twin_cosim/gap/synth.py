@@ -10,6 +10,11 @@ sets any FMU parameter (effects outside the library: ``plant:pitch_error_amplitu
 
 Calibration error: each calibrated parameter of the plant model (``calibrated`` of its card,
 :mod:`twin_cosim.plant_model`) is multiplied by (1 + u), u uniform in [-perturb, perturb].
+
+Every value the FMU would refuse is refused before anything runs (:func:`check_machine`): each
+parameter an effect or the calibration error sets against its range in the model's variable
+table, and the whole plant against the card's constraints, the error naming the ``--effect`` (or
+``--perturb``), the parameter, its value and the range.
 Measurement noise: white, Gaussian, on the position (m) and the current (A), on top of the
 scenario's noise harmonics; with an encoder resolution set, the noisy position is quantised again,
 as an encoder's readings stay on its grid.
@@ -33,10 +38,17 @@ from twin_cosim.scenario import Scenario
 
 @dataclass(frozen=True)
 class EffectSpec:
-    """One effect to switch on: a library name (or ``plant``) and its parameters."""
+    """One effect to switch on: a library name (or ``plant``) and its parameters; ``text`` as
+    the command line gave it (for messages)."""
 
     name: str
     params: dict[str, float]
+    text: str = ""
+
+    @property
+    def option(self) -> str:
+        """The option that asked for it, for messages."""
+        return f"--effect {self.text or self.name}"
 
 
 def parse_effect(text: str) -> EffectSpec:
@@ -58,7 +70,7 @@ def parse_effect(text: str) -> EffectSpec:
             raise ValueError(f"--effect {text!r}: {item!r} must be param=finite number")
     if not params:
         raise ValueError(f"--effect {text!r}: give at least one param=value after '{name}:'")
-    return EffectSpec(name, params)
+    return EffectSpec(name, params, text)
 
 
 def effect_overrides(
@@ -89,6 +101,45 @@ def effect_overrides(
     context = {k: order if order else v for k, v in DEFAULT_CONTEXT.items()}
     values = np.array([effect.params[n] for n in names])
     return hypothesis.to_plant(values, nominal, context)
+
+
+def check_machine(
+    model: str,
+    parameters: dict[str, float],
+    set_by: dict[str, str],
+) -> None:
+    """Refuse the virtual machine's plant parameters the FMU would refuse, before it runs.
+
+    Parameters
+    ----------
+    model
+        The plant model (its variable table and card).
+    parameters
+        The plant's parameter values (SI units).
+    set_by
+        Parameter -> the option that set it (``--effect ...``, ``--perturb ...``).
+
+    Raises
+    ------
+    ValueError
+        Naming the option, the parameter, its value and the range, or the constraint of the
+        card it breaks with the options that set its values.
+    """
+    from twin_cosim.scenario.plant_file import range_problem
+
+    card = plant_model(model)
+    for name, option in set_by.items():
+        problem = range_problem(card.parameters[name], parameters[name])
+        if problem:
+            raise ValueError(f"{option}: sets {name}: {problem}")
+    broken = card.broken_constraints(parameters)
+    if broken:
+        text, names = broken[0]
+        options = sorted({set_by[n] for n in names if n in set_by})
+        raise ValueError(
+            f"{', '.join(options) or 'the scenario'}: the plant would break {text}; the FMU of "
+            f"{model} refuses it (models/{model}/card.yaml, constraints)"
+        )
 
 
 @dataclass
@@ -137,9 +188,14 @@ def synthesize(
         calibrated = plant_model(model).calibrated if model in model_names() else ()
         factors = {name: 1.0 + rng.uniform(-perturb, perturb) for name in calibrated}
         parameters = {**nominal, **{k: nominal[k] * f for k, f in factors.items()}}
+        set_by = {name: f"--perturb {perturb:g}" for name in factors if perturb > 0}
         fmu_parameters = set(plant.parameter_names())
         for effect in effects:
-            parameters |= effect_overrides(effect, parameters, fmu_parameters, model)
+            overrides = effect_overrides(effect, parameters, fmu_parameters, model)
+            parameters |= overrides
+            set_by |= dict.fromkeys(overrides, effect.option)
+        if model in model_names():
+            check_machine(model, parameters, set_by)
         record = run_scenario(plant, scenario, plant_overrides=parameters)
     n = len(record)
     x = record["x"] + rng.normal(0.0, noise_position, n)

@@ -49,7 +49,7 @@ SIGNATURES = {
         f"UniTuple(i8, 3)({_INTEGERS}, {_INTEGERS}, {_INTEGERS}, {_INTEGERS}, {_INTEGERS}, "
         f"u4[:, ::1], "
         f"u4[:, ::1], {_ROWS}, {_ROWS}, f8, i8, {_ROWS}, {_ROWS}, {_ROWS}, {_ROWS}, {_ROWS}, "
-        f"{_ROWS}, {_ROWS}, {_ROWS}, f8, f8[:, :, ::1], f8[:, :, ::1])"
+        f"{_ROWS}, {_ROWS}, {_ROWS}, {_ROWS}, f8, f8[:, :, ::1], f8[:, :, ::1])"
     ),
 }
 

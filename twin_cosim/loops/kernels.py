@@ -208,6 +208,7 @@ def master(
     at_speed,
     at_position,
     speed_noise,
+    open_loop,
     abort_error,
     record,
     speed_record,
@@ -249,6 +250,9 @@ def master(
     speed_noise
         Per axis and speed sample: added to the motor speed the speed loop reads (rad/s); none:
         the speed as measured.
+    open_loop
+        Per axis and speed sample: the current command (A) the plant receives in place of the
+        speed loop's (an open-loop run; ``at_current`` still adds to it); none: the closed loop.
     abort_error
         Stop (status :data:`ABORTED`) once an axis' |setpoint - position| exceeds this (m).
     record
@@ -278,8 +282,9 @@ def master(
     speed_on = at_speed.shape[1] > 0
     position_on = at_position.shape[1] > 0
     noise_on = speed_noise.shape[1] > 0
+    open_on = open_loop.shape[1] > 0
     recording = speed_record.shape[1] > 0
-    plain = not (torque_on or current_on or speed_on or noise_on or recording)
+    plain = not (torque_on or current_on or speed_on or noise_on or open_on or recording)
     for a in range(n_axes):
         axis_vr_out = vr_out.ctypes.data + a * vr_out.strides[0]
         axis_outputs = outputs.ctypes.data + a * outputs.strides[0]
@@ -333,7 +338,10 @@ def master(
                         sa[SPEED_CMD] = command + at_speed[a, k]
                     if recording:
                         speed_record[a, k, 0] = sa[SPEED_CMD]
-                    current = speed_loop(pa, sa, k * h, speed)
+                    if open_on:
+                        current = open_loop[a, k]
+                    else:
+                        current = speed_loop(pa, sa, k * h, speed)
                     if speed_on:
                         sa[SPEED_CMD] = command
                     current_sum += current

@@ -17,6 +17,8 @@ Layout (every section but ``reference`` is optional)::
       max_samples: 2400000                   # position-loop samples a run may have at most
     optimize: {...}                          # see twin_cosim.optimize.config
     diagnose: {...}                          # see twin_cosim.gap.settings.settings_from
+    measured_columns: {x: ActPos, t: Time}   # the measured files' column names, per signal
+                                             # (twin_cosim.measured; --columns wins)
 
 Every error names the file and the key path, and says what was expected. ``name`` (used as the
 default output folder) must be a plain file name. A scenario may name an FMU, which is native
@@ -29,6 +31,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+from twin_cosim.measured import SIGNALS
 from twin_cosim.scenario.controller_section import controller_section
 from twin_cosim.scenario.plant_section import (
     check_friction_below_peak_torque,
@@ -48,6 +51,7 @@ TOP_KEYS = {
     "run",
     "optimize",
     "diagnose",
+    "measured_columns",
 }
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 MAX_SAMPLES = 2_400_000  # position-loop samples of a run: 10 min at 250 us
@@ -69,7 +73,8 @@ def load_scenario(path: Path | str) -> Scenario:
     check_friction_below_peak_torque(check, plant, settings.current_limit)
     run = check.mapping(data.get("run"), "run", {"metrics_window", "max_samples"})
     max_samples = check.number(run.get("max_samples", MAX_SAMPLES), "run.max_samples", minimum=2)
-    chosen = reference_section(check, data["reference"], settings.position_period, int(max_samples))
+    columns = measured_columns(check, data.get("measured_columns"))
+    chosen = reference_section(check, data["reference"], settings, int(max_samples), columns)
     parameters = dict(plant.parameters)
     parameters.setdefault(
         "load_position_start", chosen.start if chosen.plant_start is None else chosen.plant_start
@@ -93,7 +98,19 @@ def load_scenario(path: Path | str) -> Scenario:
         disturbance_in_record=bool(chosen.disturbance_spec.get("in_recorded_command", False)),
         model=plant.model,
         plant_parameters_file=plant.parameters_file,
+        measured_columns=columns,
+        drive=chosen.drive,
+        open_loop=chosen.open_loop,
     )
+
+
+def measured_columns(check: Checker, data: Any) -> dict[str, str]:
+    """The ``measured_columns`` map: a signal of a measured run -> the files' column name."""
+    columns = check.mapping(data, "measured_columns", set(SIGNALS))
+    for signal, name in columns.items():
+        if not isinstance(name, str) or not name.strip():
+            raise check.fail(f"measured_columns.{signal}", "the name of a column", name)
+    return {signal: name.strip() for signal, name in columns.items()}
 
 
 def read_top_level(

@@ -33,6 +33,7 @@ from typing import Any
 
 import yaml
 
+from fmu_build.variable_table import Variable
 from twin_cosim.plant_model import PlantModelError, plant_model
 from twin_cosim.schema import Checker, ScenarioError, load_yaml
 
@@ -131,15 +132,22 @@ def check_values(
             raise PlantParametersError(f"{at}: expected a finite number, got {value!r}")
         if variable.type == "Integer" and value != int(value):
             raise PlantParametersError(f"{at}: expected an integer, got {value!r}")
-        low = variable.min if variable.min is not None else -math.inf
-        high = variable.max if variable.max is not None else math.inf
-        if not low <= value <= high or (variable.positive and value <= 0):
-            limits = f"[{low:g}, {high:g}]" + (", > 0" if variable.positive else "")
-            raise PlantParametersError(
-                f"{at}: {value!r} {variable.unit} outside the model's range {limits}"
-            )
+        problem = range_problem(variable, value)
+        if problem:
+            raise PlantParametersError(f"{at}: {problem}")
         checked[str(name)] = value
     return checked
+
+
+def range_problem(variable: Variable, value: float) -> str:
+    """Why the FMU would refuse ``value`` for a parameter (its range in the variable table),
+    '' when it would not."""
+    low = variable.min if variable.min is not None else -math.inf
+    high = variable.max if variable.max is not None else math.inf
+    if low <= value <= high and not (variable.positive and value <= 0):
+        return ""
+    limits = f"(0, {high:g}]" if variable.positive and low <= 0 else f"[{low:g}, {high:g}]"
+    return f"{value:.6g} {variable.unit} outside the model's range {limits}"
 
 
 def read_plant_parameters(path: Path | str, model: str | None = None) -> PlantParameters:

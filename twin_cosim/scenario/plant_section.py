@@ -88,7 +88,34 @@ def plant_section(check: Checker, data: Any) -> PlantSection:
     if "parameters_file" in plant:
         parameters_file = source.parent / str(plant["parameters_file"])
         parameters = _with_parameters_file(check, parameters, parameters_file, model, fmu)
+    if model is not None:
+        where = {n: f"{check.prefix}plant.parameters.{n}" for n in plant.get("parameters") or {}}
+        file_keys = set(parameters) - set(where)
+        where |= dict.fromkeys(file_keys, f"{check.prefix}plant.parameters_file {parameters_file}")
+        check_constraints(model, parameters, where, str(source))
     return PlantSection(model, fmu, parameters, parameters_file)
+
+
+def check_constraints(
+    model: str, parameters: dict[str, float], where: dict[str, str], source: str
+) -> None:
+    """Refuse plant parameters that break a constraint of the model's card (what its FMU
+    refuses at initialisation), naming the keys (``where``: parameter -> key) that set them.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, the keys, the values and the constraint.
+    """
+    broken = plant_model(model).broken_constraints(parameters)
+    if not broken:
+        return
+    text, names = broken[0]
+    keys = sorted({where[n] for n in names if n in where})
+    raise ScenarioError(
+        f"{source}: {', '.join(keys) or 'plant.parameters'}: the plant would break {text}; the "
+        f"FMU of {model} refuses it (models/{model}/card.yaml, constraints)"
+    )
 
 
 def _with_parameters_file(
@@ -176,7 +203,14 @@ def with_plant_parameters(
     """
     if path is None:
         return scenario
-    plant = read_plant_parameters(path, scenario.model_name(fmu))
+    model = scenario.model_name(fmu)
+    plant = read_plant_parameters(path, model)
+    check_constraints(
+        model,
+        {**scenario.plant_parameters, **plant.parameters},
+        {name: f"parameters.{name}" for name in plant.parameters},
+        str(path),
+    )
     return dataclasses.replace(
         scenario,
         plant_parameters={**scenario.plant_parameters, **plant.parameters},

@@ -17,6 +17,16 @@ by its file name in the data folder given by ``--data DIR`` or the environment v
 error when it is missing. ``reference.disturbance`` declares the signal convention of a measured
 run's disturbance (which variable, its gain, where it enters the loop). The size of a run is
 checked before anything is allocated (``run.max_samples``).
+
+**Open loop** (``reference.drive: SIGNAL``, with a measured reference only): the plant is driven
+by that signal of each measured run instead of the cascade, e.g. a torque bench's
+``input_torque`` (or its ``measured_torque``, if the scenario says so). A signal in N.m becomes
+the plant's current command through the drive's torque constant
+(``controller.settings.torque_constant``), one in A is the command itself; it is held over each
+sample of the run. The run's measured motion is the reference the twin is compared with: its
+position ``x`` (a rotor's ``motor_angle`` times ``controller.settings.travel_per_rad``) and its
+motor speed. Every run given to a command follows its own drive signal
+(:func:`twin_cosim.scenario.for_measured_run`).
 """
 
 from __future__ import annotations
@@ -28,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from twin_cosim.controller import ControllerSettings
 from twin_cosim.environment import DATA_ENV
 from twin_cosim.measured import MeasuredDataError, MeasuredRun, read_measured
 from twin_cosim.reference import (
@@ -100,6 +111,10 @@ class ReferenceSection:
         The signal convention of ``reference.disturbance`` (empty when absent).
     command_disturbance : numpy.ndarray or None
         Signal added to the controller's output per position-loop sample (the command's unit).
+    drive : str or None
+        Open loop: the measured run's signal that drives the plant (``reference.drive``).
+    open_loop : numpy.ndarray or None
+        Open loop: the plant's current command per position-loop sample, A.
     """
 
     grid: ReferenceGrid
@@ -109,6 +124,8 @@ class ReferenceSection:
     disturbance: np.ndarray | None = None
     disturbance_spec: dict[str, Any] = field(default_factory=dict)
     command_disturbance: np.ndarray | None = None
+    drive: str | None = None
+    open_loop: np.ndarray | None = None
 
 
 # Where a measured run's disturbance signal enters the loop (reference.disturbance.enters).
@@ -161,6 +178,41 @@ def _disturbance_spec(check: Checker, data: Any) -> dict[str, Any]:
     }
 
 
+# Units an open-loop drive signal may have, and the command it becomes (by the drive's torque
+# constant K_t, N.m/A): a torque divided by K_t, a current as it is.
+DRIVE_UNITS = ("N.m", "A")
+
+
+def open_loop_of(
+    run: MeasuredRun, drive: str, travel_per_rad: float, torque_constant: float, period: float
+) -> tuple[MeasuredRun, ReferenceGrid, np.ndarray]:
+    """An open-loop run driven by its signal ``drive``: the run (its measured motion as its
+    reference, :meth:`~twin_cosim.measured.MeasuredRun.open_loop`), that reference on the
+    position-loop grid of ``period`` (s), and the plant's current command per grid sample (A):
+    the signal held from each sample to the next, a torque (N.m) divided by ``torque_constant``
+    (N.m/A).
+
+    Raises
+    ------
+    MeasuredDataError
+        When the run lacks the signal, a position or the motor speed, or the signal is neither a
+        torque nor a current.
+    ReferenceError
+        When the run's period does not fit the grid's.
+    """
+    run = run.open_loop(drive, travel_per_rad)
+    unit = run.record.units.get(drive, "")
+    if unit not in DRIVE_UNITS:
+        raise MeasuredDataError(
+            f"{run.source}: the drive signal {drive!r} is in {unit or 'no unit'}; an open-loop "
+            f"drive is a torque or a current ({' or '.join(DRIVE_UNITS)})"
+        )
+    grid = interpolate(run.x_ref, run.period, period)
+    held = np.clip(np.searchsorted(run.t, grid.time + 1e-9 * period, side="right") - 1, 0, None)
+    command = run.record[drive][held]
+    return run, grid, command / torque_constant if unit == "N.m" else command.copy()
+
+
 def data_dir() -> Path | None:
     """The data folder given by ``--data`` or the environment variable ``TWIN_COSIM_DATA``."""
     value = os.environ.get(DATA_ENV)
@@ -199,31 +251,67 @@ def _check_size(
 
 
 def _from_measured(
-    check: Checker, data: dict[str, Any], position_period: float, max_samples: int
+    check: Checker,
+    data: dict[str, Any],
+    settings: ControllerSettings,
+    max_samples: int,
+    columns: dict[str, str],
 ) -> ReferenceSection:
-    """The reference (and disturbance) of a measured run file (.csv or EMPS .mat)."""
+    """The reference (and disturbance, or open-loop drive) of a measured run file."""
     path = _measured_path(check, data)
+    drive = data.get("drive")
+    if drive is not None and not isinstance(drive, str):
+        raise check.fail("reference.drive", "the name of a signal of the measured run", drive)
     try:
-        run = read_measured(path)
+        run = read_measured(path, columns, open_loop=drive is not None)
+        if abs(run.t[0]) > 0.5 * run.period:
+            raise check.fail(
+                "reference.measured", "a run whose time starts at 0 s", float(run.t[0])
+            )
+        _check_size(
+            check, float(run.t[-1]), settings.position_period, max_samples, "reference.measured"
+        )
+        command = None
+        if drive is None:
+            grid = interpolate(run.x_ref, run.period, settings.position_period)
+        else:
+            run, grid, command = open_loop_of(
+                run,
+                drive,
+                settings.travel_per_rad,
+                settings.torque_constant,
+                settings.position_period,
+            )
     except MeasuredDataError as exc:
         raise ScenarioError(f"{check.source}: reference.measured: {exc}") from exc
-    if abs(run.t[0]) > 0.5 * run.period:
-        raise check.fail("reference.measured", "a run whose time starts at 0 s", float(run.t[0]))
-    _check_size(check, float(run.t[-1]), position_period, max_samples, "reference.measured")
-    try:
-        grid = interpolate(run.x_ref, run.period, position_period)
     except ReferenceError as exc:
         raise ScenarioError(f"{check.source}: reference: {exc}") from exc
     spec = _disturbance_spec(check, data.get("disturbance"))
     at_input, at_command = run_disturbance(run, spec, grid)
     return ReferenceSection(
-        grid, float(run.x_ref[0]), path, float(run.x[0]), at_input, spec, at_command
+        grid,
+        float(run.x_ref[0]),
+        path,
+        float(run.x[0]),
+        at_input,
+        spec,
+        at_command,
+        drive,
+        command,
     )
 
 
 def reference_section(
-    check: Checker, data: Any, position_period: float, max_samples: int
+    check: Checker,
+    data: Any,
+    settings: ControllerSettings,
+    max_samples: int,
+    columns: dict[str, str],
 ) -> ReferenceSection:
+    """The checked ``reference`` section, its measured file read with the column map
+    ``columns`` (signal -> the file's column) and, in open loop, with the drive facts of
+    ``settings``."""
+    position_period = settings.position_period
     data = check.mapping(
         data,
         "reference",
@@ -235,14 +323,15 @@ def reference_section(
             "measured",
             "disturbance",
             "data_source",
+            "drive",
         },
     )
     sources = [key for key in ("segments", "csv", "measured") if key in data]
     if len(sources) != 1:
         raise check.fail("reference", "exactly one of 'segments', 'csv' or 'measured'")
     if "measured" in data:
-        return _from_measured(check, data, position_period, max_samples)
-    for key in ("disturbance", "data_source"):
+        return _from_measured(check, data, settings, max_samples, columns)
+    for key in ("disturbance", "data_source", "drive"):
         if key in data:
             raise check.fail(f"reference.{key}", "a 'measured' reference to go with it")
     sample_period = check.number(

@@ -15,7 +15,7 @@ from twin_cosim.controller_set import ControllerSet
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant_model import model_of
 from twin_cosim.reference import ReferenceError, ReferenceGrid, interpolate
-from twin_cosim.scenario.reference_section import run_disturbance
+from twin_cosim.scenario.reference_section import open_loop_of, run_disturbance
 from twin_cosim.schema import ScenarioError
 
 
@@ -65,6 +65,14 @@ class Scenario:
         The plant model (folder of models/) the scenario was made for; None for an FMU file.
     plant_parameters_file : Path or None
         The last plant parameter file applied (``plant.parameters_file`` or the command line's).
+    measured_columns : dict
+        The measured files' column names per signal (``measured_columns``; none: the signals'
+        own names).
+    drive : str or None
+        Open loop: the signal of each measured run that drives the plant (``reference.drive``);
+        None: the cascade closes the loop.
+    open_loop : numpy.ndarray or None
+        Open loop: the plant's current command per position-loop sample, A.
     """
 
     name: str
@@ -85,6 +93,23 @@ class Scenario:
     disturbance_in_record: bool = False
     model: str | None = None
     plant_parameters_file: Path | None = None
+    measured_columns: dict[str, str] = field(default_factory=dict)
+    drive: str | None = None
+    open_loop: np.ndarray | None = None
+
+    def measured_run(self, run: MeasuredRun) -> MeasuredRun:
+        """A measured run as this scenario compares it: an open-loop run driven by its drive
+        signal, its position in m (:meth:`~twin_cosim.measured.MeasuredRun.open_loop`); a run
+        in closed loop as it is.
+
+        Raises
+        ------
+        MeasuredDataError
+            When an open-loop run lacks its drive signal, a position or the motor speed.
+        """
+        if self.drive is None:
+            return run
+        return run.open_loop(self.drive, self.settings.travel_per_rad)
 
     def plant_fmu(self, override: Path | str | None = None) -> Path:
         """The FMU to run: ``override`` (``--plant``), else the scenario's FMU file, else its
@@ -124,14 +149,32 @@ def for_measured_run(scenario: Scenario, run: MeasuredRun) -> Scenario:
 
     A scenario whose reference comes from a measured file (``reference.measured``) applies to
     another run of the same machine with that run's reference, start position and disturbance
-    (e.g. the EMPS validation run with its force pulses); any other scenario is returned as it is.
+    (e.g. the EMPS validation run with its force pulses), in open loop with its drive signal
+    (and its measured motion as the reference); any other scenario is returned as it is.
+
+    Raises
+    ------
+    ScenarioError, MeasuredDataError
+        When the run does not start at 0 s, its period does not fit the loop's, or an
+        open-loop run lacks its drive signal.
     """
     if scenario.measured is None or Path(run.source).resolve() == scenario.measured.resolve():
         return scenario
     if abs(run.t[0]) > 0.5 * run.period:
         raise ScenarioError(f"{run.source}: time must start at 0 s to follow its own reference")
+    settings = scenario.settings
+    command = None
     try:
-        grid = interpolate(run.x_ref, run.period, scenario.settings.position_period)
+        if scenario.drive is None:
+            grid = interpolate(run.x_ref, run.period, settings.position_period)
+        else:
+            run, grid, command = open_loop_of(
+                run,
+                scenario.drive,
+                settings.travel_per_rad,
+                settings.torque_constant,
+                settings.position_period,
+            )
     except ReferenceError as exc:
         raise ScenarioError(f"{run.source}: reference: {exc}") from exc
     at_input, at_command = run_disturbance(run, scenario.disturbance_spec, grid)
@@ -142,4 +185,5 @@ def for_measured_run(scenario: Scenario, run: MeasuredRun) -> Scenario:
         measured=Path(run.source),
         disturbance=at_input,
         command_disturbance=at_command,
+        open_loop=command,
     )

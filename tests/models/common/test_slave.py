@@ -9,7 +9,7 @@ import math
 import pytest
 from fmpy.fmi1 import FMICallException
 
-from tests.models.conftest import Fmi2Slave, Fmi3Slave
+from tests.models.conftest import BREAKAWAY, Fmi2Slave, Fmi3Slave
 from twin_cosim.plant import PlantError
 
 Slave = Fmi2Slave | Fmi3Slave
@@ -164,7 +164,7 @@ def test_unknown_log_category_is_refused(any_slave):
 
 def events_of_a_stick_slip_run(slave: Slave, categories: list[str] | None) -> list[str]:
     """Log messages of category logEvents over a push and a release of the axis."""
-    slave.start_run({})
+    slave.start_run(BREAKAWAY.get(slave.model, {}))
     if categories is not None:
         slave.fmu.setDebugLogging(True, categories)
     slave.messages.clear()
@@ -206,7 +206,7 @@ def test_outputs_change_with_an_input_only_when_they_declare_it(any_slave):
     declared = {u.variable.name: {d.name for d in u.dependencies} for u in description.outputs}
     vr_out = [v.valueReference for v in outputs]
     for name, value in (("current_cmd", 0.1), ("disturbance_torque", 0.05)):
-        any_slave.start_run({})
+        any_slave.start_run(BREAKAWAY.get(any_slave.model, {}))
         any_slave.do_step(0.0, 1e-4)
         before = any_slave.get_reals(vr_out)
         any_slave.set_reals([any_slave.vr(name)], [value])

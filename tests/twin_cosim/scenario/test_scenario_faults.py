@@ -75,3 +75,18 @@ def test_the_size_limit_is_a_scenario_setting(tmp_path):
         load_scenario(write(tmp_path, text))
     raised = RAMP.format(period=0.004, duration=0.2) + "run: {max_samples: 2000}\n"
     assert len(load_scenario(write(tmp_path, raised, "r.yaml")).reference.position) == 1601
+
+
+def test_plant_parameters_that_break_a_constraint_of_the_card_are_refused(tmp_path):
+    """Each within its range, together refused by the FMU at initialisation: named before it
+    runs (issue 31, item 8)."""
+    plant = (
+        "plant: {model: hsm150, parameters: {coulomb_friction: 0.01, coulomb_asymmetry: 0.02}}\n"
+    )
+    path = write(tmp_path, plant + RAMP.format(period=0.004, duration=0.2))
+    with pytest.raises(
+        ScenarioError,
+        match=r"s.yaml: plant.parameters.coulomb_asymmetry, plant.parameters.coulomb_friction: "
+        r"the plant would break \|coulomb_asymmetry\| <= coulomb_friction",
+    ):
+        load_scenario(path)

@@ -20,7 +20,8 @@ model and its library of effects.
   nothing. Each of the two data sets must hold motion (a stroke of the reference,
   :func:`twin_cosim.gap.data.regimes.strokes`: one direction, more than 1 um) and a reversal
   (two strokes of one run in opposite directions, one after the other, with or without a dwell
-  between them), or the diagnosis is refused naming the files and what is missing.
+  between them), or the diagnosis is refused naming the files and what is missing. An
+  open-loop run (a plant driven by its measured signal, turning one way) needs motion only.
 - **The split** (:func:`build_context`): each run checked against the reference it follows (its
   own for a scenario whose reference comes from a measured file), outliers repaired; then
   ``--holdout`` runs judge, or every measured run is split in time at ``split``.
@@ -28,7 +29,7 @@ model and its library of effects.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -122,8 +123,8 @@ def screen_outliers(run: MeasuredRun, largest_share: float) -> tuple[MeasuredRun
         signal are outliers.
     """
     warnings, replaced = [], {}
-    for column in ("x", "current"):
-        values = getattr(run, column)
+    for column in ("x", run.compared):
+        values = run.record[column]
         found, median = _outliers(values)
         if len(found) == 0:
             continue
@@ -144,7 +145,8 @@ def screen_outliers(run: MeasuredRun, largest_share: float) -> tuple[MeasuredRun
 
 
 def missing_regimes(runs: list[MeasuredRun], grids: list[ReferenceGrid]) -> list[str]:
-    """What of motion and a reversal none of the runs holds (each against its reference)."""
+    """What of motion and a reversal none of the runs holds (each against its reference); an
+    open-loop run, which turns one way as its drive pushes it, needs motion only."""
     moves = reverses = False
     still = regime_model.RegimeSettings().v_still
     for run, grid in zip(runs, grids, strict=True):
@@ -153,7 +155,9 @@ def missing_regimes(runs: list[MeasuredRun], grids: list[ReferenceGrid]) -> list
         position = np.interp(run.t, grid.time, grid.position)
         signs = [sign for _, _, sign in regime_model.strokes(direction, position)]
         moves |= bool(signs)
-        reverses |= any(a != b for a, b in zip(signs[:-1], signs[1:], strict=True))
+        reverses |= run.drive is not None or any(
+            a != b for a, b in zip(signs[:-1], signs[1:], strict=True)
+        )
     return [need for need, held in ((MOTION, moves), (REVERSAL, reverses)) if not held]
 
 
@@ -231,6 +235,9 @@ class DiagnosisContext:
         How the data were split, in words.
     warnings : list of str
         Problems that did not stop the diagnosis.
+    repeats : list of list of int
+        Groups of training runs (indices into ``train``) that repeat one input
+        (:func:`repeat_groups`), two or more each.
     """
 
     scenario: Scenario
@@ -251,6 +258,7 @@ class DiagnosisContext:
     train_end: float
     split: str
     warnings: list[str]
+    repeats: list[list[int]] = field(default_factory=list)
 
     def screw_angle(self, motor_angle: np.ndarray) -> np.ndarray:
         """The screw angle (rad) of motor angles (rad)."""
@@ -268,13 +276,16 @@ def variable_ranges(plant: Plant) -> dict[str, tuple[float, float]]:
 
 
 def _checked(runs: list[MeasuredRun], scenarios: list[Scenario], settings, limit) -> tuple:
-    """Runs checked against their reference, outliers repaired; and the warnings."""
+    """Runs checked against their reference (an open-loop run as its scenario compares it),
+    outliers repaired; and the warnings."""
     checked, warnings = [], []
     for run, applies in zip(runs, scenarios, strict=True):
+        run = applies.measured_run(run)
         check_against_reference(run, applies.reference)
         run, found = screen_outliers(run, settings.outlier_share)
         checked.append(run)
-        warnings += run.warnings + found + current_warnings(run, limit)
+        commands = current_warnings(run, limit) if run.drive is None else []
+        warnings += run.warnings + found + commands
     return checked, warnings
 
 
@@ -289,6 +300,47 @@ def _distinct(scenarios: list[Scenario]) -> tuple[list[Scenario], list[int]]:
             index = len(distinct) - 1
         index_of.append(index)
     return distinct, index_of
+
+
+def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    """Two optional signals are the same: both absent, or equal sample by sample."""
+    if a is None or b is None:
+        return a is None and b is None
+    return a.shape == b.shape and bool(np.array_equal(a, b))
+
+
+def same_input(a: Scenario, b: Scenario) -> bool:
+    """Whether two runs' scenarios give the twin the same input: the same reference (an
+    open-loop run: the same drive command; its reference is its own measured motion) and the
+    same disturbances."""
+    if a is b:
+        return True
+    inputs = _same(a.disturbance, b.disturbance) and _same(
+        a.command_disturbance, b.command_disturbance
+    )
+    if a.drive is not None or b.drive is not None:
+        return inputs and _same(a.open_loop, b.open_loop)
+    return inputs and _same(a.reference.position, b.reference.position)
+
+
+def repeat_groups(
+    runs: list[MeasuredRun], scenarios: list[Scenario], scenario_of_run: list[int]
+) -> list[list[int]]:
+    """Groups of two or more runs (indices) that repeat one input on the same time grid: the
+    machine's repeatability, which the twin (replaying each alike) cannot explain."""
+    groups: list[list[int]] = []
+    for i, run in enumerate(runs):
+        scenario = scenarios[scenario_of_run[i]]
+        for group in groups:
+            first = group[0]
+            if len(runs[first].t) == len(run.t) and same_input(
+                scenarios[scenario_of_run[first]], scenario
+            ):
+                group.append(i)
+                break
+        else:
+            groups.append([i])
+    return [g for g in groups if len(g) >= 2]
 
 
 def build_context(
@@ -349,6 +401,7 @@ def build_context(
         train_end,
         split,
         warnings,
+        repeat_groups(train, training, train_scenario_of_run),
     )
 
 
@@ -360,3 +413,22 @@ def training_residuals(context: DiagnosisContext, records: list[RunRecord]) -> R
         [records[i] for i in k],
         [context.training_scenarios[i].reference for i in k],
     )
+
+
+def repeated_residuals(
+    context: DiagnosisContext, records: list[RunRecord]
+) -> list[list[Residuals]]:
+    """Per group of repeats (:attr:`DiagnosisContext.repeats`), each run's training residual."""
+    found = []
+    for group in context.repeats:
+        found.append(
+            [
+                residuals_of(
+                    [context.train[i]],
+                    [records[context.train_scenario_of_run[i]]],
+                    [context.training_scenarios[context.train_scenario_of_run[i]].reference],
+                )
+                for i in group
+            ]
+        )
+    return found

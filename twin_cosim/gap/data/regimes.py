@@ -25,6 +25,16 @@ A *stroke* (:func:`strokes`) is a stretch of one direction of motion that covers
 ends, a few samples just beyond ``v_still`` the other way over a fraction of a micrometre; a
 stroke leaves those out, the labels above do not.
 
+**Open-loop runs** (:func:`classify_open_loop`): a plant driven by a measured signal (a torque
+stepped from level to level) has no reference; its regimes follow its measured speed through
+each stretch where the drive holds one value. Until the speed settles (its running mean over
+``OPEN_LOOP_SMOOTHING`` stays within ``SETTLED_SHARE`` of the change it makes in the stretch, the
+stretch's final speed being its mean over the last ``FINAL_SHARE``) a stretch is a *run-up from
+rest* when it starts at standstill, labelled ``breakaway`` (the axis leaves standstill), or the
+response *after a step*, labelled ``acceleration``; then *steady speed*, ``constant_velocity``;
+samples where the measured speed is at most ``STILL_SHARE`` of its largest magnitude are
+``standstill``.
+
 Energy shares of a residual r (m or A) per regime: ``time_share`` = fraction of the samples,
 ``energy_share`` = fraction of sum r^2, ``enrichment`` = energy_share / time_share (0 for a regime
 that does not occur).
@@ -35,12 +45,20 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 REGIMES = ("standstill", "breakaway", "acceleration", "constant_velocity", "reversal")
 STANDSTILL, BREAKAWAY, ACCELERATION, CONSTANT_VELOCITY, REVERSAL = range(len(REGIMES))
 
 _TIME_TOLERANCE = 1e-9  # s, absorbs rounding of grid times at the window edges
 MIN_TRAVEL = 1e-6  # m: a stretch of one direction that covers less is no stroke
+# Open-loop regimes: the running mean of the measured speed, the band it settles in (a share of
+# the change of speed in a stretch of the drive), the stretch's end whose mean is its final
+# speed, and what counts as standing still (a share of the largest speed).
+OPEN_LOOP_SMOOTHING = 0.05  # s
+SETTLED_SHARE = 0.05
+FINAL_SHARE = 0.2
+STILL_SHARE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -118,6 +136,51 @@ def classify_regimes(
         labels[_window(t, t[start], t[start] + settings.window)] = BREAKAWAY
     for start in starts[reversal]:
         labels[_window(t, t[start] - settings.window, t[start] + settings.window)] = REVERSAL
+    return labels
+
+
+def drive_steps(drive: np.ndarray) -> np.ndarray:
+    """Indices where an open-loop run's drive signal takes a new value, its first sample
+    included: the starts of its stretches of one level."""
+    drive = np.asarray(drive)
+    return np.concatenate(([0], np.flatnonzero(np.diff(drive) != 0) + 1))
+
+
+def classify_open_loop(t: np.ndarray, speed: np.ndarray, drive: np.ndarray) -> np.ndarray:
+    """Label each sample of an open-loop run with the index of its regime in :data:`REGIMES`
+    (see the module docstring: run-up from rest as ``breakaway``, after a step as
+    ``acceleration``, steady speed as ``constant_velocity``).
+
+    Parameters
+    ----------
+    t : np.ndarray
+        Sample times, s, increasing and regular.
+    speed : np.ndarray
+        Measured motor speed, rad/s.
+    drive : np.ndarray
+        The drive signal (any unit): its changes start the stretches.
+
+    Raises
+    ------
+    ValueError
+        When the arrays are not 1-D of one length, or hold fewer than two samples.
+    """
+    t, speed, drive = (np.asarray(a, dtype=float) for a in (t, speed, drive))
+    if t.ndim != 1 or speed.shape != t.shape or drive.shape != t.shape or len(t) < 2:
+        raise ValueError("t, speed and drive must be 1-D arrays of one length, 2 or more")
+    dt = float(np.median(np.diff(t)))
+    width = max(int(round(OPEN_LOOP_SMOOTHING / dt)), 1)
+    smooth = uniform_filter1d(speed, width, mode="nearest")
+    labels = np.full(t.shape, CONSTANT_VELOCITY, dtype=int)
+    edges = np.append(drive_steps(drive), len(t))
+    still = STILL_SHARE * float(np.max(np.abs(speed)))
+    for start, stop in zip(edges[:-1], edges[1:], strict=True):
+        final = float(np.mean(speed[stop - max(int(FINAL_SHARE * (stop - start)), 1) : stop]))
+        change = abs(final - smooth[start])
+        outside = np.flatnonzero(np.abs(smooth[start:stop] - final) > SETTLED_SHARE * change)
+        settled = start + (int(outside[-1]) + 1 if len(outside) else 0)
+        labels[start:settled] = BREAKAWAY if abs(speed[start]) <= still else ACCELERATION
+    labels[np.abs(smooth) <= still] = STANDSTILL
     return labels
 
 

@@ -5,6 +5,15 @@ reads, r_i = i_meas - i_sim (A, or the drive command's unit) on the recorded com
 compared with the replay of the scenario it follows (its own reference for a held-out run of a
 scenario whose reference comes from a measured file, see
 :func:`twin_cosim.scenario.for_measured_run`); the replay is interpolated at the run's samples.
+
+An open-loop run (its plant driven by its own signal, :attr:`MeasuredRun.drive`) has no command
+to compare: its second residual is the motor speed's, w_meas - w_sim (rad/s), in the place of the
+current's (:attr:`MeasuredRun.compared`), and its regimes are those of an open-loop run
+(:func:`twin_cosim.gap.data.regimes.classify_open_loop`). Its position residual counts from the
+start of each level of its drive (:func:`anchored`): each step of the drive is an experiment
+from the measured state, and a speed error in one level neither carries into the next level's
+position gap nor cancels against it (a twin too fast in one level and too slow in the next would
+otherwise end near the measured position).
 """
 
 from __future__ import annotations
@@ -35,7 +44,8 @@ class Residuals:
     position : numpy.ndarray
         Position residual, m.
     current : numpy.ndarray
-        Current (drive command) residual, A (or V).
+        Current (drive command) residual, A (or V); the motor speed residual (rad/s) of an
+        open-loop run.
     regimes : numpy.ndarray
         Regime codes of :data:`twin_cosim.gap.data.regimes.REGIMES`.
     motor_angle : numpy.ndarray
@@ -87,6 +97,14 @@ def joined(parts: list[Residuals]) -> Residuals:
     return Residuals(*(np.concatenate([getattr(p, f) for p in parts]) for f in FIELDS))
 
 
+def anchored(residual: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """A residual counted from each of ``starts`` (indices) on: its value at the start of each
+    stretch subtracted over the stretch (the samples before the first start as they are)."""
+    stretch = np.searchsorted(starts, np.arange(len(residual)), side="right") - 1
+    offsets = np.where(stretch >= 0, residual[starts[np.maximum(stretch, 0)]], 0.0)
+    return residual - offsets
+
+
 def sim_at(record: RunRecord, column: str, t: np.ndarray) -> np.ndarray:
     """A replay's column interpolated at the times ``t`` (s)."""
     return np.interp(t, record["t"], record[column])
@@ -96,11 +114,19 @@ def run_residuals(run: MeasuredRun, record: RunRecord, grid: ReferenceGrid) -> R
     """Residuals of one run against the replay ``record`` of the scenario it follows."""
     v_ref = np.interp(run.t, grid.time, grid.velocity)
     a_ref = np.interp(run.t, grid.time, grid.acceleration)
+    compared = run.compared
+    position = run.x - sim_at(record, "x", run.t)
+    if run.drive is None:
+        regimes = regime_model.classify_regimes(run.t, v_ref, a_ref)
+    else:
+        drive = run.record[run.drive]
+        regimes = regime_model.classify_open_loop(run.t, run.record["motor_speed"], drive)
+        position = anchored(position, regime_model.drive_steps(drive))
     return Residuals(
         run.t,
-        run.x - sim_at(record, "x", run.t),
-        run.current - sim_at(record, "current", run.t),
-        regime_model.classify_regimes(run.t, v_ref, a_ref),
+        position,
+        run.record[compared] - sim_at(record, compared, run.t),
+        regimes,
         sim_at(record, "motor_angle", run.t),
         run.x,
         np.where(np.abs(v_ref) > regime_model.RegimeSettings().v_still, np.sign(v_ref), 0.0),
@@ -197,10 +223,10 @@ def relative_errors(run: MeasuredRun, record: RunRecord) -> dict[str, float]:
 
     Keys ``position`` (measured position), ``velocity`` and ``acceleration`` (both from the
     position by :func:`_derivatives`, the same for measured and simulated) and ``force`` (the
-    recorded drive command, proportional to the force).
+    recorded drive command, proportional to the force). An open-loop run has no ``force``: its
+    command is the measured drive signal itself, the same in the twin.
     """
     x_sim = sim_at(record, "x", run.t)
-    i_sim = sim_at(record, "current", run.t)
     v, a = _derivatives(run.t, run.x)
     v_sim, a_sim = _derivatives(run.t, x_sim)
 
@@ -208,9 +234,11 @@ def relative_errors(run: MeasuredRun, record: RunRecord) -> dict[str, float]:
         norm = float(np.linalg.norm(measured))
         return 100.0 * float(np.linalg.norm(measured - simulated)) / norm if norm else 0.0
 
-    return {
+    errors = {
         "position": relative(run.x, x_sim),
         "velocity": relative(v, v_sim),
         "acceleration": relative(a, a_sim),
-        "force": relative(run.current, i_sim),
     }
+    if run.drive is None:
+        errors["force"] = relative(run.current, sim_at(record, "current", run.t))
+    return errors

@@ -12,8 +12,9 @@ A :class:`ReplaySpec` (the scenarios, numbers and the training data: it pickles)
 Each result comes back with the CPU time the task took (:class:`Timed`).
 
 The fit minimises the normalised training residual: position residual / sigma_x and current
-residual / sigma_i (sigma: noise floors measured at standstill), over the training samples only;
-a replay for the fit stops at the end of the training window.
+residual / sigma_i (sigma: the noise floors), over the training samples only; a replay for the
+fit stops at the end of the training window. For an open-loop run the second signal is the motor
+speed (:attr:`TrainingData.compared`), whose floor sigma_i then is in rad/s.
 
 Every parameter set is clipped into the FMU's variable ranges before it reaches the FMU, so that
 nothing derived from data can be refused by the plant; a replay that fails anyway scores ten
@@ -34,6 +35,7 @@ import numpy as np
 from scipy.optimize import differential_evolution, least_squares
 
 from twin_cosim.cosim import RunAborted, run_scenario
+from twin_cosim.gap.data.residuals import anchored
 from twin_cosim.gap.floors.evidence import EFFECTIVE_SAMPLE_SPACING_S
 from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.plant import Plant, PlantError
@@ -99,13 +101,20 @@ class TrainingData:
     Attributes
     ----------
     t, x, current : list of numpy.ndarray
-        Per run: sample times (s), measured position (m), measured current (A).
+        Per run: sample times (s), measured position (m), the measured second signal
+        (``compared``: the current, A; the motor speed of an open-loop run, rad/s).
     scenario_of_run : list of int
         Per run: the index of the training scenario it follows.
     sigma_x, sigma_i : float
-        Noise floors used to normalise the position (m) and current (A) residuals.
+        Noise floors used to normalise the position (m) and second signal's residuals.
     end : float
         End of the training window, s.
+    compared : str
+        The record's column the second signal is compared with.
+    anchors : list of numpy.ndarray or None
+        Per run of an open-loop diagnosis: the samples from which its position residual counts
+        (the starts of its drive's levels, :func:`twin_cosim.gap.data.residuals.anchored`);
+        None in closed loop.
     """
 
     t: list[np.ndarray]
@@ -115,10 +124,12 @@ class TrainingData:
     sigma_x: float
     sigma_i: float
     end: float
+    compared: str = "current"
+    anchors: list[np.ndarray] | None = None
 
 
 def cut(scenario: Scenario, end: float) -> Scenario:
-    """The scenario up to ``end`` (s): reference and disturbance signals."""
+    """The scenario up to ``end`` (s): reference, disturbance and open-loop signals."""
     grid = scenario.reference
     keep = grid.time <= end + 1e-12
     if keep.all():
@@ -132,16 +143,22 @@ def cut(scenario: Scenario, end: float) -> Scenario:
         command_disturbance=(
             None if scenario.command_disturbance is None else scenario.command_disturbance[keep]
         ),
+        open_loop=None if scenario.open_loop is None else scenario.open_loop[keep],
     )
 
 
 def normalised_residual(records: list[RunRecord], data: TrainingData) -> np.ndarray:
-    """Position and current residuals of every run over its samples, normalised by the floors;
-    each run against the record of the training scenario it follows."""
+    """Position and second-signal residuals of every run over its samples, normalised by the
+    floors; each run against the record of the training scenario it follows."""
     parts = []
-    for t, x, current, k in zip(data.t, data.x, data.current, data.scenario_of_run, strict=True):
-        t_sim, x_sim, i_sim = records[k]["t"], records[k]["x"], records[k]["current"]
-        parts.append((x - np.interp(t, t_sim, x_sim)) / data.sigma_x)
+    for n, (t, x, current, k) in enumerate(
+        zip(data.t, data.x, data.current, data.scenario_of_run, strict=True)
+    ):
+        t_sim, x_sim, i_sim = records[k]["t"], records[k]["x"], records[k][data.compared]
+        position = x - np.interp(t, t_sim, x_sim)
+        if data.anchors is not None:
+            position = anchored(position, data.anchors[n])
+        parts.append(position / data.sigma_x)
         parts.append((current - np.interp(t, t_sim, i_sim)) / data.sigma_i)
     return np.concatenate(parts)
 

@@ -8,7 +8,9 @@ import pytest
 from twin_cosim.gap.data.regimes import (
     REGIMES,
     RegimeSettings,
+    classify_open_loop,
     classify_regimes,
+    drive_steps,
     energy_shares,
     segments,
     strokes,
@@ -156,3 +158,28 @@ def test_strokes_leave_out_the_grid_references_undershoot():
     assert [sign for _, _, sign in found] == [1, 1]
     for a, b, _ in found:
         assert np.ptp(grid.position[a:b]) > 1e-3
+
+
+def test_an_open_loop_run_is_run_up_steady_speed_and_after_the_step():
+    """A rotor from rest under a torque stepped at 10 s: run-up (breakaway) until its speed
+    settles within 5 % of the change, steady speed, the response after the step
+    (acceleration), steady again; at rest before the torque acts: standstill."""
+    t = np.arange(20000) * DT
+    drive = np.where(t < 10.0, 0.05, 0.06)
+    drive[:50] = 0.0  # no torque for 50 ms
+    tau = 1.7  # s, J / B
+    w1, w2 = 140.0, 210.0  # rad/s
+    on = np.clip(t - 0.05, 0.0, None)
+    speed = np.where(
+        t < 10.0, w1 * (1 - np.exp(-on / tau)), w2 + (w1 - w2) * np.exp(-(t - 10.0) / tau)
+    )
+    labels = classify_open_loop(t, speed, drive)
+    assert list(drive_steps(drive)) == [0, 50, 10000]
+    assert set(labels[:20]) == {REGIMES.index("standstill")}  # (the running mean: 50 ms)
+    settled = 0.05 + tau * np.log(1 / 0.05)  # 5 % of the change left: 3 time constants
+    run_up = labels[(t > 0.2) & (t < settled - 0.2)]
+    assert set(run_up) == {REGIMES.index("breakaway")}
+    assert set(labels[(t > settled + 0.2) & (t < 10.0)]) == {REGIMES.index("constant_velocity")}
+    after = labels[(t > 10.0) & (t < 10.0 + 3 * tau - 0.2)]
+    assert set(after) == {REGIMES.index("acceleration")}
+    assert set(labels[t > 10.0 + 3 * tau + 0.2]) == {REGIMES.index("constant_velocity")}

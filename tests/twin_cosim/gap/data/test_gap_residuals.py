@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from twin_cosim.gap.data.residuals import pulse_response, relative_errors
+from twin_cosim.gap.data.residuals import anchored, pulse_response, relative_errors
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.run_record import RunRecord
@@ -53,3 +53,24 @@ def test_relative_errors_follow_the_benchmark_formula():
         "acceleration": 0.0,
         "force": 0.0,
     }
+
+
+def test_an_anchored_residual_counts_from_each_start():
+    residual = np.array([1.0, 2.0, 3.0, 10.0, 12.0, 15.0, 4.0])
+    found = anchored(residual, np.array([1, 3, 6]))
+    np.testing.assert_array_equal(found, [1.0, 0.0, 1.0, 0.0, 2.0, 5.0, 0.0])
+
+
+def test_an_open_loop_run_has_velocity_errors_and_no_force():
+    """An open-loop run's command is its measured drive signal, the twin's alike: no force
+    error; its velocity error is the benchmark's formula on the position's derivative."""
+    t = np.arange(4000) * 1e-3
+    x = 1e-3 * (t - 1.7 * (1 - np.exp(-t / 1.7)))
+    signals = {"t": t, "motor_angle": x / 1e-3, "motor_speed": np.gradient(x / 1e-3, t)}
+    signals["input_torque"] = np.full(t.size, 0.05)
+    run = MeasuredRun.from_signals("bench.mat", signals).open_loop("input_torque", 1e-3)
+    record = RunRecord.from_columns({"t": t, "x": 0.9 * x, "current": np.full(t.size, 1.0)})
+    errors = relative_errors(run, record)
+    assert "force" not in errors
+    assert errors["velocity"] == pytest.approx(10.0, rel=1e-3)  # the twin 10 % slow throughout
+    assert errors["position"] == pytest.approx(10.0, rel=1e-9)
