@@ -201,12 +201,24 @@ def write_plant_parameters(path: Path | str, plant: PlantParameters) -> Path:
     return path
 
 
-def _relocated(value: Any, source_dir: Path, target_dir: Path) -> str:
-    """A path relative to ``source_dir``, re-expressed relative to ``target_dir``."""
-    path = Path(str(value))
-    if path.is_absolute():
-        return str(path)
-    return os.path.relpath((source_dir / path).resolve(), target_dir.resolve())
+SCENARIO_PATHS = (
+    ("plant", "fmu"),
+    ("plant", "parameters_file"),
+    ("reference", "csv"),
+    ("reference", "measured"),
+)
+
+
+def relocate_paths(data: dict[str, Any], source_dir: Path, target_dir: Path) -> None:
+    """Rewrite in place the relative paths a scenario file's ``data`` names
+    (:data:`SCENARIO_PATHS`), written for ``source_dir``, relative to ``target_dir``: a copy of
+    the scenario written elsewhere names the same files."""
+    for section, key in SCENARIO_PATHS:
+        body = data.get(section)
+        if isinstance(body, dict) and key in body:
+            path = Path(str(body[key]))
+            if not path.is_absolute():
+                body[key] = os.path.relpath((source_dir / path).resolve(), target_dir.resolve())
 
 
 def calibrated_scenario(scenario_file: Path | str, plant: PlantParameters, out: Path | str) -> Path:
@@ -226,11 +238,8 @@ def calibrated_scenario(scenario_file: Path | str, plant: PlantParameters, out: 
         )
         folded = {**extra.parameters, **folded}
     plant_section["parameters"] = {**folded, **plant.parameters}
-    for section, key in (("plant", "fmu"), ("reference", "csv"), ("reference", "measured")):
-        body = plant_section if section == "plant" else data.get(section) or {}
-        if key in body:
-            body[key] = _relocated(body[key], scenario_file.parent, out.parent)
     data["plant"] = plant_section
+    relocate_paths(data, scenario_file.parent, out.parent)
     data["description"] = (
         f"{data.get('description', '')} Calibrated: the plant parameters of the plant.yaml "
         "beside this file folded in."
