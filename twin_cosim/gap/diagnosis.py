@@ -429,8 +429,10 @@ def _verdict_stage(
     """Stage 5: what is left of the held-out gap, where, and the verdict in words."""
     floors = judging.floors
     first = selection.rounds[0]
-    left_significant = judging.significant(
-        selection.floor.left, judging.metrics(selection.calibrated, settings), settings
+    metrics = judging.metrics(selection.calibrated, settings)
+    left_significant = judging.significant(selection.floor.left, metrics, settings)
+    by_metrics_only = left_significant and not judging.significant(
+        selection.floor.left, [], settings
     )
     where = locate(
         hold_final,
@@ -448,6 +450,8 @@ def _verdict_stage(
         where,
         (first.position_rms_um, first.current_rms),
         (hold_final.position_rms_um(), hold_final.current_rms()),
+        (floors.sigma_position_m, floors.sigma_current),
+        by_metrics_only,
     )
     below = [
         c.name
