@@ -168,7 +168,7 @@ def _summary(
         "params": tuned.as_dict(),
         "metrics": metrics.as_dict(),
         "validation": _validation(scenario, record),
-        "machine": _on_machine(scenario, tuned, args.machine, metrics),
+        "machine": _on_machine(scenario, tuned, args.machine, metrics, args.plant_parameters),
         "metrics_window_s": list(scenario.metrics_window),
         "path": "reference (fmpy)" if args.reference_path else "fast (numba)",
         "wall_s": ran["wall_s"],
@@ -196,15 +196,21 @@ def _validation(scenario: Scenario, record: RunRecord) -> dict[str, Any] | None:
 
 
 def _on_machine(
-    scenario: Scenario, tuned: TunedParameters, machine: str | None, metrics: Metrics
+    scenario: Scenario,
+    tuned: TunedParameters,
+    machine: str | None,
+    metrics: Metrics,
+    plant_file: str | None,
 ) -> dict[str, Any] | None:
-    """The twin's prediction against ``--machine`` (a measured run or a virtual machine)."""
+    """The twin's prediction against ``--machine`` (a measured run or a virtual machine), with
+    its interval over the plant file's intervals when it has them."""
     if not machine:
         return None
-    from twin_cosim.machine import machine_metrics, prediction
+    from twin_cosim.machine import machine_metrics, plant_samples, prediction, sample_metrics
 
     judged, kind = machine_metrics(scenario, tuned, machine)
-    return {"source": machine, "kind": kind, **prediction(metrics, judged)}
+    spread = sample_metrics(scenario, tuned, plant_samples(scenario, plant_file))
+    return {"source": machine, "kind": kind, **prediction(metrics, judged, spread)}
 
 
 def _print_text(name: str, metrics: Metrics, summary: dict[str, Any], machine: str | None) -> None:

@@ -27,6 +27,7 @@ and the printed verdict are written from its fields):
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -585,7 +586,32 @@ def calibrated_plant(
                     "before": float(base[name]),
                     "relative_change": float(a * tolerance),
                 }
-    return PlantParameters(model, parameters, provenance, dict(made))
+    return PlantParameters(
+        model,
+        parameters,
+        provenance,
+        dict(made),
+        intervals=_intervals(selection, parameters, model),
+    )
+
+
+def _intervals(
+    selection: Selection, parameters: dict[str, float], model: str
+) -> dict[str, tuple[float, float]]:
+    """The final model's FMU parameters' intervals (:class:`~twin_cosim.gap.which.replay.
+    Uncertainty`), each widened to hold the value ``parameters`` gives it (a calibration
+    correction may move it) and kept inside the variable table's range."""
+    if selection.uncertainty is None:
+        return {}
+    ranges = plant_model(model).parameters
+    intervals = {}
+    for name, (low, high) in selection.uncertainty.intervals.items():
+        value = parameters.get(name, low)
+        variable = ranges[name]
+        floor = variable.min if variable.min is not None else -math.inf
+        ceiling = variable.max if variable.max is not None else math.inf
+        intervals[name] = (max(min(low, value), floor), min(max(high, value), ceiling))
+    return intervals
 
 
 def _changed(before: dict[str, float], after: dict[str, float]) -> list[str]:
