@@ -75,7 +75,7 @@ def phases() -> dict[str, float]:
     from twin_cosim.scenario import resolve_scenario
 
     lap("import twin_cosim (scenario, cosim)")
-    from twin_cosim.loops import compiled_loops, ready_compiled_loops
+    from twin_cosim.loops.ahead import compiled_loops, ready_compiled_loops
 
     ready_compiled_loops()
     lap(f"compiled loops ready ({_loops_kind(compiled_loops())})")
@@ -214,7 +214,7 @@ def _loop_time(work) -> float:
     """Seconds spent inside the compiled ``master`` while ``work()`` runs in this process."""
     from types import SimpleNamespace
 
-    from twin_cosim import loops
+    from twin_cosim.loops import ahead as loops
 
     compiled = loops.compiled_loops()
     spent = [0.0]

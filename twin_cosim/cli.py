@@ -126,13 +126,13 @@ def main(argv: list[str] | None = None) -> int:
         try:
             with command_temp_folder():
                 return args.handler(args)
-        except user_errors() as exc:
-            print(f"twin {args.command}: error: {exc}", file=sys.stderr)
-            return 2
-        except KeyboardInterrupt as exc:
+        except KeyboardInterrupt as exc:  # first: an interrupted import must not be retried
             hint = getattr(exc, "hint", "")
             print(f"twin {args.command}: interrupted{hint}", file=sys.stderr)
             return 128 + (signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT)
+        except user_errors() as exc:
+            print(f"twin {args.command}: error: {exc}", file=sys.stderr)
+            return 2
 
 
 if __name__ == "__main__":

@@ -42,7 +42,6 @@ from twin_cosim.current_filters import CurrentFilter
 from twin_cosim.plant_model import plant_model
 
 TUNED_NAMES = ("Kp_pos", "Kp_vel", "Ki_vel", "PP2", "PP3", "f_H")
-TUNED_UNITS = ("1/s", "A/(rad/s)", "A/(rad/s)", "rad/s", "s", "rad/s")
 
 # The plant facts of the default settings: the default plant model's card at its start values.
 _DEFAULT_FACTS = plant_model().drive_facts()

@@ -13,9 +13,10 @@ One master, two paths that give the same trajectories:
 
 - compiled (the default): :func:`twin_cosim.loops.kernels.master`, the same controller functions
   compiled by numba (ahead of time when built, see :mod:`twin_cosim.loops`), calling each
-  instance's fmi2SetReal / fmi2DoStep / fmi2GetReal through their C function pointers;
-- reference: :func:`_step_reference`, a plain Python loop through fmpy's ``FMU2Slave`` calls; the
-  readable one.
+  instance's SetReal / DoStep / GetReal (FMI 2.0: fmi2SetReal ...; FMI 3.0: fmi3SetFloat64
+  ...) through their C function pointers;
+- reference: :func:`_step_reference`, a plain Python loop through fmpy's ``FMU2Slave`` or
+  ``FMU3Slave`` calls; the readable one.
 
 The options of a run are signals injected into an axis' loops (:class:`Injections`: a load
 torque, a current added to the controller's command, a speed or position setpoint offset, noise
@@ -39,7 +40,8 @@ import numpy as np
 
 from twin_cosim import controller
 from twin_cosim.controller import ControllerSettings, TunedParameters
-from twin_cosim.loops import ABORTED, compiled_loops
+from twin_cosim.loops import ABORTED
+from twin_cosim.loops.ahead import compiled_loops
 from twin_cosim.plant import CONTRACT_INPUTS, CONTRACT_OUTPUTS, Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.run_record import RunRecord
@@ -73,7 +75,7 @@ SPEED_LOOP_COLUMNS = (
     "current",  # A, the current command the plant received, a current injection included
 )
 SPEED_LOOP_UNITS = {"speed_setpoint": "rad/s", "speed": "rad/s", "current": "A"}
-# Positions of the inputs and outputs in the vectors of fmi2SetReal and fmi2GetReal, and of the
+# Positions of the inputs and outputs in the vectors of SetReal and GetReal, and of the
 # record's columns.
 _IN_CURRENT, _IN_DISTURBANCE = (
     CONTRACT_INPUTS.index(n) for n in ("current_cmd", "disturbance_torque")
@@ -209,6 +211,11 @@ def _rates(axes: Sequence[AxisRun]) -> tuple[float, int, int]:
     ratio = first.settings.speed_steps_per_position_step
     samples = len(first.grid.position)
     for axis in axes:
+        if axis.grid.period != axis.settings.position_period:
+            raise ValueError(
+                f"axis {axis.name}: its reference is sampled every {axis.grid.period:g} s, its "
+                f"position loop runs every {axis.settings.position_period:g} s; they must be equal"
+            )
         same = (
             axis.settings.position_period == first.settings.position_period
             and axis.settings.speed_steps_per_position_step == ratio
@@ -355,7 +362,7 @@ def _step_compiled(run: _Prologue) -> tuple[int, int, int]:
 
 def _step_reference(run: _Prologue) -> tuple[int, int, int]:
     """The run in plain Python through fmpy (the readable path, the same operations as the
-    compiled master); its (status, speed-loop step, axis) as it stopped. A failing fmi2 call
+    compiled master); its (status, speed-loop step, axis) as it stopped. A failing FMI call
     raises :class:`~twin_cosim.plant.PlantError` with the FMU's log."""
     axes, record, speed_record = run.axes, run.record, run.speed_record
     h = run.period / run.ratio

@@ -33,7 +33,7 @@ def prepare_worker(modules: tuple[str, ...] = ()) -> None:
     A pool of campaign or diagnosis workers takes :func:`prepare_campaign_worker` or
     :func:`prepare_replay_worker`.
     """
-    from twin_cosim.loops import ready_compiled_loops  # what this process is for
+    from twin_cosim.loops.ahead import ready_compiled_loops  # what this process is for
 
     ready_compiled_loops()
     for module in ("twin_cosim.cosim", *modules):

@@ -293,7 +293,7 @@ def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -
         Position-loop period, s (250 us); must divide sample_period.
     """
     ratio = check_periods(sample_period, loop_period)
-    key = _grid_key(samples, sample_period, loop_period, Path(__file__))
+    key = _grid_key(samples, sample_period, loop_period)
     stored = _load_grid(key)
     if stored is not None:
         return ReferenceGrid(loop_period, *stored)
@@ -306,14 +306,14 @@ def interpolate(samples: np.ndarray, sample_period: float, loop_period: float) -
     return grid
 
 
-def _grid_key(samples: np.ndarray, sample_period: float, loop_period: float, code: Path) -> str:
-    """The digest of a grid's inputs: samples (m), periods (s), the source file ``code`` of the
-    interpolation and the versions of SciPy and numpy."""
+def _grid_key(samples: np.ndarray, sample_period: float, loop_period: float) -> str:
+    """The digest of a grid's inputs: samples (m), periods (s), this source file (the
+    interpolation's code) and the versions of SciPy and numpy."""
     digest = hashlib.sha256(np.ascontiguousarray(samples, dtype=np.float64).tobytes())
     versions = (installed_version("scipy") or "", installed_version("numpy") or "")
     for part in (repr(sample_period), repr(loop_period), *versions):
         digest.update(part.encode())
-    digest.update(code.read_bytes())
+    digest.update(Path(__file__).read_bytes())
     return digest.hexdigest()[:32]
 
 

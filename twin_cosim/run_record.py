@@ -1,7 +1,7 @@
 """One run's samples as named columns with units over a single float64 array: the one record type
 inside the package (the twin's runs, measured runs, contour records), without importing pandas
-(a fifth of a second at start). pandas appears only where files are read and written
-(:meth:`RunRecord.frame`, :meth:`RunRecord.from_frame`)."""
+(a fifth of a second at start). pandas appears only where files are read and written and
+plots drawn (:meth:`RunRecord.frame`)."""
 
 from __future__ import annotations
 
@@ -62,11 +62,6 @@ class RunRecord:
             raise ValueError(f"a record's columns must be 1-D of one length, got {shapes}")
         values = np.column_stack(arrays) if arrays else np.empty((0, 0))
         return cls(values, names, {n: u for n, u in (units or {}).items() if n in columns})
-
-    @classmethod
-    def from_frame(cls, frame: pd.DataFrame, units: Mapping[str, str] | None = None) -> RunRecord:
-        """A record from a pandas DataFrame's numeric columns (a file read by pandas)."""
-        return cls(frame.to_numpy(dtype=np.float64), [str(c) for c in frame.columns], units)
 
     def __getitem__(self, column: str) -> np.ndarray:
         """The column ``column`` (a view: writing to it changes the record)."""

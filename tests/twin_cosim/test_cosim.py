@@ -3,6 +3,7 @@ axis runs as it would alone, any contract FMU runs, failures stop with the log."
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import zipfile
 from pathlib import Path
@@ -300,3 +301,12 @@ def test_a_failing_fmi3_call_stops_the_run_with_its_message(fmi3_fmu, reference1
         run_scenario(plant, reference1)
     with Plant(fmi3_fmu) as plant, pytest.raises(PlantError, match="fmi3SetFloat64.*backlash"):
         run_scenario(plant, reference1, plant_overrides={"backlash": -1.0})
+
+
+def test_a_reference_sampled_off_the_position_period_is_refused(plants, grids):
+    """A controller set may change the position period: the run refuses a reference sampled at
+    another period instead of stepping with the wrong speed-loop step."""
+    axes = _axes(plants, grids)
+    settings = dataclasses.replace(axes[0].settings, position_period=500e-6)
+    with pytest.raises(ValueError, match="axis X: its reference is sampled every 0.00025 s"):
+        run_axes([dataclasses.replace(axes[0], settings=settings)])

@@ -13,6 +13,7 @@ from twin_cosim.commands.options import (
     fraction,
     number_above,
     out_folder,
+    output_options,
     plant_option,
     plant_parameters_option,
     plant_path,
@@ -47,10 +48,7 @@ def add_arguments(subparsers) -> None:
     )
     plant_option(parser)
     plant_parameters_option(parser)
-    parser.add_argument(
-        "--out", metavar="DIR", help="output folder (default: out/autotune-<scenario name>)"
-    )
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    output_options(parser, "output folder (default: out/autotune-<scenario name>)")
     data_option(parser)
     parser.set_defaults(handler=run)
 

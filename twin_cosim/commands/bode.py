@@ -12,6 +12,7 @@ from twin_cosim.commands.options import (
     data_option,
     number_above,
     out_folder,
+    output_options,
     params_option,
     plant_option,
     plant_parameters_option,
@@ -53,10 +54,7 @@ def add_arguments(subparsers) -> None:
     params_option(parser)
     plant_option(parser)
     plant_parameters_option(parser)
-    parser.add_argument(
-        "--out", metavar="DIR", help="output folder (default: out/bode-<scenario>-<loop>-<kind>)"
-    )
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    output_options(parser, "output folder (default: out/bode-<scenario>-<loop>-<kind>)")
     data_option(parser)
     parser.set_defaults(handler=run)
 

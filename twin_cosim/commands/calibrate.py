@@ -7,7 +7,13 @@ import json
 from pathlib import Path
 
 from twin_cosim.commands.console import command_line, write_json
-from twin_cosim.commands.options import command_parser, data_option, fraction, out_folder
+from twin_cosim.commands.options import (
+    command_parser,
+    data_option,
+    fraction,
+    out_folder,
+    output_options,
+)
 
 
 def add_arguments(subparsers) -> None:
@@ -36,10 +42,7 @@ def add_arguments(subparsers) -> None:
         help="another calibration of the same machine to report beside, e.g. the plant.yaml of "
         "twin diagnose (default: none)",
     )
-    parser.add_argument(
-        "--out", metavar="DIR", help="output folder (default: out/calibrate-<scenario name>)"
-    )
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    output_options(parser, "output folder (default: out/calibrate-<scenario name>)")
     data_option(parser)
     parser.set_defaults(handler=run)
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from twin_cosim.commands.console import command_line, write_json
-from twin_cosim.commands.options import command_parser, no_plots_option, out_folder
+from twin_cosim.commands.options import command_parser, no_plots_option, out_folder, output_options
 
 
 def _positive(text: str) -> float:
@@ -50,8 +50,7 @@ def add_arguments(subparsers) -> None:
         help="ft|ga|ce|sa for every axis, or a YAML/JSON file (one set, or axes: {X: ..., Y: "
         "...}) (default: the scenario's)",
     )
-    parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<name>-circle)")
-    parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    output_options(parser, "output folder (default: out/<name>-circle)", "result")
     no_plots_option(parser)
     parser.add_argument(
         "--reference-path",

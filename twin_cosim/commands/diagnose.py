@@ -17,6 +17,7 @@ from twin_cosim.commands.options import (
     fraction,
     no_plots_option,
     out_folder,
+    output_options,
     plant_option,
     plant_path,
     whole_number,
@@ -55,10 +56,7 @@ def add_arguments(subparsers) -> None:
     parser.add_argument(
         "--workers", type=whole_number(1), help="local processes for the fits (default: all cores)"
     )
-    parser.add_argument(
-        "--out", metavar="DIR", help="report folder (default: out/diagnosis-<scenario name>)"
-    )
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    output_options(parser, "report folder (default: out/diagnosis-<scenario name>)")
     parser.add_argument(
         "--quiet",
         action="store_true",
@@ -101,10 +99,12 @@ def _run_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
     settings = settings_from(scenario, args.split, args.max_effects)
     start = time.perf_counter()
     progress = _ProgressBars(args)
-    result = diagnose(
-        scenario, measured, holdout, args.plant, settings, progress=progress, pool=pool
-    )
-    progress.finish()
+    try:
+        result = diagnose(
+            scenario, measured, holdout, args.plant, settings, progress=progress, pool=pool
+        )
+    finally:
+        progress.finish()
     wall_s = time.perf_counter() - start
     summary = {
         **summary_of(result),
@@ -169,7 +169,7 @@ class _ProgressBars:
 def _print_text(result: Diagnosis) -> None:
     """The verdict and each accepted effect's held-out gaps, numbers for people."""
     from twin_cosim.gap.report.pages import hypothesis_units
-    from twin_cosim.gap.report.verdict import names, number, parameters
+    from twin_cosim.gap.verdict import names, number, parameters
 
     units = hypothesis_units(result.context.model)
     print(result.verdict)

@@ -86,6 +86,15 @@ def params_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def output_options(parser: argparse.ArgumentParser, folder: str, printed: str = "summary") -> None:
+    """``--out DIR`` (``folder``: what the folder is and its default, for the help) and
+    ``--json`` (print the ``printed`` as one JSON object)."""
+    parser.add_argument("--out", metavar="DIR", help=folder)
+    parser.add_argument(
+        "--json", action="store_true", help=f"print the {printed} as one JSON object"
+    )
+
+
 def out_folder(option: str | None, default: Path) -> Path:
     """The output folder of ``--out`` (or ``default``); an existing file is refused."""
     out = Path(option) if option else default

@@ -21,6 +21,7 @@ from twin_cosim.commands.options import (
     data_option,
     no_plots_option,
     out_folder,
+    output_options,
     params_option,
     plant_option,
     plant_parameters_option,
@@ -57,8 +58,7 @@ def add_arguments(subparsers) -> None:
         help="part program (G-code subset, docs/contouring.md) for a machine scenario (axes:) "
         "(default: the scenario's program)",
     )
-    parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<scenario name>)")
-    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    output_options(parser, "output folder (default: out/<scenario name>)")
     parser.add_argument(
         "--reference-path",
         action="store_true",

@@ -29,7 +29,7 @@ Each realisation of the multisine runs two periods: the first lets the loop sett
 periodic steady state, the second is recorded. The measurement is a run of the master
 (:func:`twin_cosim.cosim.run_axes`, compiled) with the excitation injected at its loop, the
 noise on the measured speed, and the speed-loop record: the controller's own functions (those of
-every run) and the FMU's fmi2 functions, as every run.
+every run) and the FMU's FMI functions, as every run.
 
 The multisine: a period of N samples at the period T excites the lines k / (N T) Hz of a set of
 bins k, so that a whole period in the window leaks nothing. The bins are log-spaced from the

@@ -13,12 +13,12 @@ and the printed verdict are written from its fields):
 2. **Replay and noise** (:mod:`twin_cosim.gap.floors.noise`): the twin replays the scenario;
    the measured noise at standstill becomes plant parameters; the noise floors normalise all
    residuals, with their source.
-3. **Where** (:mod:`twin_cosim.gap.where.location`): regimes, along the axis, orders and
+3. **Where** (:mod:`twin_cosim.gap.location`): regimes, along the axis, orders and
    frequencies.
 4. **Which** (:mod:`twin_cosim.gap.which.selector`): rounds of fits, each looking again at the
    residual left, judged on held-out data against the noise and calibration floors, then the
    cold refits, the swaps and the backward pass.
-5. **Verdict and what is left** (:mod:`twin_cosim.gap.report.verdict`), per held-out run the
+5. **Verdict and what is left** (:mod:`twin_cosim.gap.verdict`), per held-out run the
    figures before and after (RMS gaps, the benchmark's relative errors).
 6. **The calibrated plant** (:func:`calibrated_plant`): the noise harmonics, the kept effects'
    FMU parameters and the calibration correction, each with where it came from (the file
@@ -59,9 +59,9 @@ from twin_cosim.gap.floors.noise import (
     identify_noise,
     noise_floors,
 )
-from twin_cosim.gap.report.verdict import Remaining, remaining_of, verdict_text
+from twin_cosim.gap.location import Location, locate
 from twin_cosim.gap.settings import DiagnosisSettings
-from twin_cosim.gap.where.location import Location, locate
+from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.gap.which.acceptance import Judging
 from twin_cosim.gap.which.replay import Replays, ReplaySpec, TrainingData
 from twin_cosim.gap.which.replay_pool import ReplayPool

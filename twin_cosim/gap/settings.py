@@ -4,7 +4,7 @@ The scenario's ``diagnose`` section may set any field but ``hypotheses``; the co
 overrides ``split`` and ``max_effects``. What each threshold means is said where it is used:
 significance in :mod:`twin_cosim.gap.floors.noise` and :mod:`twin_cosim.gap.floors.evidence`,
 acceptance in :mod:`twin_cosim.gap.which.acceptance`, the effort of the selection in
-:mod:`twin_cosim.gap.which.selector`, localisation in :mod:`twin_cosim.gap.where.location`.
+:mod:`twin_cosim.gap.which.selector`, localisation in :mod:`twin_cosim.gap.location`.
 """
 
 from __future__ import annotations

@@ -7,7 +7,8 @@ loops are made from and the versions of Python, numpy, numba and llvmlite. A pro
 the library for its sources imports it in about a millisecond, instead of importing numba and
 readying its compiler target (about half a second) to load the cached machine code of the
 just-in-time path. Built by ``twin build``; without it (or after a source changed) the loops
-compile just in time, with the same results.
+compile just in time, with the same results. :func:`compiled_loops` is how a process gets the
+master: this library when it is built, else the just-in-time one.
 """
 
 from __future__ import annotations
@@ -29,10 +30,12 @@ from twin_cosim.versions import installed_version
 
 MODULE = "twin_loops"
 _PACKAGE = Path(__file__).resolve().parents[1]
-# What the loops are made from: their code, the controller they inline, the plant contract
-# (the positions of inputs and outputs), and this file's signatures.
+# What the loops are made from: their code and the statuses they compile in (loops/__init__.py),
+# the controller they inline, the plant contract (the positions of inputs and outputs), and this
+# file's signatures.
 SOURCES = (
     _PACKAGE / "loops" / "kernels.py",
+    _PACKAGE / "loops" / "__init__.py",
     _PACKAGE / "loops" / "ahead.py",
     _PACKAGE / "controller.py",
     _PACKAGE / "plant.py",
@@ -49,6 +52,33 @@ SIGNATURES = {
         f"{_ROWS}, {_ROWS}, {_ROWS}, f8, f8[:, :, ::1], f8[:, :, ::1])"
     ),
 }
+
+
+_LOADED: list[ModuleType] = []
+
+
+def compiled_loops() -> ModuleType:
+    """The compiled master of this process: the library built ahead when there is one for these
+    sources, else :mod:`twin_cosim.loops.kernels` (numba, just in time); chosen once."""
+    if not _LOADED:
+        library = load()
+        if library is None:
+            from twin_cosim.loops import kernels
+
+            library = kernels
+        _LOADED.append(library)
+    return _LOADED[0]
+
+
+def ready_compiled_loops() -> None:
+    """Load the compiled loops now, as the first run would: a process about to run (a pool's
+    worker while its parent prepares) calls this ahead. On the just-in-time path this also
+    readies numba's compiler target, most of the cost (about 0.3 s) of loading cached code."""
+    loops = compiled_loops()
+    if loops.__name__ == "twin_cosim.loops.kernels":
+        from numba.core.registry import cpu_target
+
+        cpu_target.target_context.refresh()
 
 
 class LoopBuildError(RuntimeError):

@@ -4,9 +4,9 @@ functions (FMI 2.0 or FMI 3.0, per axis).
 One plain Python function over numbers and arrays (:func:`master`), compiled by numba: just in
 time here (with numba's on-disk cache), or ahead of time into a shared library by
 :mod:`twin_cosim.loops.ahead` (the same function, the same machine-code semantics, loaded
-without numba). Callers reach it through :func:`twin_cosim.loops.compiled_loops`, which picks the
-shared library when it is built for these sources; :mod:`twin_cosim.cosim` prepares its
-arguments.
+without numba). Callers reach it through :func:`twin_cosim.loops.ahead.compiled_loops`, which
+picks the shared library when it is built for these sources; :mod:`twin_cosim.cosim` prepares
+its arguments.
 
 The FMI functions are called by address (:func:`real_call`, :func:`do_step` for FMI 2.0;
 :func:`float64_call`, :func:`do_step3` for FMI 3.0): the addresses of ``fmi2SetReal``,
@@ -26,7 +26,7 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from twin_cosim import controller
+from twin_cosim import controller, loops, plant
 from twin_cosim.loops import ABORTED, FMI2_OK_OR_WARNING
 from twin_cosim.plant import CONTRACT_INPUTS, CONTRACT_OUTPUTS
 
@@ -55,27 +55,34 @@ _DO_STEP3 = ir.FunctionType(
 FMI3 = 3  # an axis' FMI version, as the master's ``versions`` give it
 
 
+_VALUES_SIGNATURE = types.int64(types.intp, types.intp, types.intp, types.intp, types.intp)
+
+
+def _values_codegen(function_type: ir.FunctionType, value_count: bool):  # type: ignore[no-untyped-def]
+    """The code of a call of a Set/Get function of real values at an address: (instance, value
+    references, count, values), and the count of values again when ``value_count`` (FMI 3.0)."""
+
+    def codegen(context, builder, sig, args):  # type: ignore[no-untyped-def]
+        function = builder.inttoptr(args[0], function_type.as_pointer())
+        component_, references_, count_, values_ = args[1:]
+        arguments = [
+            builder.inttoptr(component_, _POINTER),
+            builder.inttoptr(references_, _POINTER),
+            count_,
+            builder.inttoptr(values_, _POINTER),
+        ]
+        if value_count:
+            arguments.append(count_)
+        return builder.sext(builder.call(function, arguments), ir.IntType(64))
+
+    return codegen
+
+
 @intrinsic
 def real_call(typingctx, address, component, references, count, values):  # type: ignore[no-untyped-def]
     """``fmi2SetReal`` or ``fmi2GetReal`` at ``address``: (instance, value references (uint32
     pointer), count, values (float64 pointer)) -> fmi2Status; every argument an integer."""
-    signature = types.int64(types.intp, types.intp, types.intp, types.intp, types.intp)
-
-    def codegen(context, builder, sig, args):  # type: ignore[no-untyped-def]
-        function = builder.inttoptr(args[0], _REAL_CALL.as_pointer())
-        component_, references_, count_, values_ = args[1:]
-        status = builder.call(
-            function,
-            [
-                builder.inttoptr(component_, _POINTER),
-                builder.inttoptr(references_, _POINTER),
-                count_,
-                builder.inttoptr(values_, _POINTER),
-            ],
-        )
-        return builder.sext(status, ir.IntType(64))
-
-    return signature, codegen
+    return _VALUES_SIGNATURE, _values_codegen(_REAL_CALL, value_count=False)
 
 
 @intrinsic
@@ -104,24 +111,7 @@ def do_step(typingctx, address, component, time, step, no_prior_state):  # type:
 def float64_call(typingctx, address, component, references, count, values):  # type: ignore[no-untyped-def]
     """``fmi3SetFloat64`` or ``fmi3GetFloat64`` at ``address``: (instance, value references
     (uint32 pointer), count, values (float64 pointer), count of values: the same) -> status."""
-    signature = types.int64(types.intp, types.intp, types.intp, types.intp, types.intp)
-
-    def codegen(context, builder, sig, args):  # type: ignore[no-untyped-def]
-        function = builder.inttoptr(args[0], _FLOAT64_CALL.as_pointer())
-        component_, references_, count_, values_ = args[1:]
-        status = builder.call(
-            function,
-            [
-                builder.inttoptr(component_, _POINTER),
-                builder.inttoptr(references_, _POINTER),
-                count_,
-                builder.inttoptr(values_, _POINTER),
-                count_,
-            ],
-        )
-        return builder.sext(status, ir.IntType(64))
-
-    return signature, codegen
+    return _VALUES_SIGNATURE, _values_codegen(_FLOAT64_CALL, value_count=True)
 
 
 @intrinsic
@@ -378,14 +368,15 @@ def master(
 
 
 def drop_stale_compiled() -> None:
-    """Delete numba's cached machine code of these functions when a source they inline
-    (controller.py) is newer.
+    """Delete numba's cached machine code of these functions when a source they inline or
+    compile in (controller.py, the plant contract of plant.py, the statuses of loops/__init__.py)
+    is newer.
 
     numba's cache checks only the source file of the cached function itself; the master inlines
     the controller's functions, so an edited controller would otherwise keep running its old
     form.
     """
-    changed = Path(controller.__file__).stat().st_mtime
+    changed = max(Path(module.__file__).stat().st_mtime for module in (controller, plant, loops))
     for function in (master, position_loop, speed_loop, exchange):
         cache_dir = Path(function._cache._cache_path)
         code = function.py_func.__code__

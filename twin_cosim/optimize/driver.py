@@ -319,12 +319,16 @@ def _run_locked(
         exact = spec.method in EXACT_METHODS and problem.cutoff_is_exact()
         early_stop = EarlyStop(optimizer, spec.early_stop and exact)
         evaluator = start_evaluator(problem.objective(record), pool)
+        try:
+            loop = AskTellLoop(optimizer, problem.config, log, evaluator, early_stop, progress)
+        except BaseException:
+            evaluator.close()
+            raise
     except BaseException:
         optimizer.close()
         if log is not None:
             log.close()
         raise
-    loop = AskTellLoop(optimizer, problem.config, log, evaluator, early_stop, progress)
     wall_s = loop.run(out_dir)
     best_unit, best_fitness = optimizer.best
     best_x = problem.config.from_unit(best_unit)

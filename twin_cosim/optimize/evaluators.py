@@ -291,8 +291,12 @@ class DaskEvaluator:
     def __init__(self, recipe: WorkerFactory, scheduler: str, timeout: float | None = None) -> None:
         self.address = scheduler
         self.client = connect(scheduler, timeout)
-        self.client.register_plugin(objective_plugin(recipe), name=PLUGIN_NAME)
-        self.workers = max(1, len(self.client.scheduler_info()["workers"]))
+        try:
+            self.client.register_plugin(objective_plugin(recipe), name=PLUGIN_NAME)
+            self.workers = max(1, len(self.client.scheduler_info()["workers"]))
+        except BaseException:
+            self.client.close()
+            raise
         # One task per worker, as measured so far (a cluster was not timed with more)
         self.ahead = 0
 

@@ -59,7 +59,9 @@ from twin_cosim.scenario import Scenario
 
 @dataclass(frozen=True)
 class _Case:
-    """One run of a candidate: a scenario, a plant sample, its IAU limit (A.s) and E_pk scale."""
+    """One run of a candidate: a scenario, its metrics window (start, end s; None: to the end), a
+    plant sample (FMU parameter overrides), its IAU limit (A.s), its E_pk scale and its
+    speed-loop steps."""
 
     label: str
     scenario: Scenario

@@ -62,19 +62,8 @@ def load_scenario(path: Path | str) -> Scenario:
     ScenarioError
         On malformed YAML, unknown keys, wrong types, non-finite or out-of-range values.
     """
-    source = find_scenario(path)
-    check = Checker(source)
-    data = check.mapping(load_yaml(source), "(top level)", TOP_KEYS)
-    if "reference" not in data:
-        raise check.fail("reference", "a reference section")
-    name = str(data.get("name", source.stem))
-    if "name" in data and not NAME_PATTERN.fullmatch(name):
-        raise check.fail(
-            "name",
-            "a plain file name (letters, digits, '.', '_', '-'; at most 100; no folders), "
-            "used as the default output folder",
-            name,
-        )
+    check, data, name = read_top_level(path, TOP_KEYS, "reference", "a reference section")
+    source = Path(check.source)
     plant = plant_section(check, data.get("plant"))
     tuned, settings = controller_section(check, plant, data.get("controller"))
     check_friction_below_peak_torque(check, plant, settings.current_limit)
@@ -105,6 +94,28 @@ def load_scenario(path: Path | str) -> Scenario:
         model=plant.model,
         plant_parameters_file=plant.parameters_file,
     )
+
+
+def read_top_level(
+    path: Path | str, keys: set[str], required: str, what: str
+) -> tuple[Checker, dict[str, Any], str]:
+    """A scenario file's checker, its top-level mapping (only ``keys``; ``required`` present,
+    ``what`` saying what it must be) and its name (``name``, checked to be a plain file name;
+    else the file's stem): the start that every scenario file shares."""
+    source = find_scenario(path)
+    check = Checker(source)
+    data = check.mapping(load_yaml(source), "(top level)", keys)
+    if required not in data:
+        raise check.fail(required, what)
+    name = str(data.get("name", source.stem))
+    if "name" in data and not NAME_PATTERN.fullmatch(name):
+        raise check.fail(
+            "name",
+            "a plain file name (letters, digits, '.', '_', '-'; at most 100; no folders), "
+            "used as the default output folder",
+            name,
+        )
+    return check, data, name
 
 
 def _metrics_window(

@@ -45,7 +45,7 @@ from twin_cosim.controller import ControllerSettings, TunedParameters
 from twin_cosim.plant_model import model_of
 from twin_cosim.reference import ReferenceError, ReferenceGrid, check_periods
 from twin_cosim.scenario.controller_section import controller_section
-from twin_cosim.scenario.loader import MAX_SAMPLES, NAME_PATTERN, find_scenario
+from twin_cosim.scenario.loader import MAX_SAMPLES, find_scenario, read_top_level
 from twin_cosim.scenario.plant_section import plant_section
 from twin_cosim.scenario.resolved import Scenario
 from twin_cosim.schema import Checker, load_yaml
@@ -288,14 +288,10 @@ def load_machine(path: Path | str) -> MachineScenario:
         On malformed YAML, unknown keys, wrong types, non-finite or out-of-range values; the
         message names the file and the key path.
     """
-    source = find_scenario(path)
-    check = Checker(source)
-    data = check.mapping(load_yaml(source), "(top level)", MACHINE_KEYS)
-    if "axes" not in data:
-        raise check.fail("axes", "an axes section (X, Y and optionally Z)")
-    name = str(data.get("name", source.stem))
-    if not NAME_PATTERN.fullmatch(name):
-        raise check.fail("name", "a plain file name (letters, digits, '.', '_', '-')", name)
+    check, data, name = read_top_level(
+        path, MACHINE_KEYS, "axes", "an axes section (X, Y and optionally Z)"
+    )
+    source = Path(check.source)
     axes = axes_section(check, data["axes"])
     interpolation = check.mapping(data.get("interpolation"), "interpolation", {"sample_period"})
     sample_period = check.number(

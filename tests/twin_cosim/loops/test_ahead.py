@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from twin_cosim import loops
 from twin_cosim.cosim import AxisRun, run_axes, run_scenario
 from twin_cosim.frequency.measurement import MeasurementSettings, measure
 from twin_cosim.loops import ahead, kernels
@@ -38,7 +37,7 @@ def use(monkeypatch):
     """Make this process run on the given loops (the library or the just-in-time kernels)."""
 
     def choose(library) -> None:
-        monkeypatch.setattr(loops, "_LOADED", [library])
+        monkeypatch.setattr(ahead, "_LOADED", [library])
 
     return choose
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from twin_cosim.gap.data import regimes as regime_model
-from twin_cosim.gap.where.spectra import dominant_peak, mean_amplitude_spectrum
+from twin_cosim.gap.spectra import dominant_peak, mean_amplitude_spectrum
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.metrics import UM_PER_M, indices
 from twin_cosim.reference import ReferenceGrid

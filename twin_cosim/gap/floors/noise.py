@@ -9,7 +9,7 @@ these harmonics from a measured run:
    jump in time, as between concatenated runs, ends a stretch) lasting at least 0.2 s; each
    stretch's mean is removed.
 2. Detection: the Hann amplitude spectra of the stretches are averaged (see
-   :mod:`twin_cosim.gap.where.spectra`); a harmonic must stand ``min_ratio`` times above the
+   :mod:`twin_cosim.gap.spectra`); a harmonic must stand ``min_ratio`` times above the
    median of that spectrum and make at least two cycles in the longest stretch. Harmonics are
    taken one at a time, largest first, each from the spectrum of what the harmonics found so far
    leave unexplained, so that the side lobes of a large harmonic are not taken for harmonics.
@@ -54,7 +54,7 @@ from scipy.optimize import least_squares
 from twin_cosim.gap.data import regimes as regime_model
 from twin_cosim.gap.data.residuals import Residuals, run_metrics, sim_at
 from twin_cosim.gap.settings import DiagnosisSettings
-from twin_cosim.gap.where.spectra import dominant_peak, mean_amplitude_spectrum
+from twin_cosim.gap.spectra import dominant_peak, mean_amplitude_spectrum
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.run_record import RunRecord
 

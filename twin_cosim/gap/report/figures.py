@@ -15,11 +15,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
+from twin_cosim.gap import spectra  # noqa: E402
 from twin_cosim.gap.data import regimes as regime_model  # noqa: E402
 from twin_cosim.gap.data.residuals import joined  # noqa: E402
 from twin_cosim.gap.diagnosis import Diagnosis  # noqa: E402
-from twin_cosim.gap.report.verdict import STROKE_END  # noqa: E402
-from twin_cosim.gap.where import spectra as spectra  # noqa: E402
+from twin_cosim.gap.verdict import STROKE_END  # noqa: E402
 from twin_cosim.metrics import UM_PER_M  # noqa: E402
 
 REGIME_COLOURS = {

@@ -22,7 +22,7 @@ import numpy as np
 from twin_cosim.gap.data.context import library_for
 from twin_cosim.gap.data.regimes import energy_shares
 from twin_cosim.gap.diagnosis import Diagnosis, HeldOutRun, jsonable
-from twin_cosim.gap.report.verdict import (
+from twin_cosim.gap.verdict import (
     STROKE_END,
     gap_table,
     names,
@@ -420,7 +420,7 @@ SETTING_UNITS = {"axis_bin": "m"}
 def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
     """The report as (heading, text or table) pairs, shared by Markdown and HTML.
 
-    Every number is written for people (:mod:`twin_cosim.gap.report.verdict`); the verdict is
+    Every number is written for people (:mod:`twin_cosim.gap.verdict`); the verdict is
     followed by the table that holds each of its numbers (:func:`gap_table`).
     """
     units = hypothesis_units(d.context.model)

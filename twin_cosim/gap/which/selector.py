@@ -85,8 +85,8 @@ from twin_cosim.gap.data.context import DEFAULT_CONTEXT, DiagnosisContext, train
 from twin_cosim.gap.data.residuals import Residuals
 from twin_cosim.gap.floors.evidence import EFFECTIVE_SAMPLE_SPACING_S, CalibrationFloor, floor_of
 from twin_cosim.gap.floors.noise import MetricComparison
+from twin_cosim.gap.location import dominant_order
 from twin_cosim.gap.settings import DiagnosisSettings
-from twin_cosim.gap.where.location import dominant_order
 from twin_cosim.gap.which.acceptance import (
     Acceptance,
     Candidate,

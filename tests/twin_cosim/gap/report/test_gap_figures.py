@@ -14,8 +14,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 from twin_cosim.gap.data.regimes import CONSTANT_VELOCITY  # noqa: E402
 from twin_cosim.gap.data.residuals import Residuals  # noqa: E402
 from twin_cosim.gap.floors.noise import Floors  # noqa: E402
+from twin_cosim.gap.location import AxisSpan, Location  # noqa: E402
 from twin_cosim.gap.report import figures  # noqa: E402
-from twin_cosim.gap.where.location import AxisSpan, Location  # noqa: E402
 
 
 def _residuals(seed: int) -> Residuals:

@@ -9,8 +9,8 @@ import pytest
 
 from twin_cosim.gap.data.regimes import ACCELERATION, CONSTANT_VELOCITY, REVERSAL
 from twin_cosim.gap.data.residuals import Residuals
+from twin_cosim.gap.location import along_axis, stroke_ends
 from twin_cosim.gap.settings import DiagnosisSettings
-from twin_cosim.gap.where.location import along_axis, stroke_ends
 
 SETTINGS = DiagnosisSettings()
 

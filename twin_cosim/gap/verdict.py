@@ -31,7 +31,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from twin_cosim.gap.floors.evidence import CalibrationFloor
-from twin_cosim.gap.where.location import AxisSpan, Location
+from twin_cosim.gap.location import AxisSpan, Location
 
 DIGITS = 3
 # unit -> (scale, shown unit) from the largest to the smallest prefix

@@ -10,7 +10,8 @@ import pytest
 
 from twin_cosim.gap.data.regimes import REGIMES
 from twin_cosim.gap.floors.evidence import CalibrationFloor
-from twin_cosim.gap.report.verdict import (
+from twin_cosim.gap.location import AxisSpan, Location
+from twin_cosim.gap.verdict import (
     GAP_TABLE_HEADER,
     gap_table,
     names,
@@ -22,7 +23,6 @@ from twin_cosim.gap.report.verdict import (
     span_label,
     verdict_text,
 )
-from twin_cosim.gap.where.location import AxisSpan, Location
 
 NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e[-+]\d+)?")
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from twin_cosim.gap.where.spectra import (
+from twin_cosim.gap.spectra import (
     Peak,
     dominant_peak,
     frequency_spectrum,

@@ -17,7 +17,7 @@
   speed-dependent effect (friction near v = 0) concentrates there as a local defect would.
 - Orders and frequencies: order spectra of the motor and screw angle and a spectrum in Hz on the
   constant-velocity stretches, with the position-periodic / temporal rule of
-  :func:`twin_cosim.gap.where.spectra.periodicity`.
+  :func:`twin_cosim.gap.spectra.periodicity`.
 """
 
 from __future__ import annotations
@@ -28,10 +28,10 @@ from typing import Any
 
 import numpy as np
 
+from twin_cosim.gap import spectra
 from twin_cosim.gap.data import regimes as regime_model
 from twin_cosim.gap.data.residuals import Residuals
 from twin_cosim.gap.settings import DiagnosisSettings
-from twin_cosim.gap.where import spectra as spectra
 
 MM_PER_M = 1e3
 MIN_BIN_SAMPLES = 4  # a bin with fewer moving samples in a direction is not judged
