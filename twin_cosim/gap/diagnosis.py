@@ -609,9 +609,9 @@ def _intervals(
     ``parameters`` gives it and kept inside the variable table's range.
 
     Without the move, a corrected parameter would sit at one end of its interval, and the
-    prediction's interval over them would lie on one side of the calibrated twin's value
-    (on the issue's three-effect machine: 7.57-7.83 um for a twin predicting 7.57 um and a
-    machine at 7.53 um)."""
+    prediction's interval over them would lie almost wholly on one side of the calibrated
+    twin's value (on the issue's three-effect machine: 7.57-7.83 um for a twin predicting
+    7.58 um and a machine at 7.53 um)."""
     if selection.uncertainty is None:
         return {}
     ranges = plant_model(model).parameters
