@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -77,3 +77,30 @@ def evaluate_sets(
             }
         )
     return pd.DataFrame(rows).set_index(["scenario", "set"]), records
+
+
+def plot_set_errors(
+    scenarios: Mapping[str, Scenario],
+    sets: Mapping[str, ControllerSet],
+    records: Mapping[tuple[str, str], RunRecord],
+    title: str,
+    path_of: Callable[[str, Scenario], Path],
+) -> None:
+    """One plot per scenario: the position error (um) of every set, around the Fine-Tune set's
+    peak (the sets hold ``FT``).
+
+    Parameters
+    ----------
+    scenarios, sets, records
+        As :func:`evaluate_sets` takes and returns them.
+    title
+        What the sets are, after the scenario's name.
+    path_of
+        The PNG file of a scenario, from its label and the scenario.
+    """
+    from twin_cosim.plots import plot_error_comparison  # matplotlib: not at start
+
+    for label, scenario in scenarios.items():
+        runs = {name: records[(label, name)] for name in sets}
+        peak = compute_metrics(runs["FT"], scenario.metrics_window).t_E_pk
+        plot_error_comparison(runs, peak, f"{scenario.name}: {title}", path_of(label, scenario))

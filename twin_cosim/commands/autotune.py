@@ -26,6 +26,7 @@ def add_arguments(subparsers) -> None:
         subparsers,
         "autotune",
         "set Kp_vel, Ki_vel, a notch, Kp_pos and the feedforwards from the plant FRF",
+        run,
     )
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     parser.add_argument(
@@ -50,7 +51,6 @@ def add_arguments(subparsers) -> None:
     plant_parameters_option(parser)
     output_options(parser, "output folder (default: out/autotune-<scenario name>)")
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

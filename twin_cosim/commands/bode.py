@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-from twin_cosim.commands.console import command_line, warn_plant_mismatch, write_json
+from twin_cosim.commands.console import command_line, warn_plant_mismatch, write_summary
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
@@ -26,7 +25,7 @@ LOOP_CHOICES = ("plant", "current", "speed", "position")  # current: the plant, 
 def add_arguments(subparsers) -> None:
     """The ``bode`` command and its options."""
     parser = command_parser(
-        subparsers, "bode", "measure a loop's frequency response in closed loop, with margins"
+        subparsers, "bode", "measure a loop's frequency response in closed loop, with margins", run
     )
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     parser.add_argument(
@@ -56,7 +55,6 @@ def add_arguments(subparsers) -> None:
     plant_parameters_option(parser)
     output_options(parser, "output folder (default: out/bode-<scenario>-<loop>-<kind>)")
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def _excitation_options(parser: argparse.ArgumentParser) -> None:
@@ -68,7 +66,10 @@ def _excitation_options(parser: argparse.ArgumentParser) -> None:
         "commands 5 %% of the current limit at high frequency)",
     )
     parser.add_argument(
-        "--averages", type=whole_number(2), default=8, help="multisine realisations averaged"
+        "--averages",
+        type=whole_number(2),
+        default=8,
+        help="multisine realisations averaged",
     )
     parser.add_argument(
         "--speed",
@@ -121,10 +122,7 @@ def run(args: argparse.Namespace) -> int:
         "warnings": mismatch,
         "versions": versions(),
     }
-    write_json(out / "bode.json", summary)
-    if args.json:
-        print(json.dumps(summary))
-    else:
+    if write_summary(out / "bode.json", summary, args.json):
         print("\n".join(describe(result)))
         print(f"wrote {', '.join(files.values())}, {out / 'bode.json'}")
     return 0

@@ -23,6 +23,7 @@ def add_arguments(subparsers) -> None:
         subparsers,
         "build",
         "build a plant FMU from models/<MODEL> and compile the loops that step it ahead of time",
+        run,
     )
     parser.add_argument(
         "model", nargs="?", default=DEFAULT_MODEL, help=f"one of {available_models()}"
@@ -41,7 +42,6 @@ def add_arguments(subparsers) -> None:
         help="FMI version of the co-simulation FMU: 2 (<MODEL>.fmu) or 3 (<MODEL>-fmi3.fmu)",
     )
     parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

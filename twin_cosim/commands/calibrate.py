@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-from twin_cosim.commands.console import command_line, write_json
+from twin_cosim.commands.console import command_line, write_summary
 from twin_cosim.commands.options import (
     command_parser,
     data_option,
@@ -19,7 +18,7 @@ from twin_cosim.commands.options import (
 def add_arguments(subparsers) -> None:
     """The ``calibrate`` command and its options."""
     parser = command_parser(
-        subparsers, "calibrate", "fit J_M, J_L, f_1, D_1 and viscous friction to a plant FRF"
+        subparsers, "calibrate", "fit J_M, J_L, f_1, D_1 and viscous friction to a plant FRF", run
     )
     parser.add_argument("scenario", help="scenario YAML file (or shipped name) of the machine")
     parser.add_argument(
@@ -44,7 +43,6 @@ def add_arguments(subparsers) -> None:
     )
     output_options(parser, "output folder (default: out/calibrate-<scenario name>)")
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -63,10 +61,7 @@ def run(args: argparse.Namespace) -> int:
     files["plot"] = str(plot_bode(calibration.responses(), title, out / "fit.png"))
     notes = frf.notes(args.coherence_floor)
     summary = {**calibration.summary(), "notes": notes, "outputs": files}
-    write_json(out / "calibration.json", summary)
-    if args.json:
-        print(json.dumps(summary))
-    else:
+    if write_summary(out / "calibration.json", summary, args.json):
         for note in notes:
             print(f"twin calibrate: {note}")
         print(calibration.markdown())

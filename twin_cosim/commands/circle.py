@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import Any
 
-from twin_cosim.commands.console import command_line, write_json
-from twin_cosim.commands.options import command_parser, no_plots_option, out_folder, output_options
+from twin_cosim.commands.console import command_line, write_summary
+from twin_cosim.commands.options import (
+    command_parser,
+    no_plots_option,
+    out_folder,
+    output_options,
+)
 
 
 def _positive(text: str) -> float:
@@ -24,7 +28,10 @@ def _positive(text: str) -> float:
 def add_arguments(subparsers) -> None:
     """The ``circle`` command and its options."""
     parser = command_parser(
-        subparsers, "circle", "circular test (ISO 230-4: G, H, F, reversal spikes) on a machine"
+        subparsers,
+        "circle",
+        "circular test (ISO 230-4: G, H, F, reversal spikes) on a machine",
+        run,
     )
     parser.add_argument("scenario", help="machine scenario (axes: X, Y), file or shipped name")
     parser.add_argument(
@@ -57,7 +64,6 @@ def add_arguments(subparsers) -> None:
         action="store_true",
         help="step through fmpy in plain Python instead of the compiled loop",
     )
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -81,10 +87,7 @@ def run(args: argparse.Namespace) -> int:
         command,
         fast=not args.reference_path,
     )
-    write_json(out / "circle.json", summary)
-    if args.json:
-        print(json.dumps(summary))
-    else:
+    if write_summary(out / "circle.json", summary, args.json):
         _print_circle(args, summary, out)
     if not args.no_plots:
         draw()
@@ -129,9 +132,7 @@ def _measured(args: argparse.Namespace, out: Path, command: str) -> int:
         out / "circle.png",
     )
     found["outputs"] = {"plot": str(out / "circle.png"), "folder": str(out)}
-    write_json(out / "circle.json", found)
-    if args.json:
-        print(json.dumps(found))
+    if not write_summary(out / "circle.json", found, args.json):
         return 0
     machine, twin = found["machine"], found["twin"]
     print(

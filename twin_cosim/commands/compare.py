@@ -19,7 +19,7 @@ from twin_cosim.commands.options import (
 def add_arguments(subparsers) -> None:
     """The ``compare`` command and its options."""
     parser = command_parser(
-        subparsers, "compare", "several methods on one campaign file: Tables 3-5"
+        subparsers, "compare", "several methods on one campaign file: Tables 3-5", run
     )
     parser.add_argument("campaign", help="campaign YAML file (see scenarios/paper_campaign.yaml)")
     parser.add_argument(
@@ -43,7 +43,6 @@ def add_arguments(subparsers) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     no_plots_option(parser)
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -23,6 +23,20 @@ def write_json(path: Path, data: dict[str, Any]) -> None:
     path.write_text(json.dumps(data, indent=2) + "\n")
 
 
+def write_summary(path: Path, summary: dict[str, Any], as_json: bool) -> bool:
+    """Write a command's summary as indented JSON and, with ``--json``, print it on one line.
+
+    Returns
+    -------
+    bool
+        True when the command prints its text instead (no ``--json``).
+    """
+    write_json(path, summary)
+    if as_json:
+        print(json.dumps(summary))
+    return not as_json
+
+
 FORK_FROM_ROWS = 10_000  # a record this long is formatted in two processes (a fork costs ~5 ms)
 
 

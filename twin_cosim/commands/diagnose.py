@@ -30,7 +30,9 @@ if TYPE_CHECKING:
 
 def add_arguments(subparsers) -> None:
     """The ``diagnose`` command and its options."""
-    parser = command_parser(subparsers, "diagnose", "where the twin is wrong, why, and by how much")
+    parser = command_parser(
+        subparsers, "diagnose", "where the twin is wrong, why, and by how much", run
+    )
     parser.add_argument("scenario", help="scenario YAML file (or shipped name) the runs followed")
     parser.add_argument(
         "--measured",
@@ -54,7 +56,9 @@ def add_arguments(subparsers) -> None:
     )
     plant_option(parser)
     parser.add_argument(
-        "--workers", type=whole_number(1), help="local processes for the fits (default: all cores)"
+        "--workers",
+        type=whole_number(1),
+        help="local processes for the fits (default: all cores)",
     )
     output_options(parser, "report folder (default: out/diagnosis-<scenario name>)")
     parser.add_argument(
@@ -64,7 +68,6 @@ def add_arguments(subparsers) -> None:
     )
     no_plots_option(parser)
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

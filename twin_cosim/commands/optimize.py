@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 def add_arguments(subparsers) -> None:
     """The ``optimize`` command and its options."""
     parser = command_parser(
-        subparsers, "optimize", "tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H]"
+        subparsers, "optimize", "tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H]", run
     )
     parser.add_argument(
         "scenario",
@@ -48,7 +48,6 @@ def add_arguments(subparsers) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     no_plots_option(parser)
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def _machine_options(parser: argparse.ArgumentParser) -> None:
@@ -86,7 +85,9 @@ def _campaign_options(parser: argparse.ArgumentParser) -> None:
         "--budget", type=whole_number(1), help="maximum evaluations (default: the method's)"
     )
     parser.add_argument(
-        "--workers", type=whole_number(1), help="local processes (default: all cores; 1: serial)"
+        "--workers",
+        type=whole_number(1),
+        help="local processes (default: all cores; 1: serial)",
     )
     parser.add_argument(
         "--scheduler",

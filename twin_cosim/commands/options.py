@@ -23,9 +23,14 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
         return f"{text} (default: %(default)s)"
 
 
-def command_parser(subparsers, name: str, help: str) -> argparse.ArgumentParser:
-    """The parser of command ``name`` among ``subparsers`` (help shows the defaults)."""
-    return subparsers.add_parser(name, help=help, formatter_class=HelpFormatter)
+def command_parser(
+    subparsers, name: str, help: str, handler: Callable[[argparse.Namespace], int]
+) -> argparse.ArgumentParser:
+    """The parser of command ``name`` among ``subparsers`` (help shows the defaults); the
+    command runs ``handler`` with the parsed arguments and exits with what it returns."""
+    parser = subparsers.add_parser(name, help=help, formatter_class=HelpFormatter)
+    parser.set_defaults(handler=handler)
+    return parser
 
 
 def whole_number(low: int) -> Callable[[str], int]:

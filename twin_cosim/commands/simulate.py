@@ -4,7 +4,6 @@ part program on a machine of several axes (``twin simulate MACHINE --program PAR
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -13,8 +12,8 @@ from typing import TYPE_CHECKING, Any
 from twin_cosim.commands.console import (
     command_line,
     warn_plant_mismatch,
-    write_json,
     write_record_csv,
+    write_summary,
 )
 from twin_cosim.commands.options import (
     command_parser,
@@ -40,7 +39,7 @@ if TYPE_CHECKING:
 
 def add_arguments(subparsers) -> None:
     """The ``simulate`` command and its options."""
-    parser = command_parser(subparsers, "simulate", "run a scenario in closed loop")
+    parser = command_parser(subparsers, "simulate", "run a scenario in closed loop", run)
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     params_option(parser)
     plant_option(parser)
@@ -66,7 +65,6 @@ def add_arguments(subparsers) -> None:
     )
     no_plots_option(parser)
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -105,10 +103,7 @@ def _run_scenario(args: argparse.Namespace, painter: Painter | None) -> int:
     unusable, loop = loop_warnings(record, scenario)
     summary = _summary(args, scenario, tuned, record, metrics, ran, mismatch + loop, out)
     write_record_csv(out / "record.csv", record)
-    write_json(out / "summary.json", summary)
-    if args.json:
-        print(json.dumps(summary))
-    else:
+    if write_summary(out / "summary.json", summary, args.json):
         _print_text(scenario.name, metrics, summary, args.machine)
     for warning in loop:  # the plant mismatch was said as it was found
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
@@ -295,10 +290,7 @@ def _run_program(args: argparse.Namespace) -> int:
         "warnings": warnings,
         "versions": versions(),
     }
-    write_json(out / "summary.json", summary)
-    if args.json:
-        print(json.dumps(summary))
-    else:
+    if write_summary(out / "summary.json", summary, args.json):
         print(
             f"{machine.name} {source.name}: contour error max "
             f"{summary['contour_error_max_um']:.2f} um, RMS {summary['contour_error_rms_um']:.2f}"

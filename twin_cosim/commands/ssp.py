@@ -11,11 +11,10 @@ from twin_cosim.commands.options import command_parser
 def add_arguments(subparsers) -> None:
     """The ``ssp`` command and its options."""
     parser = command_parser(
-        subparsers, "ssp", "export a machine's plant (every axis' FMU and parameters) as SSP"
+        subparsers, "ssp", "export a machine's plant (every axis' FMU and parameters) as SSP", run
     )
     parser.add_argument("scenario", help="machine scenario (axes:), file or shipped name")
     parser.add_argument("--out", metavar="FILE.ssp", help="package to write (default: <name>.ssp)")
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -42,7 +42,7 @@ units and ranges: models/<model>/README.md; e.g.
 def add_arguments(subparsers) -> None:
     """The ``synth`` command and its options."""
     parser = command_parser(
-        subparsers, "synth", "the virtual machine: a measured run with known effects"
+        subparsers, "synth", "the virtual machine: a measured run with known effects", run
     )
     parser.epilog = EFFECTS_HELP
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
@@ -80,7 +80,6 @@ def add_arguments(subparsers) -> None:
     )
     parser.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def _error_options(parser: argparse.ArgumentParser) -> None:

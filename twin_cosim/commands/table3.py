@@ -16,28 +16,25 @@ from twin_cosim.commands.options import (
 )
 
 if TYPE_CHECKING:
-    from twin_cosim.controller_set import ControllerSet
-    from twin_cosim.run_record import RunRecord
-    from twin_cosim.scenario import Scenario
+    pass
 
 
 def add_arguments(subparsers) -> None:
     """The ``table3`` command and its options."""
     parser = command_parser(
-        subparsers, "table3", "run the paper's Table 3 parameter sets on scenarios"
+        subparsers, "table3", "run the paper's Table 3 parameter sets on scenarios", run
     )
     parser.add_argument("scenarios", nargs="+", help="scenario YAML files or shipped names")
     plant_option(parser)
     parser.add_argument("--out", metavar="DIR", help="output folder (default: out/table3)")
     data_option(parser)
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run every set on every scenario; write table3.md, table3.csv and the error plots."""
     from twin_cosim import paper
     from twin_cosim.controller_set import ControllerSet
-    from twin_cosim.report import evaluate_sets, markdown_table
+    from twin_cosim.report import evaluate_sets, markdown_table, plot_set_errors
     from twin_cosim.scenario import resolve_scenario
     from twin_cosim.workers import SerialPool
 
@@ -57,31 +54,13 @@ def run(args: argparse.Namespace) -> int:
         for name in table.index.unique(level="scenario")
     )
     (out / "table3.md").write_text(text)
-    _plot_errors(scenarios, sets, records, out)
+    plot_set_errors(
+        scenarios,
+        sets,
+        records,
+        "paper Table 3 parameter sets",
+        lambda _, scenario: out / f"{scenario.name}_errors.png",
+    )
     print(text)
     print(f"wrote {out}/table3.md, table3.csv and error plots")
     return 0
-
-
-def _plot_errors(
-    scenarios: dict[str, Scenario],
-    sets: dict[str, ControllerSet],
-    records: dict[tuple[str, str], RunRecord],
-    out: Path,
-) -> None:
-    """One plot per scenario: the error of every set, around the Fine-Tune set's peak.
-
-    ``records`` holds each run by (scenario label, set name).
-    """
-    from twin_cosim.metrics import compute_metrics
-    from twin_cosim.plots import plot_error_comparison
-
-    for label, scenario in scenarios.items():
-        runs = {name: records[(label, name)] for name in sets}
-        peak = compute_metrics(runs["FT"], scenario.metrics_window).t_E_pk
-        plot_error_comparison(
-            runs,
-            peak,
-            f"{scenario.name}: paper Table 3 parameter sets",
-            out / f"{scenario.name}_errors.png",
-        )

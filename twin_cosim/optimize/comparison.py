@@ -38,7 +38,6 @@ from typing import TYPE_CHECKING, Any
 from twin_cosim import current_filters
 from twin_cosim.controller import TUNED_NAMES
 from twin_cosim.controller_set import ControllerSet
-from twin_cosim.metrics import compute_metrics
 from twin_cosim.motion_envelope import MARGIN, envelope_of, outside
 from twin_cosim.optimize.algorithms import METHOD_NAMES, method_label
 from twin_cosim.optimize.axis_problem import (
@@ -50,7 +49,7 @@ from twin_cosim.optimize.axis_problem import (
 from twin_cosim.optimize.config import check_uncertainty
 from twin_cosim.optimize.driver import run_campaign
 from twin_cosim.pool_runs import autotune_summary, prepare_campaign_worker
-from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table
+from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table, plot_set_errors
 from twin_cosim.scenario import Scenario, ScenarioError, load_controller_set, resolve_scenario
 from twin_cosim.scenario.loader import find_scenario
 from twin_cosim.schema import load_yaml
@@ -322,18 +321,15 @@ def _plot(
 ) -> None:
     """``convergence.png`` and the error plots of every scenario (``errors_<label>.png``)."""
     from twin_cosim.optimize.outputs import plot_convergence
-    from twin_cosim.plots import plot_error_comparison
 
     plot_convergence({method_label(m): out / m for m in methods}, out / "convergence.png")
-    for label, s in scenarios.items():
-        runs = {name: records[(label, name)] for name in sets}
-        peak = compute_metrics(runs["FT"], s.metrics_window).t_E_pk
-        plot_error_comparison(
-            runs,
-            peak,
-            f"{s.name}: position error per method",
-            out / f"errors_{label.replace(' ', '_')}.png",
-        )
+    plot_set_errors(
+        scenarios,
+        sets,
+        records,
+        "position error per method",
+        lambda label, _: out / f"errors_{label.replace(' ', '_')}.png",
+    )
 
 
 def _autotuned(
