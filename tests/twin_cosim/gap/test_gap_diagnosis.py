@@ -166,7 +166,7 @@ def test_two_effects_at_once_are_both_found(tmp_path):
     assert {"stribeck", "torque_ripple"} <= set(summary["accepted"])
     remaining = summary["gap"]["remaining"]
     assert remaining["energy_share"] < 0.25
-    assert "left after the accepted effects:" in summary["gap"]["verdict"]
+    assert ". Left after the accepted effects:" in summary["gap"]["verdict"]
     time = summary["time"]  # where the time went: every fit's replays are counted once
     assert time["first_round_fits"]["replays"] == sum(row["replays"] for row in summary["effects"])
     assert time["later_round_fits"]["tasks"] == sum(len(r["fitted"]) for r in summary["rounds"][1:])
