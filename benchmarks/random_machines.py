@@ -1,25 +1,29 @@
-"""The gap diagnosis judged as a detector on seeded random virtual machines.
+"""The gap diagnosis judged as a detector on seeded random virtual machines and trajectories.
 
-Each machine (``machine_of(seed)``) has 0 to 3 effects of the drive2mass library at random
-moderate sizes and signs (pairs and triples that share a regime are drawn more often, e.g.
-Stribeck with Coulomb and backlash), a calibration error of up to 2 % on every calibrated
-parameter, its own noise seed, and one excitation: ``scenarios/diagnosis.yaml``,
-``scenarios/sweep.yaml`` or a seeded random excitation inside the shipped motion envelope
-(``random_excitation``). For each machine, through the command line: ``twin synth`` makes the
-measured run, ``twin diagnose`` (time split) says what it finds. Scored per machine:
+Each machine (``machine_of``) has 0 to 3 effects of the drive2mass library at random moderate
+sizes and signs (pairs and triples that share a regime are drawn more often, e.g. Stribeck with
+Coulomb and backlash), a calibration error of up to 2 % on every calibrated parameter, its own
+noise seed, and one excitation: by default a random trajectory of the kind a user writes
+(``twin synth --random-excitation``: moves, creeps, speed levels reversing while moving,
+oscillations and dwells at random sizes and speeds within the axis' limits, each half of the
+time split covering every regime; :func:`twin_cosim.gap.synth.random_excitation`), drawn from
+``--trajectories`` trajectories of the machine's seed set: tune machines follow tune
+trajectories (seeds 0, 1, ...), report machines report trajectories (seeds 1000, 1001, ...),
+so nothing of the report seeds, machines or trajectories, is seen while tuning. With
+``--excitation diagnosis`` (or ``sweep``) every machine follows that shipped scenario instead.
+For each machine, through the command line: ``twin synth`` makes the measured run, ``twin
+diagnose`` (time split) says what it finds. Scored per machine:
 
 - recall: true effects accepted (an accepted look-alike group that holds the truth counts);
 - precision: accepted effects (or groups) that hold a true effect;
 - null machines (no effect) with anything accepted;
-- the held-out reduction of the normalised RMS by the final model, the wall time.
+- the held-out reduction of the normalised RMS by the final model, the wall time;
 
-Thresholds are chosen on the ``--tune`` seeds and reported on the ``--report`` seeds (disjoint
-ranges); results are appended to ``<out>/results.jsonl`` as they come (an interrupted run
-resumes), and the report prints both sets' figures, a per-effect confusion table and where the
-time went::
+and reported per set (tune, report), per trajectory and per true effect. Results are appended
+to ``<out>/results.jsonl`` as they come (an interrupted run resumes)::
 
-    python benchmarks/random_machines.py --tune 0-19 --report 100-159 [--workers 2]
-                                         [--out out/random-machines]
+    python benchmarks/random_machines.py --tune 0-39 --report 100-159 [--excitation random]
+                                         [--trajectories 4] [--workers 2] [--out DIR]
 """
 
 from __future__ import annotations
@@ -37,16 +41,17 @@ from collections import Counter, defaultdict
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = {
     "diagnosis": ROOT / "scenarios" / "diagnosis.yaml",
     "sweep": ROOT / "scenarios" / "sweep.yaml",
 }
-# Excitation of a machine and its probability: the shipped ones last 11-12 s, a random one 4-7 s
-# (the time a benchmark of 60 machines may take on two shared cores decides the mix).
-EXCITATIONS = {"diagnosis": 0.1, "sweep": 0.05, "random": 0.85}
+# Plant and controller of the random trajectories (their reference is replaced)
+RANDOM_BASE = SHIPPED["diagnosis"]
+# First trajectory seed of each set: tune machines follow tune trajectories, report machines
+# report trajectories.
+TRAJECTORY_SEEDS = {"tune": 0, "report": 1000}
 PERTURB = 0.02  # calibration error, relative
 EFFECT_COUNTS = (0, 1, 2, 3)
 COUNT_WEIGHTS = (0.15, 0.3, 0.3, 0.25)
@@ -105,58 +110,11 @@ def draw_effects(rng: np.random.Generator) -> list[str]:
     return effects
 
 
-def random_excitation(seed: int, path: Path) -> Path:
-    """A seeded random excitation inside the shipped motion envelope, written as a scenario.
-
-    The same pattern twice (the time split trains and judges on alike data): a dwell, two
-    constant speeds (10-45 mm/s) in both directions reached at 0.2-0.5 m/s^2, a reversal while
-    moving at 0.05-0.2 m/s^2, a stop, a dwell and a move back to the start at the faster speed
-    (a reversal after a dwell). A pattern lasts about 2-3 s (the shipped excitations 6 s): a
-    benchmark of many machines replays it some thousands of times per machine.
-    """
-    rng = np.random.default_rng(seed)
-    slow, fast = (float(v) for v in sorted(rng.uniform(0.01, 0.045, size=2)))
-    accel = float(rng.uniform(0.2, 0.5))
-    reverse = float(rng.uniform(0.05, 0.2))
-    dwell = round(float(rng.uniform(0.15, 0.3)), 3)
-    first, second = (1.0, -1.0) if rng.uniform() < 0.5 else (-1.0, 1.0)
-
-    def ramp(speed: float, acceleration: float, hold: float, previous: float) -> dict:
-        duration = abs(speed - previous) / acceleration + hold
-        return {
-            "ramp": {
-                "velocity": round(speed, 4),
-                "acceleration": round(acceleration, 3),
-                "duration": round(duration, 3),
-            }
-        }
-
-    pattern = [
-        {"dwell": dwell},
-        ramp(first * slow, accel, 0.3, 0.0),
-        ramp(first * fast, accel, 0.25, first * slow),
-        ramp(second * slow, reverse, 0.25, first * fast),
-        ramp(second * fast, accel, 0.25, second * slow),
-        ramp(0.0, accel, 0.05, second * fast),
-        {"dwell": dwell},
-        {"move": {"to": 0.0, "velocity": round(fast, 4), "acceleration": round(accel, 3)}},
-    ]
-    scenario = {
-        "name": path.stem,
-        "description": f"random excitation, seed {seed} (benchmarks/random_machines.py)",
-        "controller": {"parameters": "ft"},
-        "reference": {"sample_period": 0.004, "start_position": 0.0, "segments": pattern * 2},
-        "run": {"metrics_window": [0.0, None]},
-    }
-    path.write_text(yaml.safe_dump(scenario, sort_keys=False))
-    return path
-
-
-def machine_of(seed: int) -> dict:
-    """The machine of a seed: effects, excitation and synth seed."""
+def machine_of(seed: int, trajectories: list[int]) -> dict:
+    """The machine of a seed: effects and the seed of its trajectory (one of ``trajectories``)."""
     rng = np.random.default_rng([7919, seed])
-    excitation = str(rng.choice(list(EXCITATIONS), p=list(EXCITATIONS.values())))
-    return {"seed": seed, "effects": draw_effects(rng), "excitation": excitation}
+    effects = draw_effects(rng)
+    return {"seed": seed, "effects": effects, "trajectory": int(rng.choice(trajectories))}
 
 
 def _children_cpu_s() -> float:
@@ -180,12 +138,14 @@ def truth_names(effects: list[str]) -> list[str]:
 def run_machine(case: dict, folder: Path, workers: int) -> dict:
     """Synthesise and diagnose one machine; the summary's figures that the scoring needs."""
     folder.mkdir(parents=True, exist_ok=True)
+    run = folder / "run.csv"
+    synth = ["synth", "--perturb", str(PERTURB), "--seed", str(case["seed"])]
     if case["excitation"] == "random":
-        scenario = random_excitation(case["seed"], folder / f"excitation{case['seed']}.yaml")
+        synth += [str(RANDOM_BASE), "--random-excitation", str(case["trajectory"])]
+        scenario = run.with_name(run.name + ".scenario.yaml")
     else:
         scenario = SHIPPED[case["excitation"]]
-    run = folder / "run.csv"
-    synth = ["synth", str(scenario), "--perturb", str(PERTURB), "--seed", str(case["seed"])]
+        synth += [str(scenario)]
     synth += ["--out", str(run), "--force"]
     for effect in case["effects"]:
         synth += ["--effect", effect]
@@ -209,15 +169,17 @@ def run_machine(case: dict, folder: Path, workers: int) -> dict:
     )
     wall = time.perf_counter() - start
     cpu = _children_cpu_s() - cpu_start
+    truth = truth_names(case["effects"])
     if diagnosed.returncode != 0:
-        return {**case, "crashed": diagnosed.stderr[-2000:], "wall_s": wall, "cpu_s": cpu}
+        crash = diagnosed.stderr[-2000:]
+        return {**case, "truth": truth, "crashed": crash, "wall_s": wall, "cpu_s": cpu}
     summary = json.loads(diagnosed.stdout)
     rounds = summary["rounds"]
     remaining = summary["gap"]["remaining"]  # the final model's (after swaps, backward pass)
     before, after = remaining["normalised_rms_before"], remaining["times_noise_floor"]
     return {
         **case,
-        "truth": truth_names(case["effects"]),
+        "truth": truth,
         "accepted": summary["accepted"],
         "significant": summary["gap"]["significant"],
         "swaps": [[w["removed"], w["name"]] for w in summary.get("swaps", []) if w["kept"]],
@@ -247,8 +209,9 @@ def members(item) -> set[str]:
     return names
 
 
-def score(results: list[dict]) -> dict:
-    """Recall, precision, null false alarms, reductions and wall times of a set of machines."""
+def tally(results: list[dict]) -> dict:
+    """Recall, precision and null alarms of some machines (crashed ones left out), with their
+    counts."""
     found = true_total = accepted_total = accepted_true = 0
     null_alarms = nulls = 0
     for r in results:
@@ -263,15 +226,26 @@ def score(results: list[dict]) -> dict:
         if not truth:
             nulls += 1
             null_alarms += bool(accepted)
+    return {
+        "recall": found / true_total if true_total else float("nan"),
+        "found": found,
+        "true_effects": true_total,
+        "precision": accepted_true / accepted_total if accepted_total else float("nan"),
+        "accepted_true": accepted_true,
+        "accepted": accepted_total,
+        "null_machines": nulls,
+        "null_alarms": null_alarms,
+    }
+
+
+def score(results: list[dict]) -> dict:
+    """Recall, precision, null false alarms, reductions and wall times of a set of machines."""
     ok = [r for r in results if "crashed" not in r]
     walls = [r["wall_s"] for r in ok]
     return {
         "machines": len(results),
         "crashed": len(results) - len(ok),
-        "recall": found / true_total if true_total else float("nan"),
-        "precision": accepted_true / accepted_total if accepted_total else float("nan"),
-        "null_machines": nulls,
-        "null_alarms": null_alarms,
+        **tally(results),
         "median_reduction": statistics.median(r["reduction"] for r in ok) if ok else float("nan"),
         "machines_with_a_swap": sum(1 for r in ok if r.get("swaps")),
         "median_wall_s": statistics.median(walls) if walls else float("nan"),
@@ -287,6 +261,52 @@ def score(results: list[dict]) -> dict:
             if (group := [r for r in ok if len(r["truth"]) == n])
         },
     }
+
+
+def trajectory_label(r: dict) -> str:
+    """The excitation a machine followed: ``random 1002`` or a shipped scenario's name."""
+    return f"random {r['trajectory']}" if r["excitation"] == "random" else r["excitation"]
+
+
+def by_trajectory(results: list[dict]) -> str:
+    """Per trajectory: machines, recall, precision and null alarms (a Markdown table)."""
+    groups: dict[str, list[dict]] = defaultdict(list)
+    for r in results:
+        groups[trajectory_label(r)].append(r)
+    lines = [
+        "| trajectory | machines | recall | precision | null machines with an effect accepted |",
+        "|---|---|---|---|---|",
+    ]
+    for label in sorted(groups):
+        t = tally(groups[label])
+        lines.append(
+            f"| {label} | {len(groups[label])} | {t['recall']:.2f} ({t['found']}/"
+            f"{t['true_effects']}) | {t['precision']:.2f} ({t['accepted_true']}/{t['accepted']}) "
+            f"| {t['null_alarms']}/{t['null_machines']} |"
+        )
+    return "\n".join(lines)
+
+
+def misses(results: list[dict]) -> str:
+    """The machines with a true effect missed or a wrong one accepted (a Markdown table)."""
+    lines = [
+        "| seed | trajectory | effects | accepted | missed | wrong |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in sorted(results, key=lambda r: r["seed"]):
+        if "crashed" in r:
+            lines.append(f"| {r['seed']} | {trajectory_label(r)} | crashed | | | |")
+            continue
+        accepted = [members(a) for a in r["accepted"]]
+        missed = [t for t in r["truth"] if not any(t in a for a in accepted)]
+        wrong = [a for a in r["accepted"] if not members(a) & set(r["truth"])]
+        if missed or wrong:
+            shown = "; ".join(e.replace(",", ", ") for e in r["effects"]) or "none"
+            lines.append(
+                f"| {r['seed']} | {trajectory_label(r)} | {shown} | {r['accepted'] or 'nothing'} "
+                f"| {', '.join(missed) or '-'} | {wrong or '-'} |"
+            )
+    return "\n".join(lines)
 
 
 def where_time_goes(results: list[dict]) -> str:
@@ -324,10 +344,14 @@ def confusion(results: list[dict]) -> str:
             for a in r["accepted"]:
                 label = "{" + ", ".join(sorted(a)) + "}" if isinstance(a, list) else a
                 beside[t][label] += 1
-    lines = ["| true effect | machines | found | accepted on its machines |", "|---|---|---|---|"]
+    lines = [
+        "| true effect | machines | found | recall | accepted on its machines |",
+        "|---|---|---|---|---|",
+    ]
     for t in sorted(seen):
         others = ", ".join(f"{k} {v}" for k, v in beside[t].most_common())
-        lines.append(f"| {t} | {seen[t]} | {found[t]} | {others or 'nothing'} |")
+        recall = "-" if t == "(none)" else f"{found[t] / seen[t]:.2f}"
+        lines.append(f"| {t} | {seen[t]} | {found[t]} | {recall} | {others or 'nothing'} |")
     return "\n".join(lines)
 
 
@@ -343,8 +367,17 @@ def seeds(text: str) -> list[int]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tune", type=seeds, default=seeds("0-19"), help="seeds to choose on")
+    parser.add_argument("--tune", type=seeds, default=seeds("0-39"), help="seeds to choose on")
     parser.add_argument("--report", type=seeds, default=seeds("100-159"), help="seeds to report")
+    parser.add_argument(
+        "--excitation",
+        choices=["random", *SHIPPED],
+        default="random",
+        help="random trajectories of the seed set (default), or a shipped scenario for all",
+    )
+    parser.add_argument(
+        "--trajectories", type=int, default=4, help="random trajectories per seed set"
+    )
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", default="out/random-machines")
     parser.add_argument(
@@ -361,23 +394,37 @@ def main() -> None:
         for line in log.read_text().splitlines():
             entry = json.loads(line)
             done[entry["seed"]] = entry
-    for seed in args.tune + args.report:
-        if seed in done or args.score:
-            continue
-        result = run_machine(machine_of(seed), out / f"machine{seed}", args.workers)
-        done[seed] = result
-        with log.open("a") as stream:
-            stream.write(json.dumps(result) + "\n")
-        mark = "CRASH" if "crashed" in result else f"accepted {result['accepted'] or 'nothing'}"
-        print(f"seed {seed}: truth {result.get('truth', [])}; {mark} ({result['wall_s']:.0f} s)")
-    for label, chosen in (("tune", args.tune), ("report", args.report)):
+    sets = {"tune": args.tune, "report": args.report}
+    for label, chosen in sets.items():
+        first = TRAJECTORY_SEEDS[label]
+        trajectories = list(range(first, first + args.trajectories))
+        for seed in chosen:
+            if seed in done or args.score:
+                continue
+            case = {**machine_of(seed, trajectories), "excitation": args.excitation}
+            result = run_machine(case, out / f"machine{seed}", args.workers)
+            done[seed] = result
+            with log.open("a") as stream:
+                stream.write(json.dumps(result) + "\n")
+            mark = "CRASH" if "crashed" in result else f"accepted {result['accepted'] or 'nothing'}"
+            print(
+                f"seed {seed} ({trajectory_label(result)}): truth {result['truth']}; {mark} "
+                f"({result['wall_s']:.0f} s)",
+                flush=True,
+            )
+    for label, chosen in sets.items():
         results = [done[s] for s in chosen if s in done]
-        if results:
-            figures = score(results)
-            print(f"\n{label} seeds ({len(results)} of {len(chosen)} done): " + json.dumps(figures))
+        if not results:
+            continue
+        print(
+            f"\n{label} seeds ({len(results)} of {len(chosen)} done): " + json.dumps(score(results))
+        )
+        print(f"\n{label} seeds, per trajectory:\n" + by_trajectory(results))
+        print(f"\n{label} seeds, per true effect:\n" + confusion(results))
+        print(f"\n{label} seeds, misses and wrong effects:\n" + misses(results))
     report = [done[s] for s in args.report if s in done]
-    print("\nReport seeds, per true effect:\n" + confusion(report))
-    print("\nReport seeds, where the time goes:\n" + where_time_goes(report))
+    if report:
+        print("\nReport seeds, where the time goes:\n" + where_time_goes(report))
 
 
 if __name__ == "__main__":

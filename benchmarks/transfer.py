@@ -11,7 +11,15 @@ line:
    same method, budget and seed; with ``--oracle`` also on the machine itself (the best a tuning
    on this trajectory can reach);
 4. ``twin simulate --machine`` judges each set on the machine: E_pk there beside each twin's
-   prediction of it.
+   prediction of it, and for the calibrated twin the prediction's interval over what the
+   diagnosis left uncertain (the intervals of ``plant.yaml``) and whether the machine's E_pk
+   lies inside it.
+
+The campaign on the calibrated twin is robust over the intervals of ``plant.yaml`` (the
+default of ``twin optimize --plant-parameters`` for a file with intervals); ``--no-robust``
+tunes on the calibrated plant alone (``--samples 1``). ``--effect NAME:...`` (repeatable, as
+``twin synth`` takes it) judges one machine of these effects instead of drawn ones (seed
+``--synth-seed``).
 
 The machine is a plant parameter file holding the virtual machine's true parameters (what
 ``twin synth`` set). Results are appended to ``<out>/results.jsonl`` as they come (an interrupted
@@ -19,7 +27,7 @@ benchmark resumes); the report prints the per-machine table, the medians and the
 and draws ``<out>/transfer.png``.
 
     python benchmarks/transfer.py [--machines 5] [--method cmaes] [--budget 240] [--workers 2]
-                                  [--oracle] [--out out/transfer]
+                                  [--oracle] [--no-robust] [--effect NAME:...] [--out DIR]
 """
 
 from __future__ import annotations
@@ -157,7 +165,8 @@ def run_machine(case: dict, nominal: Path, args: argparse.Namespace) -> dict:
     plant = diagnosis / "plant.yaml"
     accepted = json.loads((diagnosis / "diagnosis.json").read_text())["accepted"]
     scenario = Path(args.scenario)
-    optimize(scenario, folder / "calibrated", args, "--plant-parameters", str(plant))
+    robust = ["--samples", "1"] if args.no_robust else []
+    optimize(scenario, folder / "calibrated", args, "--plant-parameters", str(plant), *robust)
     sets = {
         "nominal": judge(scenario, nominal / "result.json", machine, folder / "judge-nominal"),
         "calibrated": judge(
@@ -212,10 +221,17 @@ def report(results: list[dict], out: Path) -> None:
         errors_cal.append(abs(pred_cal))
         errors_nom.append(abs(pred_nom))
         oracle = f", {e['oracle']:.2f}" if "oracle" in e else ""
+        interval = j["calibrated"]["E_pk_um"]
+        stated = (
+            f" (interval {interval['low']:.2f}-{interval['high']:.2f} um: "
+            f"{'inside' if interval['inside'] else 'outside'})"
+            if "inside" in interval
+            else ""
+        )
         print(
             f"{r['machine']} | {'; '.join(r['effects'])} | {r['accepted']} | "
             f"{e['fine_tune']:.2f}, {e['nominal']:.2f}, {e['calibrated']:.2f}{oracle} | "
-            f"{pred_nom:+.1f} %, {pred_cal:+.1f} %"
+            f"{pred_nom:+.1f} %, {pred_cal:+.1f} %{stated}"
         )
     median_gain = statistics.median(improvements)
     print(
@@ -229,6 +245,15 @@ def report(results: list[dict], out: Path) -> None:
         f"{sum(e <= 10 for e in errors_cal)}/{len(errors_cal)} machines); nominal twin: median "
         f"{statistics.median(errors_nom):.1f} %"
     )
+    stated = [r["judged"]["calibrated"]["E_pk_um"] for r in results]
+    stated = [e for e in stated if "inside" in e]
+    if stated:
+        inside = sum(e["inside"] for e in stated)
+        print(
+            f"the machine's E_pk inside the calibrated twin's stated interval on {inside}/"
+            f"{len(stated)} machines (goal: all): "
+            + ", ".join(f"{e['low']:.2f}-{e['high']:.2f} um" for e in stated)
+        )
     fig, (left, right) = plt.subplots(1, 2, figsize=(12, 5))
     index = np.arange(len(results))
     labels = [f"M{r['machine']}" for r in results]
@@ -245,6 +270,16 @@ def report(results: list[dict], out: Path) -> None:
     for key in ("nominal", "calibrated"):
         values = [r["judged"][key]["E_pk_um"]["relative_error_pct"] for r in results]
         right.plot(labels, values, "o-", label=f"{key} twin")
+    stated = [r["judged"]["calibrated"]["E_pk_um"] for r in results]
+    if all("low" in e for e in stated):  # the calibrated twin's interval, as errors too
+        errors = [
+            [100 * (e["twin"] - e["low"]) / e["machine"] for e in stated],
+            [100 * (e["high"] - e["twin"]) / e["machine"] for e in stated],
+        ]
+        centre = [e["relative_error_pct"] for e in stated]
+        right.errorbar(labels, centre, yerr=errors, fmt="none", color="tab:orange", capsize=4)
+        right.plot([], [], "|", color="tab:orange", label="calibrated twin's stated interval")
+    right.axhline(0.0, color="k", lw=0.8)
     right.axhspan(-10, 10, color="0.9", label="+/- 10 %")
     right.set_ylabel("twin's E_pk prediction error [%]")
     right.set_title("Prediction of the machine's E_pk (own tuned set)")
@@ -265,6 +300,20 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--scenario", default=str(ROOT / "scenarios" / "reference1.yaml"))
     parser.add_argument("--oracle", action="store_true", help="also tune on the machine itself")
+    parser.add_argument(
+        "--no-robust",
+        action="store_true",
+        help="tune on the calibrated plant alone (default: robust over plant.yaml's intervals)",
+    )
+    parser.add_argument(
+        "--effect",
+        action="append",
+        default=[],
+        metavar="NAME:param=value,...",
+        help="one machine of these effects (repeatable, as twin synth takes them) instead of "
+        "--machines drawn ones",
+    )
+    parser.add_argument("--synth-seed", type=int, default=1, help="seed of an --effect machine")
     parser.add_argument("--out", default="out/transfer")
     args = parser.parse_args()
     out = Path(args.out)
@@ -274,10 +323,16 @@ def main() -> None:
     done = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
     nominal = out / "nominal"
     optimize(Path(args.scenario), nominal, args)
-    for index in range(args.machines):
+    cases = (
+        [{"machine": 0, "effects": args.effect, "synth_seed": args.synth_seed}]
+        if args.effect
+        else [draw_machine(index, args.seed) for index in range(args.machines)]
+    )
+    for case in cases:
+        index = case["machine"]
         if any(r["machine"] == index for r in done):
             continue
-        result = run_machine(draw_machine(index, args.seed), nominal, args)
+        result = run_machine(case, nominal, args)
         done.append(result)
         with path.open("a") as stream:
             stream.write(json.dumps(result) + "\n")

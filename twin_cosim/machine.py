@@ -1,4 +1,5 @@
-"""The machine as the judge of a tuned set: its E_pk, ITAE and IAU beside the twin's prediction.
+"""The machine as the judge of a tuned set: its E_pk, ITAE and IAU beside the twin's prediction,
+and the prediction's interval over what the twin's plant file leaves uncertain.
 
 A machine is either
 
@@ -26,7 +27,9 @@ from twin_cosim.controller import TunedParameters
 from twin_cosim.cosim import run_scenario
 from twin_cosim.measured import check_against_reference, read_measured
 from twin_cosim.metrics import Metrics, compute_metrics
+from twin_cosim.optimize.config import UncertaintySet, relative_ranges
 from twin_cosim.plant import Plant
+from twin_cosim.plant_model import plant_model
 from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario, load_scenario
 from twin_cosim.scenario.plant_file import check_values, read_plant_parameters
@@ -34,6 +37,9 @@ from twin_cosim.schema import ScenarioError, load_yaml
 
 MEASURED_SUFFIXES = (".csv", ".mat")
 JUDGED = ("E_pk_um", "ITAE", "IAU")
+# Plant samples within a plant file's intervals behind a prediction's interval (beside the
+# calibrated plant itself)
+PREDICTION_SAMPLES = 16
 
 
 def machine_scenario(scenario: Scenario, machine: Path) -> Scenario:
@@ -99,23 +105,73 @@ def machine_metrics(
     return compute_metrics(record, scenario.metrics_window), "virtual machine"
 
 
-def prediction(twin: Metrics, machine: Metrics) -> dict[str, dict[str, float]]:
-    """Per judged metric: the machine's value, the twin's and the twin's relative error (%)."""
+def prediction(
+    twin: Metrics, machine: Metrics, spread: list[Metrics] | None = None
+) -> dict[str, dict[str, float]]:
+    """Per judged metric: the machine's value, the twin's, the twin's relative error (%) and,
+    with the twin's metrics on plant samples (``spread``, :func:`plant_samples`), the
+    prediction's interval (``low``, ``high``: the least and largest of the twin's value and
+    the samples') and whether the machine's value lies ``inside`` it."""
     found = {}
     for name in JUDGED:
         real, predicted = getattr(machine, name), getattr(twin, name)
         error = 100.0 * (predicted - real) / real if real else math.nan
         found[name] = {"machine": real, "twin": predicted, "relative_error_pct": error}
+        if spread:
+            values = [predicted, *(getattr(m, name) for m in spread)]
+            low, high = min(values), max(values)
+            found[name] |= {"low": low, "high": high, "inside": bool(low <= real <= high)}
     return found
 
 
+def plant_samples(scenario: Scenario, plant_file: Path | str | None) -> list[dict[str, float]]:
+    """Plant samples within the intervals of a plant parameter file (what its diagnosis leaves
+    uncertain): :data:`PREDICTION_SAMPLES` draws as a robust campaign draws them (relative
+    factors, :class:`~twin_cosim.optimize.config.UncertaintySet`), as FMU parameters on top of
+    the scenario's; none without a file or intervals."""
+    if plant_file is None:
+        return []
+    model = scenario.model_name()
+    intervals = read_plant_parameters(plant_file, model).intervals
+    nominal = {**plant_model(model).start_values(), **scenario.plant_parameters}
+    ranges = relative_ranges(intervals, nominal)
+    if not ranges:
+        return []
+    draws = UncertaintySet(0.0, PREDICTION_SAMPLES + 1, 0, tuple(ranges), ranges).factors()[1:]
+    return [{name: nominal[name] * f for name, f in draw.items()} for draw in draws]
+
+
+def sample_metrics(
+    scenario: Scenario, tuned: TunedParameters, samples: list[dict[str, float]]
+) -> list[Metrics]:
+    """The twin's metrics of ``tuned`` on each plant sample (FMU parameters on top of the
+    scenario's), over the scenario's window."""
+    if not samples:
+        return []
+    with Plant(scenario.plant_fmu()) as plant:
+        return [
+            compute_metrics(
+                run_scenario(plant, scenario, tuned, plant_overrides=sample),
+                scenario.metrics_window,
+            )
+            for sample in samples
+        ]
+
+
 def describe(source: str, kind: str, figures: dict[str, dict[str, Any]]) -> str:
-    """One line per judged metric: machine, twin prediction, relative error."""
+    """One line per judged metric: machine, twin prediction, relative error, and the
+    prediction's interval with whether the machine's value lies in it."""
     units = {"E_pk_um": "um", "ITAE": "um.s^2", "IAU": "A.s"}
     lines = [f"on the {kind} {source}:"]
     for name, f in figures.items():
-        lines.append(
+        line = (
             f"  {name.removesuffix('_um')}: machine {f['machine']:.4g} {units[name]}, twin "
             f"predicted {f['twin']:.4g} ({f['relative_error_pct']:+.1f} %)"
         )
+        if "low" in f:
+            line += (
+                f", interval {f['low']:.4g}-{f['high']:.4g} over the plant's intervals: the "
+                f"machine {'inside' if f['inside'] else 'outside'}"
+            )
+        lines.append(line)
     return "\n".join(lines)

@@ -116,7 +116,9 @@ def _robust_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--samples",
         type=whole_number(1),
-        help="plant samples per scenario, the first nominal (default: 1)",
+        help="plant samples per scenario, the first nominal (default: 4 within the intervals "
+        "of a --plant-parameters file that has them, as twin diagnose writes; else 1; "
+        "--samples 1 tunes on the calibrated plant alone)",
     )
     parser.add_argument(
         "--objective",

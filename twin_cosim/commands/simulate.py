@@ -278,14 +278,16 @@ def _on_machine(
     scenario: Scenario, tuned: TunedParameters, args: argparse.Namespace, metrics: Metrics
 ) -> dict[str, Any] | None:
     """The twin's prediction against ``--machine`` (a measured run, its columns by
-    ``--columns``, or a virtual machine)."""
+    ``--columns``, or a virtual machine), with its interval over the plant file's intervals
+    (``--plant-parameters``) when it has them."""
     machine = args.machine
     if not machine:
         return None
-    from twin_cosim.machine import machine_metrics, prediction
+    from twin_cosim.machine import machine_metrics, plant_samples, prediction, sample_metrics
 
     judged, kind = machine_metrics(scenario, tuned, machine, column_map(args, scenario))
-    return {"source": machine, "kind": kind, **prediction(metrics, judged)}
+    spread = sample_metrics(scenario, tuned, plant_samples(scenario, args.plant_parameters))
+    return {"source": machine, "kind": kind, **prediction(metrics, judged, spread)}
 
 
 def _print_text(name: str, metrics: Metrics, summary: dict[str, Any], machine: str | None) -> None:

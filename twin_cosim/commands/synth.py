@@ -66,6 +66,15 @@ def add_arguments(subparsers) -> None:
         "(default: the scenario's own reference)",
     )
     parser.add_argument(
+        "--random-excitation",
+        type=whole_number(0),
+        metavar="SEED",
+        help="follow the seeded random excitation SEED instead of the scenario's reference "
+        "(moves, creeps, ramps, oscillations and dwells, each half covering every regime; "
+        "docs/gap.md) and write that scenario beside the run, RUN.scenario.yaml, for twin "
+        "diagnose (default: the scenario's own reference)",
+    )
+    parser.add_argument(
         "--out",
         required=True,
         metavar="RUN",
@@ -95,16 +104,31 @@ def _error_options(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Synthesize the run, write it, its known answer (``RUN.truth.json``) and the virtual
     machine's plant file (``RUN.machine.yaml``)."""
-    from twin_cosim.gap.synth import synthesize
+    from twin_cosim.gap.synth import synthesize, write_excitation_scenario
     from twin_cosim.measured import read_measured
-    from twin_cosim.scenario import for_measured_run, is_machine_scenario, resolve_scenario
+    from twin_cosim.scenario import (
+        find_scenario,
+        for_measured_run,
+        is_machine_scenario,
+        resolve_scenario,
+    )
 
     if is_machine_scenario(args.scenario):
         return run_machine_synth(args, _effect)
     if args.radius is not None or args.feed is not None or args.program:
         raise ValueError("--radius, --feed and --program: for a machine scenario (axes:)")
     out, truth, machine = _files(args)
-    scenario = resolve_scenario(args.scenario)
+    if args.random_excitation is not None:
+        if args.follow:
+            raise ValueError("--random-excitation and --follow: give one reference to follow")
+        followed = write_excitation_scenario(
+            find_scenario(args.scenario),
+            args.random_excitation,
+            out.with_name(out.name + ".scenario.yaml"),
+        )
+        scenario = resolve_scenario(followed)
+    else:
+        scenario = resolve_scenario(args.scenario)
     warn_plant_mismatch(scenario, plant_path(args))
     if args.follow:
         scenario = for_measured_run(scenario, read_measured(args.follow))
@@ -127,9 +151,10 @@ def run(args: argparse.Namespace) -> int:
     wrote = _write_machine(machine, scenario, synthesis.truth, out, args.plant)
     print(
         f"wrote {out} ({len(synthesis.run)} samples), the known answer in {truth}"
+        + (f", the virtual machine's plant in {machine} (twin simulate --machine)" if wrote else "")
         + (
-            f" and the virtual machine's plant in {machine} (twin simulate --machine)"
-            if wrote
+            f" and the scenario it followed in {scenario.source} (twin diagnose)"
+            if args.random_excitation is not None
             else ""
         )
     )
@@ -176,11 +201,14 @@ def _files(args: argparse.Namespace) -> tuple[Path, Path, Path]:
     out = Path(args.out)
     truth = out.with_name(out.name + ".truth.json")
     machine = out.with_name(out.name + ".machine.yaml")
+    followed = (
+        [out.with_name(out.name + ".scenario.yaml")] if args.random_excitation is not None else []
+    )
     if out.is_dir():
         raise ValueError(f"--out {out}: is a folder; give the measured-run file to write")
     if out.suffix.lower() not in (".csv", ".mat"):
         raise ValueError(f"--out {out}: expected a .csv or an EMPS .mat file name")
-    for path in (out, truth, machine):
+    for path in (out, truth, machine, *followed):
         if path.exists() and not args.force:
             raise ValueError(
                 f"--out {out}: {path} exists (it may be a real measured run); "

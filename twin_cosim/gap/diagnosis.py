@@ -28,6 +28,7 @@ and the printed verdict are written from its fields):
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -441,8 +442,10 @@ def _verdict_stage(
     """Stage 5: what is left of the held-out gap, where, and the verdict in words."""
     floors = judging.floors
     first = selection.rounds[0]
-    left_significant = judging.significant(
-        selection.floor.left, judging.metrics(selection.calibrated, settings), settings
+    metrics = judging.metrics(selection.calibrated, settings)
+    left_significant = judging.significant(selection.floor.left, metrics, settings)
+    by_metrics_only = left_significant and not judging.significant(
+        selection.floor.left, [], settings
     )
     where = locate(
         hold_final,
@@ -460,6 +463,8 @@ def _verdict_stage(
         where,
         (first.position_rms_um, first.current_rms),
         (hold_final.position_rms_um(), hold_final.current_rms()),
+        (floors.sigma_position_m, floors.sigma_current),
+        by_metrics_only,
     )
     below = [
         c.name
@@ -583,17 +588,55 @@ def calibrated_plant(
             provenance[name]["refitted_jointly"] = True
         parameters[name] = float(value)
     last = selection.rounds[-1] if selection.rounds else None
+    corrections: dict[str, float] = {}
     if last is not None and not last.accepted:
         base = {**plant_model(model).start_values(), **nominal, **parameters}
         for name, a in last.calibration.coefficients.items():
             if a != 0.0:
-                parameters[name] = float(base[name] * (1.0 + a * tolerance))
+                corrections[name] = 1.0 + a * tolerance
+                parameters[name] = float(base[name] * corrections[name])
                 provenance[name] = {
                     "source": CALIBRATION_SOURCE,
                     "before": float(base[name]),
                     "relative_change": float(a * tolerance),
                 }
-    return PlantParameters(model, parameters, provenance, dict(made))
+    return PlantParameters(
+        model,
+        parameters,
+        provenance,
+        dict(made),
+        intervals=_intervals(selection, parameters, corrections, model),
+    )
+
+
+def _intervals(
+    selection: Selection,
+    parameters: dict[str, float],
+    corrections: dict[str, float],
+    model: str,
+) -> dict[str, tuple[float, float]]:
+    """The final model's FMU parameters' intervals (:class:`~twin_cosim.gap.which.replay.
+    Uncertainty`, drawn around the final model), each moved with its parameter by the
+    calibration correction (``corrections``: relative factors), widened to hold the value
+    ``parameters`` gives it and kept inside the variable table's range.
+
+    Without the move, a corrected parameter would sit at one end of its interval, and the
+    prediction's interval over them would lie almost wholly on one side of the calibrated
+    twin's value (on the issue's three-effect machine: 7.57-7.83 um for a twin predicting
+    7.58 um and a machine at 7.53 um)."""
+    if selection.uncertainty is None:
+        return {}
+    ranges = plant_model(model).parameters
+    intervals = {}
+    for name, (low, high) in selection.uncertainty.intervals.items():
+        factor = corrections.get(name, 1.0)
+        low, high = low * factor, high * factor
+        value = parameters.get(name, low)
+        variable = ranges[name]
+        floor = variable.min if variable.min is not None else -math.inf
+        ceiling = variable.max if variable.max is not None else math.inf
+        intervals[name] = (max(min(low, value), floor), min(max(high, value), ceiling))
+    return intervals
 
 
 def _changed(before: dict[str, float], after: dict[str, float]) -> list[str]:

@@ -229,8 +229,9 @@ def _merge_directions(spans: list[_Found]) -> list[_Found]:
     return merged
 
 
-def speed_groups(res: Residuals, dt: float) -> list[list[tuple[int, int]]]:
-    """Constant-velocity stretches grouped by speed level (within 10 %)."""
+def speed_groups(res: Residuals, dt: float) -> list[tuple[float, list[tuple[int, int]]]]:
+    """Constant-velocity stretches grouped by speed level (within 10 %): each level's motor
+    speed (rad/s, its first stretch's) and its stretches."""
     stretches = regime_model.segments(res.regimes, regime_model.CONSTANT_VELOCITY)
     levels: list[tuple[float, list[tuple[int, int]]]] = []
     for start, stop in stretches:
@@ -244,7 +245,7 @@ def speed_groups(res: Residuals, dt: float) -> list[list[tuple[int, int]]]:
                 break
         else:
             levels.append((speed, [(start, stop)]))
-    return [members for _, members in levels]
+    return levels
 
 
 def dominant_order(res: Residuals, signal: np.ndarray, angle: np.ndarray) -> float | None:
@@ -276,14 +277,15 @@ def locate(
     settings: DiagnosisSettings,
 ) -> Location:
     """Regime shares, along-axis spans and periodicity of a residual."""
-    groups = speed_groups(res, dt)
+    levels = speed_groups(res, dt)
+    groups, speeds = [members for _, members in levels], [speed for speed, _ in levels]
     periodicity = {}
     for signal, residual in (("position", res.position), ("current", res.current)):
         for angle_name, angle in (
             ("motor", res.motor_angle),
             ("screw", screw_angle(res.motor_angle)),
         ):
-            verdict = spectra.periodicity(residual, angle, dt, groups)
+            verdict = spectra.periodicity(residual, angle, dt, groups, speeds=speeds)
             periodicity[f"{signal}_vs_{angle_name}_angle"] = _jsonable_periodicity(verdict)
     return Location(
         regime_model.energy_shares(res.position, res.regimes),

@@ -271,6 +271,7 @@ def periodicity(
     dt: float,
     speed_groups: Sequence[Sequence[Segment]],
     min_ratio: float = 5.0,
+    speeds: Sequence[float] = (),
 ) -> Periodicity:
     """Tell a position-periodic residual from a temporal one across speed levels.
 
@@ -291,6 +292,8 @@ def periodicity(
         One list of [start, stop) index segments per constant-speed level.
     min_ratio : float
         Least peak-to-median ratio of a significant peak, dimensionless.
+    speeds : Sequence[float]
+        The speed of each group (rad/s of the angle), named in the reason when given.
 
     Returns
     -------
@@ -307,7 +310,11 @@ def periodicity(
     for k, group in enumerate(groups):
         for kind, peak in group.items():
             if peak is None:
-                reason = f"no significant {kind} peak (ratio >= {min_ratio:g}) in group {k}"
+                level = f"at {speeds[k]:.3g} rad/s, " if k < len(speeds) else ""
+                reason = (
+                    f"no significant {kind} peak (ratio >= {min_ratio:g}) in speed group "
+                    f"{k + 1} of {len(groups)} ({level}its constant-velocity stretches)"
+                )
                 return _verdict("inconclusive", groups, reason)
     orders = [g["order"].location for g in groups]
     frequencies = [g["frequency_hz"].location for g in groups]

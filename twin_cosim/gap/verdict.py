@@ -12,6 +12,8 @@ before them (the nominal twin):
 - ``at_floor``: True when what is left after the best calibration correction is not significant
   (it passes the test against noise at the floors and the metrics match within what noise
   makes; :mod:`twin_cosim.gap.floors.evidence`);
+- ``floor_position_m``, ``floor_current``: the noise floors themselves (m, A), the unit of the
+  normalised figures ("times the noise floor": each signal's residual over its floor);
 - ``located_at``: the regimes and spans of the axis where it is concentrated;
 - the ``*_before`` fields: the same figures of the nominal twin.
 
@@ -120,6 +122,8 @@ class Remaining:
     significant_before: bool
     position_rms_um_before: float
     current_rms_before: float
+    floor_position_m: float
+    floor_current: float
 
 
 def named_regimes(where: Location) -> list[str]:
@@ -131,10 +135,16 @@ def named_regimes(where: Location) -> list[str]:
 STROKE_END = "where the axis starts, stops or reverses"
 
 
+def position_mm(value: float) -> str:
+    """A carriage position in mm to the micrometre and three significant digits: ``22.6``,
+    ``0.116``, ``0`` (never ``-3.25e-05``)."""
+    return number(round(value, 3) + 0.0)
+
+
 def span_label(span: AxisSpan) -> str:
     """``22.6-23.1 mm along the axis, moving -`` or, for a span at the end of a stroke,
     ``0.116-1.12 mm, moving +, where the axis starts, stops or reverses``."""
-    ends = f"{number(span.from_mm)}-{number(span.to_mm)} mm"
+    ends = f"{position_mm(span.from_mm)}-{position_mm(span.to_mm)} mm"
     if span.at_stroke_end:
         return f"{ends}, {DIRECTIONS[span.direction]}, {STROKE_END}"
     return f"{ends} along the axis, {DIRECTIONS[span.direction]}"
@@ -164,6 +174,8 @@ def remaining_of(
     location: Location,
     rms_before: tuple[float, float],
     rms_after: tuple[float, float],
+    floors: tuple[float, float],
+    by_metrics_only: bool = False,
 ) -> Remaining:
     """What is left, from the calibration floors of the held-out gap before and after.
 
@@ -178,22 +190,30 @@ def remaining_of(
         Where the residual the final model leaves lies.
     rms_before, rms_after
         (position RMS um, current RMS A) of the held-out residual before and after.
+    floors
+        The noise floors (position m, current A) that normalise the residuals.
+    by_metrics_only
+        Whether what is left is significant only because a figure of merit is off (the
+        residual itself passes the test against noise).
     """
     excess_before = max(before.before**2 - 1.0, 0.0)
     share = max(after.before**2 - 1.0, 0.0) / excess_before if excess_before > 0 else 0.0
     where = _located(location) if significant_left else ""
     text = (
-        f"left after the accepted effects: {percent(share)} of the held-out gap energy above "
-        f"the noise, {number(after.before)} times the noise floor (position "
-        f"{number(rms_after[0])} um RMS, current {number(rms_after[1])} A RMS); of these "
-        f"{number(after.before)} times the noise floor, calibration error within tolerance can "
-        f"explain {number(after.explained)} and leaves {number(after.left)} (the two add in "
-        "quadrature)"
+        f"Left after the accepted effects: {number(after.before)} times the noise floor (the "
+        f"floors: position {quantity(floors[0], 'm')}, current {quantity(floors[1], 'A')} "
+        f"RMS), {percent(share)} of the held-out gap energy above the noise; a held-out gap "
+        f"of {number(rms_after[0])} um RMS in position and {number(rms_after[1])} A RMS in "
+        f"current. Of these {number(after.before)} times the noise floor, calibration error "
+        f"within tolerance can explain {number(after.explained)} and leaves "
+        f"{number(after.left)} (the two add in quadrature)"
     )
     if significant_left:
-        text += ", a significant gap" + (f", located at: {where}" if where else "")
+        text += ": a significant gap"
+        text += " (E_pk, ITAE or IAU off beyond what noise makes)" if by_metrics_only else ""
+        text += f", located at: {where}." if where else "."
     else:
-        text += ", which is not significant: what is left is noise and calibration error"
+        text += ", which is not significant: what is left is noise and calibration error."
     return Remaining(
         share,
         after.before,
@@ -210,6 +230,8 @@ def remaining_of(
         significant_before,
         rms_before[0],
         rms_before[1],
+        floors[0],
+        floors[1],
     )
 
 
@@ -232,7 +254,10 @@ def gap_table(
         Where what is left lies (the after column of the regimes; the spans).
     """
     r = remaining
+    floor_x, floor_i = quantity(r.floor_position_m, "m"), quantity(r.floor_current, "A")
     rows = [
+        ["noise floor of the position (RMS)", floor_x, floor_x],
+        ["noise floor of the current (RMS)", floor_i, floor_i],
         ["position gap, RMS [um]", number(r.position_rms_um_before), number(r.position_rms_um)],
         ["current gap, RMS [A]", number(r.current_rms_before), number(r.current_rms)],
         [
@@ -292,27 +317,25 @@ def verdict_text(
     below_tolerance: list[str],
     remaining: Remaining,
 ) -> str:
-    """One paragraph: significant or not, what explains it, what is left."""
+    """One paragraph: a short first sentence (significant or not, what explains it), then what
+    is left (:attr:`Remaining.text`)."""
     if not significant:
         return (
-            "no significant gap: beyond noise and calibration error within tolerance, the twin's "
-            "E_pk, ITAE and IAU match the measured ones within the significance threshold"
+            "no significant gap. Beyond noise and calibration error within tolerance, the twin's "
+            "E_pk, ITAE and IAU match the measured ones within the significance threshold."
         )
     if accepted:
-        names = ", ".join("{" + ", ".join(g) + "}" if len(g) > 1 else g[0] for g in accepted)
+        found = names([g if len(g) > 1 else g[0] for g in accepted])
         if remaining.at_floor:
-            return f"significant gap, explained: {names}; {remaining.text}"
-        return (
-            f"significant gap, explained in part: {names}; a significant part is left "
-            f"unexplained; {remaining.text}"
-        )
+            return f"significant gap, explained: {found}. {remaining.text}"
+        return f"significant gap, explained in part: {found}. {remaining.text}"
     if below_tolerance:
         return (
-            f"significant gap, but the effects that explain it ({', '.join(below_tolerance)}) "
-            "are smaller than the calibration tolerance: not diagnosable beyond calibration "
-            f"error; {remaining.text}"
+            "significant gap, not diagnosable beyond calibration error. The effects that explain "
+            f"it ({', '.join(below_tolerance)}) are smaller than the calibration tolerance. "
+            f"{remaining.text}"
         )
     return (
-        "significant gap that no effect of the library explains on held-out data: "
-        f"see 'where' for its location; {remaining.text}"
+        "significant gap that no effect of the library explains on held-out data. See 'where' "
+        f"for its location. {remaining.text}"
     )

@@ -37,6 +37,7 @@ from twin_cosim.optimize.config import (
     UncertaintySet,
     check_uncertainty,
     load_config,
+    relative_ranges,
     uncertain_parameters,
 )
 from twin_cosim.optimize.early_stop import window_spans_run
@@ -48,6 +49,7 @@ from twin_cosim.optimize.store import (
     load_spec,
     settings_fingerprint,
 )
+from twin_cosim.plant_model import plant_model
 from twin_cosim.pool_runs import prepare_campaign_worker
 from twin_cosim.scenario import (
     Scenario,
@@ -63,6 +65,9 @@ if TYPE_CHECKING:
     from twin_cosim.workers import Worker
 
 AGGREGATES = ("worst", "mean")
+# Plant samples per scenario by default when the plant parameter file has intervals: the
+# calibrated plant and three draws within them (robust tuning by default in the transfer path).
+INTERVAL_SAMPLES = 4
 # What a single axis' campaign.json holds besides its spec (and the type of each)
 RECORD_KEYS: Mapping[str, type] = {"iau_limit": object, "reference": dict}
 # The module of the workers the recipes build, imported by name in the process that runs them:
@@ -94,9 +99,12 @@ class CampaignSpec:
     scenarios : list of str
         Further scenarios of a robust objective.
     tolerance : float
-        Relative tolerance of the uncertain plant parameters.
-    samples : int
-        Plant samples per scenario (1: the nominal plant only).
+        Relative tolerance of the uncertain plant parameters (those without an interval in
+        the plant parameter file).
+    samples : int or None
+        Plant samples per scenario (1: the nominal plant only); None: the default,
+        :data:`INTERVAL_SAMPLES` when the plant parameter file has intervals (what its
+        diagnosis leaves uncertain: the transfer path tunes robustly over them), else 1.
     aggregate : str
         ``worst`` or ``mean`` over scenarios x samples.
     relative : bool
@@ -121,7 +129,7 @@ class CampaignSpec:
     plant_parameters: str | None = None
     scenarios: list[str] = field(default_factory=list)
     tolerance: float = 0.0
-    samples: int = 1
+    samples: int | None = None
     aggregate: str = "worst"
     relative: bool = False
     early_stop: bool = True
@@ -333,8 +341,11 @@ def robust_settings(spec: CampaignSpec, scenarios: tuple[Scenario, ...]) -> dict
     dict
         ``plant_parameters`` (the parameter file's values, SI units), ``scenarios`` (the
         files), ``scenarios_sha256`` (their contents), ``scenario_plant_parameters`` (each
-        scenario's, any parameter file folded in), ``uncertain_parameters`` and ``samples``
-        (relative factors of each plant sample; none for the nominal plant only).
+        scenario's, any parameter file folded in), ``uncertain_parameters``, ``intervals``
+        (with a plant parameter file that has intervals: each one's range of relative factors)
+        and ``samples`` (relative factors of each plant sample; none for the nominal plant
+        only). The uncertain parameters are those of the file's intervals and, with a tolerance
+        above 0, the model's calibrated ones and the file's other non-zero real values.
     """
     if spec.aggregate not in AGGREGATES:
         raise CampaignError(f"objective {spec.aggregate!r}: expected one of {AGGREGATES}")
@@ -342,26 +353,33 @@ def robust_settings(spec: CampaignSpec, scenarios: tuple[Scenario, ...]) -> dict
         raise CampaignError(
             f"objective settling={spec.settling_weight}: expected a weight >= 0 um per ms"
         )
-    check_uncertainty(spec.tolerance, spec.samples)
-    if spec.samples > 1 and spec.tolerance == 0.0:
-        raise ValueError("--samples above 1 needs a --tolerance above 0 (e.g. 0.03)")
     model = scenarios[0].model_name(spec.fmu)
-    calibrated = (
-        read_plant_parameters(spec.plant_parameters, model).parameters
-        if spec.plant_parameters
-        else {}
-    )
+    plant = read_plant_parameters(spec.plant_parameters, model) if spec.plant_parameters else None
+    calibrated = plant.parameters if plant else {}
+    nominal = {**plant_model(model).start_values(), **scenarios[0].plant_parameters}
+    ranges = relative_ranges(plant.intervals, nominal) if plant else {}
+    samples = spec.samples if spec.samples is not None else INTERVAL_SAMPLES if ranges else 1
+    check_uncertainty(spec.tolerance, samples)
+    if samples > 1 and spec.tolerance == 0.0 and not ranges:
+        raise ValueError(
+            "--samples above 1 needs a --tolerance above 0 (e.g. 0.03) or a --plant-parameters "
+            "file with intervals (twin diagnose writes them)"
+        )
+    names = uncertain_parameters(model, calibrated) if spec.tolerance > 0.0 else ()
     uncertainty = UncertaintySet(
-        spec.tolerance, spec.samples, spec.seed, uncertain_parameters(model, calibrated)
+        spec.tolerance, samples, spec.seed, tuple(dict.fromkeys([*names, *ranges])), ranges
     )
-    return {
+    robust = {
         "plant_parameters": calibrated,
         "scenarios": [spec.scenario, *spec.scenarios],
         "scenarios_sha256": [hashlib.sha256(s.source.read_bytes()).hexdigest() for s in scenarios],
         "scenario_plant_parameters": [s.plant_parameters for s in scenarios],
         "uncertain_parameters": list(uncertainty.parameters),
-        "samples": uncertainty.factors() if spec.samples > 1 else [],
+        "samples": uncertainty.factors() if samples > 1 else [],
     }
+    if ranges:
+        robust["intervals"] = {name: list(r) for name, r in ranges.items()}
+    return robust
 
 
 def scenario_fingerprint(scenario: Scenario) -> str:

@@ -229,38 +229,56 @@ def within_bounds(config: OptimizeConfig, x: np.ndarray) -> bool:
 
 @dataclass(frozen=True)
 class UncertaintySet:
-    """Plant variations a robust campaign tunes against.
+    """Plant variations a robust campaign tunes against (and a prediction's interval spans).
 
     Attributes
     ----------
     tolerance : float
-        Largest relative change of each uncertain parameter (0.03: +/- 3 %).
+        Largest relative change of each uncertain parameter without a range (0.03: +/- 3 %).
     samples : int
         Plant samples per scenario; the first is the nominal (calibrated) plant, the others
-        draw each factor uniformly from [1 - tolerance, 1 + tolerance].
+        draw each factor uniformly from its range, or from [1 - tolerance, 1 + tolerance].
     seed : int
         Seed of the draws.
     parameters : tuple of str
         The uncertain FMU parameters.
+    ranges : dict
+        Per parameter, the range (low, high) of its relative factor: a plant file's interval
+        over the nominal value (:func:`relative_ranges`).
     """
 
     tolerance: float
     samples: int
     seed: int
     parameters: tuple[str, ...]
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     def factors(self) -> list[dict[str, float]]:
         """Relative factors per sample (the first sample: none, the nominal plant)."""
         rng = np.random.default_rng(self.seed)
-        draws = [{}]
+        draws: list[dict[str, float]] = [{}]
         for _ in range(self.samples - 1):
-            draws.append(
-                {
-                    n: float(1.0 + rng.uniform(-self.tolerance, self.tolerance))
-                    for n in self.parameters
-                }
-            )
+            draw = {}
+            for n in self.parameters:
+                if n in self.ranges:
+                    draw[n] = float(rng.uniform(*self.ranges[n]))
+                else:
+                    draw[n] = float(1.0 + rng.uniform(-self.tolerance, self.tolerance))
+            draws.append(draw)
         return draws
+
+
+def relative_ranges(
+    intervals: dict[str, tuple[float, float]], nominal: dict[str, float]
+) -> dict[str, tuple[float, float]]:
+    """A plant file's intervals (SI units) as ranges of relative factors on the ``nominal``
+    values; a parameter whose nominal value is 0 has no relative range and is left out."""
+    ranges = {}
+    for name, (low, high) in intervals.items():
+        value = nominal.get(name, 0.0)
+        if value != 0.0:
+            ranges[name] = tuple(sorted((low / value, high / value)))
+    return ranges
 
 
 def uncertain_parameters(model: str, calibrated: dict[str, float]) -> tuple[str, ...]:

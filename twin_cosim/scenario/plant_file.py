@@ -10,12 +10,15 @@ applies it, so that one excitation run calibrates the twin for every production 
       backlash: 1.93e-05                  # m
     provenance:                           # where each value came from
       stribeck_friction: {source: "accepted effect stribeck (step 1)", holdout_reduction: 0.61}
+    intervals:                            # what the diagnosis leaves uncertain: the range
+      stribeck_friction: [0.19, 0.23]     # of each value, same units (robust tuning samples it)
     created_by: {command: "twin diagnose ...", version: 0.1.0, measured: [...], holdout: ...}
 
 It is read with the scenarios' YAML loader and checker (:mod:`twin_cosim.schema`), so a value
 reads the same in both (``2e-5`` is a number). Reading checks the model, that every name is a
 parameter of the model's variable table, and that every value is finite and inside the table's
-range; errors name the file and the key. Writing spells every value out where it stands (no
+range, and that each interval is a pair [low, high] inside that range holding the parameter's
+value; errors name the file and the key. Writing spells every value out where it stands (no
 YAML anchors and aliases for a person editing the file to decode).
 
 :func:`calibrated_scenario` folds such a file into a copy of a scenario file
@@ -37,7 +40,7 @@ from fmu_build.variable_table import Variable
 from twin_cosim.plant_model import PlantModelError, plant_model
 from twin_cosim.schema import Checker, ScenarioError, load_yaml
 
-TOP_KEYS = {"model", "parameters", "provenance", "created_by"}
+TOP_KEYS = {"model", "parameters", "provenance", "intervals", "created_by"}
 
 
 class _PlainDumper(yaml.SafeDumper):
@@ -74,6 +77,9 @@ class PlantParameters:
         What made the file (command, version, measured and held-out runs).
     source : Path or None
         The file it was read from.
+    intervals : dict
+        Per parameter name, the range (low, high) its value may take as far as what made the
+        file can tell (units of ``parameters``); robust tuning samples within them.
     """
 
     model: str
@@ -81,15 +87,18 @@ class PlantParameters:
     provenance: dict[str, dict[str, Any]] = field(default_factory=dict)
     created_by: dict[str, Any] = field(default_factory=dict)
     source: Path | None = None
+    intervals: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         """The file's content (YAML-ready)."""
-        return {
+        content: dict[str, Any] = {
             "model": self.model,
             "parameters": dict(self.parameters),
             "provenance": self.provenance,
-            "created_by": self.created_by,
         }
+        if self.intervals:
+            content["intervals"] = {k: [low, high] for k, (low, high) in self.intervals.items()}
+        return {**content, "created_by": self.created_by}
 
 
 def check_values(
@@ -196,9 +205,40 @@ def read_plant_parameters(path: Path | str, model: str | None = None) -> PlantPa
     if stray:
         raise PlantParametersError(f"{path}: provenance: names without a parameter value {stray}")
     created_by = check.mapping(data.get("created_by"), "created_by")
-    return PlantParameters(
-        found, check_values(values, found, str(path)), provenance, created_by, path
-    )
+    checked = check_values(values, found, str(path))
+    intervals = check_intervals(data.get("intervals") or {}, checked, found, str(path))
+    return PlantParameters(found, checked, provenance, created_by, path, intervals)
+
+
+def check_intervals(
+    intervals: Any, values: Mapping[str, float], model: str, where: str
+) -> dict[str, tuple[float, float]]:
+    """Check the ``intervals`` of a plant file: per parameter of the model a pair [low, high],
+    low <= high, both inside the variable table's range, holding the parameter's value when
+    the file gives one.
+
+    Raises
+    ------
+    PlantParametersError
+        Naming the file, the key and what was expected.
+    """
+    if not isinstance(intervals, dict):
+        raise PlantParametersError(f"{where}: intervals: expected a mapping name -> [low, high]")
+    checked = {}
+    for name, pair in intervals.items():
+        at = f"intervals.{name}"
+        if not (isinstance(pair, list) and len(pair) == 2):
+            raise PlantParametersError(f"{where}: {at}: expected a pair [low, high], got {pair!r}")
+        low, high = (check_values({name: end}, model, where, "intervals")[name] for end in pair)
+        if low > high:
+            raise PlantParametersError(f"{where}: {at}: low {low!r} above high {high!r}")
+        value = values.get(name)
+        if value is not None and not low <= value <= high:
+            raise PlantParametersError(
+                f"{where}: {at}: [{low!r}, {high!r}] does not hold the parameter's value {value!r}"
+            )
+        checked[str(name)] = (low, high)
+    return checked
 
 
 def fitted_plant(
@@ -217,19 +257,35 @@ def fitted_plant(
 
 
 def write_plant_parameters(path: Path | str, plant: PlantParameters) -> Path:
-    """Write a plant parameter file (values are checked first; floats round-trip exactly)."""
+    """Write a plant parameter file (values and intervals are checked first; floats
+    round-trip exactly)."""
     check_values(plant.parameters, plant.model, str(path))
+    check_intervals(
+        {k: list(v) for k, v in plant.intervals.items()}, plant.parameters, plant.model, str(path)
+    )
     path = Path(path)
     path.write_text(dump_yaml(plant.as_dict()))
     return path
 
 
-def _relocated(value: Any, source_dir: Path, target_dir: Path) -> str:
-    """A path relative to ``source_dir``, re-expressed relative to ``target_dir``."""
-    path = Path(str(value))
-    if path.is_absolute():
-        return str(path)
-    return os.path.relpath((source_dir / path).resolve(), target_dir.resolve())
+SCENARIO_PATHS = (
+    ("plant", "fmu"),
+    ("plant", "parameters_file"),
+    ("reference", "csv"),
+    ("reference", "measured"),
+)
+
+
+def relocate_paths(data: dict[str, Any], source_dir: Path, target_dir: Path) -> None:
+    """Rewrite in place the relative paths a scenario file's ``data`` names
+    (:data:`SCENARIO_PATHS`), written for ``source_dir``, relative to ``target_dir``: a copy of
+    the scenario written elsewhere names the same files."""
+    for section, key in SCENARIO_PATHS:
+        body = data.get(section)
+        if isinstance(body, dict) and key in body:
+            path = Path(str(body[key]))
+            if not path.is_absolute():
+                body[key] = os.path.relpath((source_dir / path).resolve(), target_dir.resolve())
 
 
 def calibrated_scenario(scenario_file: Path | str, plant: PlantParameters, out: Path | str) -> Path:
@@ -249,11 +305,8 @@ def calibrated_scenario(scenario_file: Path | str, plant: PlantParameters, out: 
         )
         folded = {**extra.parameters, **folded}
     plant_section["parameters"] = {**folded, **plant.parameters}
-    for section, key in (("plant", "fmu"), ("reference", "csv"), ("reference", "measured")):
-        body = plant_section if section == "plant" else data.get(section) or {}
-        if key in body:
-            body[key] = _relocated(body[key], scenario_file.parent, out.parent)
     data["plant"] = plant_section
+    relocate_paths(data, scenario_file.parent, out.parent)
     data["description"] = (
         f"{data.get('description', '')} Calibrated: the plant parameters of the plant.yaml "
         "beside this file folded in."

@@ -21,7 +21,7 @@ from twin_cosim.gap.report.pages import summary
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.synth import parse_effect, synthesize
 from twin_cosim.gap.which.acceptance import Candidate, Gain, Judgement
-from twin_cosim.gap.which.replay import FitResult, Replays
+from twin_cosim.gap.which.replay import FitResult, Replays, Uncertainty
 from twin_cosim.gap.which.selector import Accepted, Round, Selection
 from twin_cosim.measured import read_measured_csv
 from twin_cosim.scenario import load_scenario
@@ -166,7 +166,7 @@ def test_two_effects_at_once_are_both_found(tmp_path):
     assert {"stribeck", "torque_ripple"} <= set(summary["accepted"])
     remaining = summary["gap"]["remaining"]
     assert remaining["energy_share"] < 0.25
-    assert "left after the accepted effects:" in summary["gap"]["verdict"]
+    assert ". Left after the accepted effects:" in summary["gap"]["verdict"]
     time = summary["time"]  # where the time went: every fit's replays are counted once
     assert time["first_round_fits"]["replays"] == sum(row["replays"] for row in summary["effects"])
     assert time["later_round_fits"]["tasks"] == sum(len(r["fitted"]) for r in summary["rounds"][1:])
@@ -353,6 +353,23 @@ def test_each_value_of_plant_yaml_names_the_effect_and_step_that_set_it(tmp_path
     path = write_plant_parameters(tmp_path / "plant.yaml", plant)
     assert "&id" not in path.read_text() and "*id" not in path.read_text()
     assert read_plant_parameters(path).provenance == plant.provenance
+
+
+def test_the_intervals_move_with_the_calibration_correction():
+    """A corrected parameter's interval moves with it (the draws were around the model before
+    the correction); an interval the correction leaves alone is as drawn; each holds its value."""
+    coulomb = {"coulomb_friction": 0.5}
+    first = _step(1, ["coulomb_change"], {"delta_coulomb": -0.125}, coulomb, (1.0, 0.5))
+    effects = [Accepted(["coulomb_change"], (-0.125,), {}, 1)]
+    selection = _selection([first, _left({"motor_inertia": 1.0})], effects, coulomb)
+    drawn = {"motor_inertia": (1.9e-4, 2.1e-4), "coulomb_friction": (0.49, 0.51)}
+    uncertainty = Uncertainty((), (), 1.0, drawn, 0)
+    selection = dataclasses.replace(selection, uncertainty=uncertainty)
+    nominal = {"motor_inertia": 2e-4}
+    plant = calibrated_plant(selection, NoiseModel([], {}, []), "drive2mass", nominal, 0.03, {})
+    assert plant.parameters["motor_inertia"] == pytest.approx(2.06e-4)
+    assert plant.intervals["motor_inertia"] == pytest.approx((1.9e-4 * 1.03, 2.1e-4 * 1.03))
+    assert plant.intervals["coulomb_friction"] == (0.49, 0.51)
 
 
 def test_the_calibration_correction_of_the_last_round_is_applied():

@@ -79,3 +79,66 @@ def test_encoder_readings_stay_on_their_grid():
     )
     x = result.run["x"]
     assert np.max(np.abs(x / 1e-6 - np.round(x / 1e-6))) < 1e-6
+
+
+@pytest.mark.parametrize("seed", [0, 7, 1000, 1003])
+def test_random_excitations_cover_every_regime_within_the_axis_limits(seed):
+    from twin_cosim.gap.synth import (
+        EXCITATION_SAMPLE_PERIOD,
+        EXCITATION_TRAVEL,
+        covers_regimes,
+        random_excitation,
+    )
+    from twin_cosim.reference import Ramp, interpolate, sample_segments
+    from twin_cosim.scenario.machine import DEFAULT_LIMITS
+
+    segments = random_excitation(seed)
+    assert random_excitation(seed) == segments  # seeded
+    samples = sample_segments(segments, EXCITATION_SAMPLE_PERIOD)
+    grid = interpolate(samples, EXCITATION_SAMPLE_PERIOD, 250e-6)
+    assert covers_regimes(grid)
+    assert np.max(np.abs(samples)) <= EXCITATION_TRAVEL / 2
+    assert np.max(np.abs(np.diff(samples))) / EXCITATION_SAMPLE_PERIOD <= DEFAULT_LIMITS.velocity
+    for segment in segments:
+        if hasattr(segment, "acceleration"):
+            assert segment.acceleration <= DEFAULT_LIMITS.acceleration
+    half = len(samples) // 2
+    assert not np.allclose(samples[:half], samples[half : 2 * half])  # two different halves
+    speeds = np.abs(np.diff(samples)) / EXCITATION_SAMPLE_PERIOD
+    assert np.any((speeds > 1e-4) & (speeds < 3e-3))  # creeps
+    assert any(isinstance(s, Ramp) for s in segments)
+
+
+def test_covers_regimes_refuses_a_half_without_a_reversal():
+    from twin_cosim.gap.synth import covers_regimes
+    from twin_cosim.reference import Dwell, Move, interpolate, sample_segments
+
+    out_and_back = [Dwell(0.3), Move(0.01, 0.02, 0.5), Dwell(0.3), Move(0.0, 0.02, 0.5)]
+    one_way = [Dwell(0.3), Move(0.01, 0.02, 0.5), Dwell(0.3), Move(0.02, 0.02, 0.5)]
+    grids = [
+        interpolate(sample_segments(s + s, 0.004), 0.004, 250e-6) for s in (out_and_back, one_way)
+    ]
+    assert not covers_regimes(grids[0])  # no breakaway: every start turns back
+    assert not covers_regimes(grids[1])  # no reversal
+
+
+def test_synth_follows_a_random_excitation_and_writes_its_scenario(tmp_path, capsys):
+    from twin_cosim.cli import main
+    from twin_cosim.gap.synth import random_excitation
+    from twin_cosim.reference import sample_segments
+    from twin_cosim.scenario import resolve_scenario
+
+    run = tmp_path / "run.csv"
+    assert main(["synth", "diagnosis", "--random-excitation", "5", "--out", str(run)]) == 0
+    followed = tmp_path / "run.csv.scenario.yaml"
+    assert str(followed) in capsys.readouterr().out
+    scenario = resolve_scenario(followed)
+    expected = sample_segments(random_excitation(5), 0.004)
+    assert np.allclose(scenario.reference.position[::16], expected)
+    measured = np.loadtxt(run, delimiter=",", skiprows=1, usecols=1)  # x_ref
+    assert np.allclose(measured[::16], expected)
+    assert main(["synth", "diagnosis", "--random-excitation", "5", "--out", str(run)]) == 2
+    assert "run.csv exists" in capsys.readouterr().err
+    again = ["synth", "diagnosis", "--random-excitation", "5", "--follow", str(run)]
+    assert main([*again, "--out", str(tmp_path / "b.csv")]) == 2
+    assert "--random-excitation and --follow" in capsys.readouterr().err

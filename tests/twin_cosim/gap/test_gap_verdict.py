@@ -20,6 +20,7 @@ from twin_cosim.gap.verdict import (
     percent,
     quantity,
     remaining_of,
+    span_label,
     verdict_text,
 )
 
@@ -52,6 +53,7 @@ SPANS = [
     AxisSpan(22.6213, 23.1213, -1, 0.1841, 2290.0),
 ]
 AFTER = Location(_shares(0.7412, 0.2401), _shares(0.5, 0.4), SPANS, {})
+FLOORS = (2.6512e-08, 0.025712)  # m, A
 
 
 def _remaining():
@@ -63,6 +65,7 @@ def _remaining():
         AFTER,
         (1.50612, 0.286512),
         (0.785712, 0.0854512),
+        FLOORS,
     )
 
 
@@ -106,7 +109,14 @@ def test_before_and_after_columns_of_the_regimes():
 
 def test_nothing_left_names_no_place():
     remaining = remaining_of(
-        _floor(41.8, 30.1), True, _floor(0.701, 0.700), False, AFTER, (1.3, 0.28), (0.02, 0.005)
+        _floor(41.8, 30.1),
+        True,
+        _floor(0.701, 0.700),
+        False,
+        AFTER,
+        (1.3, 0.28),
+        (0.02, 0.005),
+        FLOORS,
     )
     assert "located" not in remaining.text and "not significant" in remaining.text
     table = gap_table(remaining, _shares(0.52, 0.46), AFTER)
@@ -154,3 +164,55 @@ def test_shares_parameters_and_names():
     assert parameters({}, units) == "-"
     assert names(["stribeck", ["current_lag", "dead_time"]]) == "stribeck, {current_lag, dead_time}"
     assert names([]) == "none"
+
+
+def test_the_noise_floors_are_named_where_the_verdict_names_them():
+    """The bracket after "times the noise floor" holds the floors, not the residual left."""
+    text = _remaining().text
+    assert "21.6 times the noise floor (the floors: position 26.5 nm, current 0.0257 A RMS)" in text
+    assert "a held-out gap of 0.786 um RMS in position and 0.0855 A RMS in current" in text
+    table = gap_table(_remaining(), _shares(0.52, 0.46), AFTER)
+    assert ["noise floor of the position (RMS)", "26.5 nm", "26.5 nm"] in table
+    assert ["noise floor of the current (RMS)", "0.0257 A", "0.0257 A"] in table
+
+
+@pytest.mark.parametrize(
+    ("significant", "accepted", "below"),
+    [
+        (True, [["stribeck"], ["backlash_change", "coulomb_change"]], []),
+        (True, [], ["inertia_change"]),
+        (True, [], []),
+        (False, [], []),
+    ],
+)
+def test_the_verdict_opens_with_a_short_sentence(significant, accepted, below):
+    text = verdict_text(significant, accepted, below, _remaining())
+    first = text.split(". ", 1)[0]
+    assert len(first.split()) <= 16, first
+    assert text.endswith(".")
+    if accepted:
+        assert (
+            first
+            == "significant gap, explained in part: stribeck, {backlash_change, coulomb_change}"
+        )
+
+
+def test_a_gap_significant_only_by_a_figure_of_merit_says_so():
+    remaining = remaining_of(
+        _floor(41.8, 30.1),
+        True,
+        _floor(0.839, 0.698),
+        True,
+        Location(_shares(0.2, 0.1), _shares(0.2, 0.1), [], {}),
+        (1.3, 0.28),
+        (0.0216, 0.0881),
+        FLOORS,
+        by_metrics_only=True,
+    )
+    assert "0.839 times the noise floor" in remaining.text
+    assert "a significant gap (E_pk, ITAE or IAU off beyond what noise makes)" in remaining.text
+
+
+def test_a_span_at_the_start_of_travel_reads_as_a_position():
+    span = AxisSpan(-3.25e-05, 1.0, 0, 0.23, 1030.0, at_stroke_end=True)
+    assert span_label(span).startswith("0-1 mm, both directions")

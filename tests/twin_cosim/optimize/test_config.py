@@ -55,3 +55,20 @@ def test_mistakes_are_named(tmp_path, optimize, message):
     with pytest.raises(ScenarioError, match=message) as info:
         config_of(tmp_path, optimize)
     assert "s.yaml" in str(info.value)
+
+
+def test_plant_samples_draw_within_the_intervals_and_the_tolerance():
+    from twin_cosim.optimize.config import UncertaintySet, relative_ranges
+
+    ranges = relative_ranges(
+        {"backlash": (18e-6, 24e-6), "coulomb_asymmetry": (-0.01, 0.01)},
+        {"backlash": 20e-6, "coulomb_asymmetry": 0.0},
+    )
+    assert ranges == {"backlash": pytest.approx((0.9, 1.2))}  # no relative range around 0
+    samples = UncertaintySet(0.03, 200, 5, ("backlash", "torque_constant"), ranges).factors()
+    assert samples[0] == {}
+    backlash = np.array([s["backlash"] for s in samples[1:]])
+    torque = np.array([s["torque_constant"] for s in samples[1:]])
+    assert 0.9 <= backlash.min() < 0.92 and 1.18 < backlash.max() <= 1.2
+    assert 0.97 <= torque.min() < 0.975 and 1.025 < torque.max() <= 1.03
+    assert UncertaintySet(0.03, 200, 5, ("backlash",), ranges).factors() != samples

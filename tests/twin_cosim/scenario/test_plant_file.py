@@ -98,6 +98,22 @@ def test_plant_yaml_of_a_real_diagnosis_holds_the_hidden_answer(
     assert back.provenance == plant.provenance
 
 
+def test_plant_yaml_says_what_the_diagnosis_leaves_uncertain(diagnosed, tmp_path):
+    """Intervals of the accepted effect's and the calibrated parameters, each holding its
+    value; the hidden Coulomb level inside its interval; read back exactly."""
+    plant = diagnosed[1].calibrated_plant
+    low, high = plant.intervals["coulomb_friction"]
+    assert low < NOMINAL_COULOMB + 0.2 < high
+    assert high - low < 0.1 * (NOMINAL_COULOMB + 0.2)  # the data pin it down
+    for name in ("motor_inertia", "torque_constant", "backlash"):
+        low, high = plant.intervals[name]
+        value = plant.parameters.get(name, low)
+        assert low <= value <= high
+        assert 0.0 < (high - low) / value < 4 * 0.03  # within the prior's +/- 2 tolerances
+    path = write_plant_parameters(tmp_path / "plant.yaml", plant)
+    assert read_plant_parameters(path).intervals == plant.intervals
+
+
 def test_diagnose_writes_plant_and_calibrated_yaml(diagnosed):
     diagnosis_dir, diagnosis = diagnosed
     written = read_plant_parameters(diagnosis_dir / "plant.yaml", "drive2mass")
@@ -135,6 +151,30 @@ def write(path: Path, data: dict) -> Path:
         ({"model": "nope", "parameters": {}}, "unknown plant model 'nope'"),
         ({"model": "emps", "parameters": {}}, "the scenario's plant is 'drive2mass'"),
         ({"parameters": {}}, "model: expected a plant model name"),
+        (
+            {
+                "model": "drive2mass",
+                "parameters": {"backlash": 2e-5},
+                "intervals": {"backlash": [3e-5, 4e-5]},
+            },
+            "intervals.backlash: [3e-05, 4e-05] does not hold the parameter's value 2e-05",
+        ),
+        (
+            {"model": "drive2mass", "parameters": {}, "intervals": {"backlash": [1e-5]}},
+            "intervals.backlash: expected a pair [low, high]",
+        ),
+        (
+            {"model": "drive2mass", "parameters": {}, "intervals": {"backlash": [3e-5, 1e-5]}},
+            "intervals.backlash: low 3e-05 above high 1e-05",
+        ),
+        (
+            {"model": "drive2mass", "parameters": {}, "intervals": {"backlash": [-1.0, 1e-5]}},
+            "intervals.backlash: -1.0 m outside the model's range",
+        ),
+        (
+            {"model": "drive2mass", "parameters": {}, "intervals": {"no_such": [0.0, 1.0]}},
+            "intervals.no_such: not a parameter",
+        ),
     ],
 )
 def test_bad_files_are_named_errors(tmp_path, content, message):

@@ -3,7 +3,12 @@
 Each sample of the reference (speed ``v_ref`` in m/s, acceleration ``a_ref`` in m/s^2, carriage
 side) gets one regime; the thresholds are the fields of :class:`RegimeSettings`.
 
-- *moving*: |v_ref| > ``v_still``; the direction of motion is the sign of v_ref while moving.
+- *moving*: |v_ref| > ``v_still`` over a stretch of one direction that travels more than
+  :data:`MIN_TRAVEL`; the direction of motion is the sign of v_ref while moving. The reference
+  interpolated to the loop grid undershoots where a move starts or ends (a cubic spline through
+  4 ms samples: tens of um/s the other way over a fraction of a micrometre); those wiggles are
+  no motion, or each start from a dwell would follow a motion the other way and be taken for a
+  reversal, and no sample would ever be a breakaway.
 - A *motion start* is a moving sample whose direction differs from the sample before (which is
   either at standstill or moving the other way). The previous direction of motion is the direction
   of the last moving sample before it, however long the dwell in between.
@@ -20,10 +25,8 @@ Precedence where these overlap: reversal > breakaway > standstill > acceleration
 constant_velocity. A record that starts in motion has no motion start at its first sample: the
 motion began earlier, its direction is the previous direction for the next start.
 
-A *stroke* (:func:`strokes`) is a stretch of one direction of motion that covers more than
-``MIN_TRAVEL``: the reference interpolated to the loop grid undershoots where a move starts or
-ends, a few samples just beyond ``v_still`` the other way over a fraction of a micrometre; a
-stroke leaves those out, the labels above do not.
+A *stroke* (:func:`strokes`) is a stretch of one direction of motion whose position covers more
+than ``MIN_TRAVEL`` (of a direction signal given by the caller, e.g. from the measured motion).
 
 **Open-loop runs** (:func:`classify_open_loop`): a plant driven by a measured signal (a torque
 stepped from level to level) has no reference; its regimes follow its measured speed through
@@ -127,7 +130,7 @@ def classify_regimes(
         raise ValueError("t, v_ref and a_ref must be 1-D arrays of one length")
     if np.any(np.diff(t) <= 0.0):
         raise ValueError("t must increase strictly")
-    moving = np.abs(v_ref) > settings.v_still
+    moving = _moving(t, v_ref, settings.v_still)
     labels = np.full(t.shape, CONSTANT_VELOCITY, dtype=int)
     labels[moving & (np.abs(a_ref) > settings.a_min)] = ACCELERATION
     labels[~moving] = STANDSTILL
@@ -182,6 +185,29 @@ def classify_open_loop(t: np.ndarray, speed: np.ndarray, drive: np.ndarray) -> n
         labels[start:settled] = BREAKAWAY if abs(speed[start]) <= still else ACCELERATION
     labels[np.abs(smooth) <= still] = STANDSTILL
     return labels
+
+
+def _moving(t: np.ndarray, v_ref: np.ndarray, v_still: float) -> np.ndarray:
+    """Whether each sample moves: above ``v_still`` (m/s) in a stretch of one direction whose
+    travel (the integral of |v_ref| over t, m) exceeds :data:`MIN_TRAVEL`."""
+    direction = np.where(np.abs(v_ref) > v_still, np.sign(v_ref), 0.0)
+    step = np.abs(v_ref) * np.gradient(t)  # m travelled per sample
+    moving = direction != 0
+    for first, stop, _ in _runs(direction):
+        if step[first:stop].sum() <= MIN_TRAVEL:
+            moving[first:stop] = False
+    return moving
+
+
+def _runs(direction: np.ndarray) -> list[tuple[int, int, int]]:
+    """[start, stop) index ranges of one non-zero direction, with that direction."""
+    changes = np.flatnonzero(np.diff(direction)) + 1
+    firsts, stops = np.concatenate(([0], changes)), np.concatenate((changes, [len(direction)]))
+    return [
+        (int(a), int(b), int(direction[a]))
+        for a, b in zip(firsts, stops, strict=True)
+        if direction[a] != 0
+    ]
 
 
 def _window(t: np.ndarray, t_from: float, t_to: float) -> slice:
@@ -244,13 +270,8 @@ def strokes(direction: np.ndarray, position: np.ndarray) -> list[tuple[int, int,
     position : np.ndarray
         Carriage position per sample, m.
     """
-    direction = np.asarray(direction)
-    changes = np.flatnonzero(np.diff(direction)) + 1
-    firsts, stops = np.concatenate(([0], changes)), np.concatenate((changes, [len(direction)]))
     return [
-        (int(a), int(b), int(direction[a]))
-        for a, b in zip(firsts, stops, strict=True)
-        if direction[a] != 0 and np.ptp(position[a:b]) > MIN_TRAVEL
+        (a, b, d) for a, b, d in _runs(np.asarray(direction)) if np.ptp(position[a:b]) > MIN_TRAVEL
     ]
 
 

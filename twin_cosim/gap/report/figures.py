@@ -125,21 +125,67 @@ def plot_spectra(d: Diagnosis, path: Path) -> Path:
     return _saved(fig, path)
 
 
+RANKING_COLOURS = {"accepted": "tab:green", "passes": "#a1d99b", "fails": "#bbbbbb"}
+
+
 def plot_ranking(d: Diagnosis, path: Path) -> Path:
-    """Evidence of each hypothesis (first round) beyond the noise, with the acceptance line."""
-    rows = d.rounds[0].candidates
-    fig, ax = plt.subplots(figsize=(9, 4))
-    if rows:
-        ax.barh([c.name for c in rows], [max(c.judgement.gain.evidence_z, 0.0) for c in rows])
-        ax.axvline(rows[0].judgement.gain.critical_z, color="r", ls="--", label="acceptance")
-        ax.set_xscale("symlog", linthresh=1.0)
-        ax.invert_yaxis()
-        ax.legend()
-    ax.set_xlabel(
-        "held-out evidence z beyond calibration and noise (listed by training BIC, best first)"
+    """The first round's hypotheses (best training BIC first) against the two tests of the
+    acceptance rule: the evidence z beyond calibration and noise (left, the needed z dashed)
+    and the share of the excess energy above the noise each removes (right, the fair share
+    dashed); a bar's colour says whether it passed every test (and was accepted), each label
+    the tests it failed (:attr:`~twin_cosim.gap.which.acceptance.Judgement.failed`)."""
+    first = d.rounds[0]
+    rows = first.candidates
+    fig, (evidence, share) = plt.subplots(
+        1, 2, figsize=(11, 1.2 + 0.38 * max(len(rows), 3)), sharey=True
     )
-    ax.grid(alpha=0.3, axis="x")
-    return _saved(fig, path)
+    if rows:
+        y = np.arange(len(rows))
+        kinds = [
+            "accepted" if c.name in first.accepted else "passes" if c.passes else "fails"
+            for c in rows
+        ]
+        colours = [RANKING_COLOURS[k] for k in kinds]
+        gains = [c.judgement.gain for c in rows]
+        evidence.barh(y, [g.evidence_z for g in gains], color=colours)
+        evidence.axvline(gains[0].critical_z, color="r", ls="--", lw=1)
+        evidence.set_xscale("symlog", linthresh=1.0)
+        evidence.axvline(0.0, color="k", lw=0.6)
+        share.barh(y, [100.0 * g.excess_share for g in gains], color=colours)
+        share.axvline(100.0 * gains[0].fair_share, color="r", ls="--", lw=1)
+        share.axvline(0.0, color="k", lw=0.6)
+        share.set_xscale("symlog", linthresh=10.0)
+        labels = [
+            c.name.replace("_", " ")
+            + (f"  (fails: {', '.join(c.judgement.failed)})" if k == "fails" else "")
+            for c, k in zip(rows, kinds, strict=True)
+        ]
+        evidence.set_yticks(y, labels, fontsize=8)
+        evidence.invert_yaxis()
+        handles = [
+            Patch(color=RANKING_COLOURS[k], label=label)
+            for k, label in (
+                ("accepted", "accepted"),
+                ("passes", "passes every test, not accepted"),
+                ("fails", "fails a test"),
+            )
+        ] + [plt.Line2D([], [], color="r", ls="--", lw=1, label="what the rule asks")]
+        fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=8, frameon=False)
+    evidence.set_xlabel(
+        "evidence z of the held-out improvement\nbeyond calibration error and noise"
+    )
+    share.set_xlabel("share of the held-out energy above the noise\nthat it removes [%]")
+    for ax in (evidence, share):
+        ax.grid(alpha=0.3, axis="x")
+    fig.suptitle(
+        "Round 1: each hypothesis fitted on the training data, judged on the held-out data "
+        "(best training BIC first)",
+        fontsize=10,
+    )
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
 
 
 SPAN_COLOURS = {False: "tab:red", True: "tab:purple"}  # by AxisSpan.at_stroke_end

@@ -29,8 +29,10 @@ from twin_cosim.gap.verdict import (
     number,
     parameters,
     percent,
+    position_mm,
     quantity,
 )
+from twin_cosim.gap.which.selector import correlation
 from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario.plant_file import calibrated_scenario, write_plant_parameters
 from twin_cosim.versions import versions
@@ -278,7 +280,9 @@ def _ranking_columns(units: dict[str, dict[str, str]]) -> list[Column]:
         ("reduction of the normalised RMS", lambda c: percent(c.judgement.reduction)),
         ("evidence z", lambda c: number(c.judgement.gain.evidence_z)),
         ("needed z", lambda c: number(c.judgement.gain.critical_z)),
-        ("passes", lambda c: _yes(c.passes)),
+        ("share of the energy above the noise", lambda c: percent(c.judgement.gain.excess_share)),
+        ("fair share", lambda c: percent(c.judgement.gain.fair_share)),
+        ("passes", lambda c: "yes" if c.passes else f"no: {', '.join(c.judgement.failed)}"),
     ]
 
 
@@ -313,13 +317,41 @@ SHARE_COLUMNS: list[Column] = [  # rows: (regime, its shares)
     ("energy share over time share [x]", lambda row: number(row[1]["enrichment"])),
 ]
 AXIS_COLUMNS: list[Column] = [  # rows: AxisSpan
-    ("from [mm]", lambda span: number(span.from_mm)),
-    ("to [mm]", lambda span: number(span.to_mm)),
+    ("from [mm]", lambda span: position_mm(span.from_mm)),
+    ("to [mm]", lambda span: position_mm(span.to_mm)),
     ("direction of motion", lambda span: {1: "+", -1: "-", 0: "both"}.get(span.direction, "-")),
     (STROKE_END, lambda span: _yes(span.at_stroke_end)),
     ("share of the energy above the even level [%]", lambda span: percent(span.energy_share)),
     ("peak energy over the even level [x]", lambda span: number(span.enrichment)),
 ]
+
+
+def lookalikes(d: Diagnosis) -> str:
+    """Each accepted look-alike group: why its members count as one (the round's figures) and
+    which member's fit the calibrated plant holds."""
+    settings, units = d.settings, hypothesis_units(d.context.model)
+    texts = []
+    for step in d.steps:
+        group = step.accepted if step.pair is None else []
+        members = [c for name in group for c in step.candidates if c.name == name]
+        if len(members) < 2:
+            continue
+        first = members[0]
+        reductions = " and ".join(percent(c.judgement.reduction) for c in members)
+        agreement = ", ".join(
+            number(correlation(c.judgement.change, first.judgement.change)) for c in members[1:]
+        )
+        texts.append(
+            f"{names([group])}: in round {step.index} each passed every held-out test; their "
+            f"reductions of the normalised RMS ({reductions}) differ by less than "
+            f"{100 * settings.group_reduction_margin:g} percentage points and the "
+            f"changes they predict on the held-out data correlate with the first's at "
+            f"{agreement} (at least {settings.group_correlation:g}), so the data "
+            "cannot tell them apart. The group is named as one; the calibrated plant holds the "
+            "fit of its first, "
+            f"{first.name} ({parameters(first.fit.values, units.get(first.name, {}))})."
+        )
+    return " ".join(texts)
 
 
 def _errors(value: dict[str, float]) -> str:
@@ -395,10 +427,9 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
     first = next((r for r in d.rounds if r.candidates), None)
     before, after = d.metrics_before[0], d.metrics_after[0]
     figures = d.validation
-    verdict = f"{d.verdict}."
-    if d.remaining.text not in d.verdict:
-        verdict += f" {d.remaining.text[0].upper()}{d.remaining.text[1:]}."
-    verdict += f" Accepted, in order: {names(d.accepted)}."
+    verdict = d.verdict
+    if d.remaining.text not in verdict:
+        verdict += f" {d.remaining.text}"
     before_shares = energy_shares(d.holdout_before.position, d.holdout_before.regimes)
     noise = parameters(d.noise.plant_parameters, _parameter_units(d.context.model))
     parts: list[tuple[str, str | list[list[str]]]] = [
@@ -454,7 +485,9 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
             else "What is left is spread evenly along the axis: no span stands out.",
         ),
         (
-            "Before the accepted effects: position-periodic or temporal",
+            "Before the accepted effects: position-periodic or temporal (a speed group: the "
+            "constant-velocity stretches at one speed level, within 10 %; a peak at a fixed "
+            "order across the groups, its frequency moving, is position-periodic)",
             "; ".join(
                 f"{k.replace('_', ' ')}: {v['verdict']} ({v['reason']})"
                 for k, v in d.where.periodicity.items()
@@ -465,6 +498,11 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
             f"round; held-out position RMS before {number(d.rounds[0].position_rms_um)} um, "
             f"current {number(d.rounds[0].current_rms)} A)",
             _table(first.candidates if first else [], _ranking_columns(units)),
+        ),
+        *(
+            [("Look-alike groups (a name in braces)", lookalikes(d))]
+            if any(len(g) > 1 for g in d.accepted)
+            else []
         ),
         (
             "How far: each accepted effect on the held-out data, as fitted in its round",

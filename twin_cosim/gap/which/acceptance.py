@@ -71,7 +71,15 @@ class Gain:
     @property
     def passes(self) -> bool:
         """Whether the change is beyond the noise and takes at least its fair share."""
-        return self.evidence_z >= self.critical_z and self.excess_share >= self.fair_share
+        return not self.failed
+
+    @property
+    def failed(self) -> list[str]:
+        """The tests of the rule it fails: ``evidence`` (z below the critical z), ``fair
+        share`` (less of the excess energy than its fair share)."""
+        tests = [("evidence", self.evidence_z >= self.critical_z)]
+        tests.append(("fair share", self.excess_share >= self.fair_share))
+        return [name for name, passed in tests if not passed]
 
     @property
     def strength(self) -> float:
@@ -239,12 +247,18 @@ class Judgement:
     @property
     def passes(self) -> bool:
         """Whether it passes every test (the gap's significance is the round's)."""
-        return (
-            self.reduction > 0.0
-            and self.gain.passes
-            and self.size_above_tolerance
-            and self.consistent
-        )
+        return not self.failed
+
+    @property
+    def failed(self) -> list[str]:
+        """The tests it fails, in the order of the module docstring: ``reduction`` (it does not
+        cut the normalised RMS), ``evidence`` and ``fair share`` (its gain against the rule),
+        ``tolerance`` (a calibrated parameter changed by less than the tolerance),
+        ``consistency`` (one signal's held-out RMS made worse)."""
+        failed = [] if self.reduction > 0.0 else ["reduction"]
+        failed += self.gain.failed
+        failed += [] if self.size_above_tolerance else ["tolerance"]
+        return failed + ([] if self.consistent else ["consistency"])
 
 
 def judge(

@@ -57,6 +57,7 @@ WARM_GENERATIONS = 1
 # PROFILE_EVALUATIONS residual evaluations each (plus their Jacobians).
 PROFILE_POINTS = 12
 PROFILE_EVALUATIONS = 3
+UNCERTAINTY_DRAWS = 400  # draws of a model's parameters that give its FMU parameters' intervals
 FAILURE_FACTOR = 10.0  # a failed replay's residual, relative to the fit's starting residual
 FAILURE_FLOOR = 1e3  # least normalised residual per sample of a failed replay
 
@@ -221,6 +222,51 @@ class JointFitTask:
 
 
 @dataclass(frozen=True)
+class UncertaintyTask:
+    """What the training data leave uncertain in a model: its accepted effects (``hypotheses``
+    fitted at ``values``, physical units, with their ``contexts``) on top of the FMU parameters
+    ``base``, with the ``calibrated`` parameters under their prior (a Gaussian of width the
+    ``tolerance``, relative)."""
+
+    base: dict[str, float]
+    hypotheses: tuple[str, ...]
+    values: tuple[tuple[float, ...], ...]
+    contexts: tuple[dict[str, float], ...]
+    calibrated: tuple[str, ...]
+    tolerance: float
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """The linearised uncertainty of a model's parameters (:meth:`Replayer.uncertainty`).
+
+    Attributes
+    ----------
+    names : tuple of str
+        ``effect.parameter`` of the accepted effects' continuous parameters, then
+        ``calibration.NAME`` of the calibrated parameters.
+    deviation : tuple of float
+        Standard deviation of each: effects' parameters on the fit's unit scale (0-1 over the
+        bounds, log where the fit is), calibrated parameters in tolerances.
+    residual_variance : float
+        Mean squared normalised training residual of the model (>= 1: noise at the floors),
+        which scales the deviations.
+    intervals : dict
+        Per FMU parameter the model sets (the effects' and the calibrated ones), the central
+        95 % of its values over draws of the parameters from their linearised distribution:
+        (low, high) in the variable table's units.
+    replays : int
+        Training replays it took.
+    """
+
+    names: tuple[str, ...]
+    deviation: tuple[float, ...]
+    residual_variance: float
+    intervals: dict[str, tuple[float, float]]
+    replays: int
+
+
+@dataclass(frozen=True)
 class FitResult:
     """Outcome of a fit: fitted values by name, the FMU parameters, the training cost."""
 
@@ -304,16 +350,103 @@ class Replayer:
             return np.full(n, self.failure_residual)
         return normalised_residual(records, self.spec.training)
 
-    def __call__(self, task: SimulateTask | FitTask | JointFitTask) -> Timed:
+    def __call__(self, task: SimulateTask | FitTask | JointFitTask | UncertaintyTask) -> Timed:
         """The task's result and the CPU time it took."""
         start = time.process_time()
         if isinstance(task, SimulateTask):
             result = self.simulate(task)
         elif isinstance(task, JointFitTask):
             result = self.joint_fit(task)
+        elif isinstance(task, UncertaintyTask):
+            result = self.uncertainty(task)
         else:
             result = self.fit(task)
         return Timed(result, time.process_time() - start)
+
+    def uncertainty(self, task: UncertaintyTask) -> Uncertainty:
+        """The linearised uncertainty of a model's parameters on the training data.
+
+        The training residual r is differentiated (central differences, one replay each way)
+        with respect to each continuous parameter of the accepted effects (steps of
+        :data:`FIT_STEP` on the fit's unit scale) and each calibrated parameter (a step of one
+        tolerance). Residual samples are correlated in time, so the information is that of
+        one independent sample per :data:`EFFECTIVE_SAMPLE_SPACING_S`: I = (n_eff / n) J^T J /
+        s^2 plus the calibrated parameters' prior (1 per tolerance^2), s^2 the mean squared
+        residual (at least 1, the noise at the floors: a model that leaves a structured gap
+        knows its parameters less well). The covariance is I's pseudo-inverse. Draws of the
+        parameters from that Gaussian (seeded, clipped into their bounds), each mapped to the
+        FMU parameters as the model maps its fit, give each FMU parameter's central 95 %.
+        """
+        hypotheses = [bounded(self.hypotheses[n], self.spec.ranges) for n in task.hypotheses]
+        sets = {name for h in hypotheses for name in h.sets}
+        plain = {k: v for k, v in task.base.items() if k not in sets}
+        nominal = {**self.spec.nominal, **plain}
+        starts = [np.array(v, dtype=float) for v in task.values]
+        free = [h.kind == "continuous" for h in hypotheses]
+        units = [
+            np.clip([p.to_unit(x) for p, x in zip(h.parameters, v, strict=True)], 0.0, 1.0)
+            for h, v in zip(hypotheses, starts, strict=True)
+        ]
+        columns = [
+            (j, k) for j, h in enumerate(hypotheses) if free[j] for k in range(len(h.parameters))
+        ]
+        count = len(columns) + len(task.calibrated)
+
+        def overrides_of(z: np.ndarray) -> dict[str, float]:
+            """FMU parameters of the coordinates z (effects' units, then tolerances)."""
+            moved = {
+                name: nominal[name] * (1.0 + a * task.tolerance)
+                for name, a in zip(task.calibrated, z[len(columns) :], strict=True)
+            }
+            overrides = {**plain, **moved}
+            at = 0
+            for j, (h, context) in enumerate(zip(hypotheses, task.contexts, strict=True)):
+                values = starts[j]
+                if free[j]:
+                    values = h.from_unit(z[at : at + len(values)])
+                    at += len(values)
+                overrides |= h.to_plant(values, {**self.spec.nominal, **overrides}, context)
+            return clipped(overrides, self.spec.ranges)
+
+        z0 = np.concatenate(
+            [units[j][k : k + 1] for j, k in columns] + [np.zeros(len(task.calibrated))]
+        )
+        residual = self.training_residual(overrides_of(z0))
+        steps = np.r_[np.full(len(columns), FIT_STEP), np.ones(len(task.calibrated))]
+        jacobian = np.empty((len(residual), count))
+        for i, step in enumerate(steps):
+            up, down = z0.copy(), z0.copy()
+            up[i] += step
+            down[i] -= step
+            if i < len(columns):
+                up[i], down[i] = min(up[i], 1.0), max(down[i], 0.0)
+            r_up = self.training_residual(overrides_of(up))
+            r_down = self.training_residual(overrides_of(down))
+            jacobian[:, i] = (r_up - r_down) / max(up[i] - down[i], 1e-12)
+        seconds = sum(float(t[-1] - t[0]) for t in self.spec.training.t)
+        n_eff = 2.0 * max(seconds / EFFECTIVE_SAMPLE_SPACING_S, 1.0)  # two signals
+        variance = max(float(np.mean(residual**2)), 1.0)
+        prior = np.r_[np.zeros(len(columns)), np.ones(len(task.calibrated))]
+        information = (n_eff / len(residual)) * (jacobian.T @ jacobian) / variance
+        covariance = np.linalg.pinv(information + np.diag(prior))
+        deviation = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+        draws = np.random.default_rng(0).multivariate_normal(
+            z0, covariance, size=UNCERTAINTY_DRAWS, method="eigh"
+        )
+        draws[:, : len(columns)] = np.clip(draws[:, : len(columns)], 0.0, 1.0)
+        values = [overrides_of(z) for z in draws]
+        changed = sorted(sets | set(task.calibrated))
+        intervals = {
+            name: tuple(float(q) for q in np.quantile([v[name] for v in values], [0.025, 0.975]))
+            for name in changed
+            if name in values[0]
+        }
+        names = tuple(
+            f"{hypotheses[j].name}.{hypotheses[j].parameters[k].name}" for j, k in columns
+        ) + tuple(f"calibration.{n}" for n in task.calibrated)
+        return Uncertainty(
+            names, tuple(float(d) for d in deviation), variance, intervals, 1 + 2 * count
+        )
 
     def joint_fit(self, task: JointFitTask) -> FitResult:
         """Refit several hypotheses together (values by ``hypothesis.parameter``)."""

@@ -24,7 +24,7 @@ import numpy as np
 
 from twin_cosim.gap.floors.evidence import CalibrationBasis, CalibrationFloor
 from twin_cosim.gap.which.acceptance import Judging
-from twin_cosim.gap.which.replay import FitResult, Replays, SimulateTask
+from twin_cosim.gap.which.replay import FitResult, Replays, SimulateTask, Uncertainty
 
 if TYPE_CHECKING:
     from twin_cosim.workers import BoundPool
@@ -93,9 +93,9 @@ class PhaseTimes:
         return table
 
 
-def _replays_of(result: FitResult | Replays) -> int:
-    """Replays a task ran: a fit's count, or one per judging scenario."""
-    return result.replays if isinstance(result, FitResult) else len(result.judging)
+def _replays_of(result: FitResult | Replays | Uncertainty) -> int:
+    """Replays a task ran: a fit's (or an uncertainty's) count, or one per judging scenario."""
+    return len(result.judging) if isinstance(result, Replays) else result.replays
 
 
 @dataclass

@@ -104,6 +104,8 @@ from twin_cosim.gap.which.replay import (
     JointFitTask,
     Replays,
     SimulateTask,
+    Uncertainty,
+    UncertaintyTask,
     shape_index,
 )
 from twin_cosim.gap.which.replay_pool import ReplayPool
@@ -232,8 +234,9 @@ class Selection:
     """The rounds, the accepted effects (after the backward pass) and their FMU parameters, the
     replays with them, the calibration floor of what they leave with its calibrated replays,
     each kept effect's marginal contribution, the effects the backward pass dropped, the swaps
-    tried, the cold refits that replaced their effect and where the time went (wall s, pool
-    tasks and replays per phase)."""
+    tried, the cold refits that replaced their effect, what the training data leave uncertain
+    in the final model (its parameters' intervals) and where the time went (wall s, pool tasks
+    and replays per phase)."""
 
     rounds: list[Round]
     effects: list[Accepted]
@@ -245,6 +248,7 @@ class Selection:
     dropped: list[str] = field(default_factory=list)
     swaps: list[Swap] = field(default_factory=list)
     refits: list[Refit] = field(default_factory=list)
+    uncertainty: Uncertainty | None = None
     times: dict[str, dict[str, float]] = field(default_factory=dict)
 
     @property
@@ -266,6 +270,18 @@ def correlation(a: np.ndarray, b: np.ndarray) -> float:
     if len(a) != len(b) or np.std(a) == 0 or np.std(b) == 0:
         return 0.0
     return float(abs(np.corrcoef(a, b)[0, 1]))
+
+
+def refitted(accepted: list[Accepted], refit: FitResult) -> list[Accepted]:
+    """The accepted effects with the values of their joint refit (``refit.values`` by
+    ``effect.parameter``, physical units, in each hypothesis' order)."""
+    return [
+        dataclasses.replace(
+            a,
+            values=tuple(v for k, v in refit.values.items() if k.split(".", 1)[0] == a.name),
+        )
+        for a in accepted
+    ]
 
 
 def rivals(
@@ -337,7 +353,8 @@ class Selector:
         shaped = sum(1 for h in self.library.values() if shape_index(h) is not None)
         refreshes = 2 * (rounds + min(shaped, rounds)) * (rounds + 1)
         return (
-            per_round * (rounds + 1)
+            1  # the final model's uncertainty
+            + per_round * (rounds + 1)
             + 2 * first
             + 2 * later * (rounds - 1)
             + pairs
@@ -381,18 +398,33 @@ class Selector:
         accepted, base, replays, marginal, dropped = self.backward(accepted, base, replays, start)
         held = self.judging.held_out(replays, self.pool.basis(base))
         floor = floor_of(held.basis, held.vector)
+        calibrated = self.pool.calibrated_replay(base, floor)
+        (uncertainty,) = self.pool.tasks("uncertainty", [self.uncertainty_task(accepted, base)])
         return Selection(
             rounds,
             accepted,
             base,
             replays,
             floor,
-            self.pool.calibrated_replay(base, floor),
+            calibrated,
             marginal=marginal,
             dropped=dropped,
             swaps=swaps,
             refits=refits,
+            uncertainty=uncertainty,
             times=self.pool.times.as_dict(),
+        )
+
+    def uncertainty_task(self, accepted: list[Accepted], base: dict[str, float]) -> UncertaintyTask:
+        """What the training data leave uncertain in the model of ``accepted`` (FMU parameters
+        ``base``), the calibrated parameters under their prior."""
+        return UncertaintyTask(
+            base,
+            tuple(a.name for a in accepted),
+            tuple(a.values for a in accepted),
+            tuple(a.context for a in accepted),
+            tuple(self.pool.calibrated),
+            self.settings.calibration_tolerance,
         )
 
     def _acceptance(self, tests: int) -> Acceptance:
@@ -582,6 +614,7 @@ class Selector:
         joint_replays = self.pool.tasks("joint_refits", [SimulateTask(joint, with_training=True)])
         left_joint = np.linalg.norm(self.pool.left(joint, joint_replays[0]))
         if left_joint < np.linalg.norm(self.pool.left(sequential, replays)):
+            accepted[:] = refitted(accepted, refit)
             return joint, joint_replays[0]
         return sequential, replays
 
@@ -829,13 +862,13 @@ class Selector:
 
     def without_each(
         self, accepted: list[Accepted], start: Replays
-    ) -> list[tuple[dict[str, float], Replays]]:
-        """Per accepted effect, the model refitted without it (FMU parameters, replays); the
-        refits run at once. Without a single effect it is the nominal twin (``start``): the
+    ) -> list[tuple[FitResult | None, Replays]]:
+        """Per accepted effect, the model refitted without it (the refit, replays); the refits
+        run at once. Without a single effect it is the nominal twin (``start``, no refit): the
         best calibration correction of its held-out residual gives calibration error every
         benefit of the doubt already."""
         if len(accepted) == 1:
-            return [({}, start)]
+            return [(None, start)]
         refits = self.pool.tasks(
             "backward_pass",
             [self.refit_task(accepted[:j] + accepted[j + 1 :]) for j in range(len(accepted))],
@@ -843,7 +876,7 @@ class Selector:
         withouts = self.pool.tasks(
             "backward_pass", [SimulateTask(r.overrides, with_training=True) for r in refits]
         )
-        return [(r.overrides, w) for r, w in zip(refits, withouts, strict=True)]
+        return [(r, w) for r, w in zip(refits, withouts, strict=True)]
 
     def backward(
         self,
@@ -876,8 +909,8 @@ class Selector:
             with_all = self.pool.left(base, replays)
             acceptance = self._acceptance(len(accepted))
             trials = []
-            for j, (overrides, without) in enumerate(self.without_each(accepted, start)):
-                left = self.pool.left(overrides, without)
+            for j, (refit, without) in enumerate(self.without_each(accepted, start)):
+                left = self.pool.left(refit.overrides if refit else {}, without)
                 gain = acceptance.gain(left, with_all)
                 marginal = Marginal(
                     accepted[j].name,
@@ -886,11 +919,12 @@ class Selector:
                     float(np.linalg.norm(left)),
                     float(np.linalg.norm(with_all)),
                 )
-                trials.append((gain, j, overrides, without, marginal))
+                trials.append((gain, j, refit, without, marginal))
             weakest = min(trials, key=lambda trial: trial[0].strength)
             if len(accepted) == 1 or weakest[0].passes:
                 return accepted, base, replays, [trial[4] for trial in trials], dropped
-            _, j, base, replays, _ = weakest
+            _, j, refit, replays, _ = weakest
             dropped.append(accepted[j].name)
-            accepted = accepted[:j] + accepted[j + 1 :]
+            assert refit is not None, "a single effect is kept"
+            accepted, base = refitted(accepted[:j] + accepted[j + 1 :], refit), refit.overrides
         return accepted, base, replays, [], dropped

@@ -183,3 +183,32 @@ def test_an_open_loop_run_is_run_up_steady_speed_and_after_the_step():
     after = labels[(t > 10.0) & (t < 10.0 + 3 * tau - 0.2)]
     assert set(after) == {REGIMES.index("acceleration")}
     assert set(labels[t > 10.0 + 3 * tau + 0.2]) == {REGIMES.index("constant_velocity")}
+
+
+def test_starts_from_a_dwell_on_the_loop_grid_are_breakaways():
+    """The undershoot before a start from a dwell (the spline through 4 ms samples swings just
+    beyond v_still the other way) is no motion: a move, a dwell and the same move again start
+    with two breakaways, and nothing there is a reversal."""
+    from twin_cosim.reference import interpolate
+
+    t = np.arange(0, 1.2, 0.004)  # s
+    knots = ([0.1, 0.2, 0.4, 0.5, 0.6, 0.7, 0.9, 1.0], [0, 0.005, 0.005, 0, 0, 0.005, 0.005, 0])
+    grid = interpolate(np.cumsum(np.interp(t, *knots)) * 0.004, 0.004, 250e-6)
+    labels = classify_regimes(grid.time, grid.velocity, grid.acceleration)
+    breakaways = segments(labels, REGIMES.index("breakaway"))
+    assert len(breakaways) == 2
+    for (first, _), start in zip(breakaways, (0.1, 0.6), strict=True):
+        assert grid.time[first] == pytest.approx(start, abs=0.01)
+    assert segments(labels, REGIMES.index("reversal")) == []
+
+
+def test_the_shipped_excitation_starts_from_standstill_four_times():
+    """scenarios/diagnosis.yaml leaves a dwell four times (once backwards: a reversal) and turns
+    twice while moving: three breakaways and three reversals."""
+    from twin_cosim.scenario import resolve_scenario
+
+    grid = resolve_scenario("diagnosis").reference
+    labels = classify_regimes(grid.time, grid.velocity, grid.acceleration)
+    assert len(segments(labels, REGIMES.index("breakaway"))) == 3
+    assert len(segments(labels, REGIMES.index("reversal"))) == 3
+    assert energy_shares(np.ones(len(labels)), labels)["breakaway"]["time_share"] > 0.01

@@ -6,6 +6,7 @@ import types
 
 import matplotlib
 import numpy as np
+import pytest
 
 matplotlib.use("Agg")
 from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
@@ -84,3 +85,37 @@ def test_spectra_say_which_residual_they_show(tmp_path, saved_figure):
         box = ax.title.get_window_extent(renderer)
         assert box.x0 >= 0 and box.x1 <= fig.bbox.width, ax.get_title()
     assert titles[0].startswith("position residual") and titles[1].startswith("current residual")
+
+
+def _candidate(name: str, z: float, share: float, failed: list[str]):
+    gain = types.SimpleNamespace(
+        evidence_z=z, critical_z=3.14, excess_share=share, fair_share=1 / 12
+    )
+    judgement = types.SimpleNamespace(gain=gain, failed=failed)
+    return types.SimpleNamespace(name=name, judgement=judgement, passes=not failed)
+
+
+def test_the_ranking_shows_both_tests_and_which_failed(tmp_path, saved_figure):
+    """A hypothesis beyond the needed z that fails the fair share is not drawn like one that
+    passes, and a negative evidence z is drawn negative, not as 0."""
+    candidates = [
+        _candidate("stribeck", 244.0, 0.62, []),
+        _candidate("torque_ripple", 88.0, 0.02, ["fair share"]),
+        _candidate("pitch_error", 25.0, 0.11, []),
+        _candidate("backlash_change", -231.0, -0.4, ["reduction", "evidence", "fair share"]),
+    ]
+    first = types.SimpleNamespace(candidates=candidates, accepted=["stribeck"])
+    figures.plot_ranking(types.SimpleNamespace(rounds=[first]), tmp_path / "ranking.png")
+    fig = saved_figure["fig"]
+    evidence, share = fig.axes
+    z_bars, share_bars = evidence.patches, share.patches
+    assert [round(b.get_width(), 1) for b in z_bars] == [244.0, 88.0, 25.0, -231.0]
+    assert [round(b.get_width(), 1) for b in share_bars] == [62.0, 2.0, 11.0, -40.0]
+    colours = [b.get_facecolor() for b in z_bars]
+    assert colours[0] != colours[2] != colours[1]  # accepted, passes, fails
+    assert colours[1] == colours[3]
+    labels = [t.get_text() for t in evidence.get_yticklabels()]
+    assert labels[1] == "torque ripple  (fails: fair share)"
+    assert labels[2] == "pitch error"
+    lines = [line.get_xdata()[0] for line in share.get_lines() if line.get_linestyle() == "--"]
+    assert lines == pytest.approx([100 / 12])
