@@ -34,6 +34,11 @@ effects of each plant model (NAME: its parameters):
     asymmetric_friction (coulomb_asymmetry, viscous_asymmetry), viscous_change (delta_viscous),
     offset_change (delta_offset), inertia_change (relative_change), compliance (mass_fraction,
     coupling_frequency), torque_ripple (cos_part, sin_part), dead_time (dead_time_steps)
+  hsm150: coulomb_change (delta_coulomb), asymmetric_friction (coulomb_forward,
+    coulomb_backward, viscous_forward, viscous_backward), stribeck (stribeck_friction,
+    stribeck_speed), viscous_change (relative_change), inertia_change (relative_change),
+    torque_constant_change (relative_change), torque_asymmetry (torque_asymmetry), dead_time
+    (dead_time_steps)
   plant: any FMU parameter, e.g. plant:backlash=30e-6
 units and ranges: models/<model>/README.md; e.g.
   --effect stribeck:stribeck_friction=0.2,stribeck_speed=0.5

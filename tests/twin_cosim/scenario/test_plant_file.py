@@ -169,7 +169,7 @@ def write(path: Path, data: dict) -> Path:
         ),
         (
             {"model": "drive2mass", "parameters": {}, "intervals": {"backlash": [-1.0, 1e-5]}},
-            "intervals.backlash: -1.0 m outside the model's range",
+            "intervals.backlash: -1 m outside the model's range",
         ),
         (
             {"model": "drive2mass", "parameters": {}, "intervals": {"no_such": [0.0, 1.0]}},
