@@ -65,8 +65,8 @@ from twin_cosim.gap.location import Location, locate
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.gap.which.acceptance import Judging
-from twin_cosim.gap.which.replay import Replays, ReplaySpec, TrainingData
-from twin_cosim.gap.which.replay_pool import ReplayPool
+from twin_cosim.gap.which.replay import TRAINING_CACHE_SIZE, Replays, ReplaySpec, TrainingData
+from twin_cosim.gap.which.replay_pool import JudgingCache, ReplayPool
 from twin_cosim.gap.which.selector import Round, Selection, Selector, Swap
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
@@ -271,6 +271,7 @@ def diagnose(
     workers: int | None = None,
     progress: ProgressFactory | None = None,
     pool: SerialPool | ProcessPool | None = None,
+    replay_cache: bool = True,
 ) -> Diagnosis:
     """Diagnose the gap between the measured runs and the twin's replay of the scenario.
 
@@ -294,12 +295,18 @@ def diagnose(
         A started pool (:mod:`twin_cosim.workers`) for the replays, shared with the caller, who
         closes it; None: one of ``workers`` is started here at once (its processes start while
         this one builds the context and the noise model) and closed at the end.
+    replay_cache
+        Answer a replay of a parameter set replayed before from the caches (the workers'
+        training residuals, the judging replays); False: run every replay (the same results,
+        at more cost: for checks and benchmarks).
     """
     settings = settings or DiagnosisSettings()
     if pool is None:
         with make_pool(None, workers, prepare_replay_worker) as own:
-            return _diagnose(scenario, measured, holdout or [], fmu, settings, progress, own)
-    return _diagnose(scenario, measured, holdout or [], fmu, settings, progress, pool)
+            return _diagnose(
+                scenario, measured, holdout or [], fmu, settings, progress, own, replay_cache
+            )
+    return _diagnose(scenario, measured, holdout or [], fmu, settings, progress, pool, replay_cache)
 
 
 def _diagnose(
@@ -310,6 +317,7 @@ def _diagnose(
     settings: DiagnosisSettings,
     progress: ProgressFactory | None,
     pool: SerialPool | ProcessPool,
+    replay_cache: bool = True,
 ) -> Diagnosis:
     """:func:`diagnose` with its replays on ``pool``."""
     cpu_start = time.process_time()
@@ -335,13 +343,15 @@ def _diagnose(
         context.dt,
         settings,
     )
+    spec = _replay_spec(context, nominal, floors, replay_cache)
     selector = Selector(
         ReplayPool(
-            BoundPool(pool, _replay_spec(context, nominal, floors)),
+            BoundPool(pool, spec),
             nominal,
             [n for n in plant_model(context.model).calibrated if n in nominal],
             judging,
             settings.calibration_tolerance,
+            cache=JudgingCache(spec.key, spec.training_in_judging()) if replay_cache else None,
         ),
         {
             h.name: h
@@ -405,9 +415,10 @@ def _diagnose(
 
 
 def _replay_spec(
-    context: DiagnosisContext, nominal: dict[str, float], floors: Floors
+    context: DiagnosisContext, nominal: dict[str, float], floors: Floors, cache: bool = True
 ) -> ReplaySpec:
-    """The recipe of the replay workers: scenarios, nominal plant, training data at the floors."""
+    """The recipe of the replay workers: scenarios, nominal plant, training data at the floors,
+    the training residuals kept (``cache``) or not."""
     training = TrainingData(
         [r.t for r in context.train],
         [r.x for r in context.train],
@@ -429,6 +440,7 @@ def _replay_spec(
         training,
         context.model,
         context.ranges,
+        TRAINING_CACHE_SIZE if cache else 0,
     )
 
 

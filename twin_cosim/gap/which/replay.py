@@ -9,7 +9,16 @@ A :class:`ReplaySpec` (the scenarios, numbers and the training data: it pickles)
   scan of discrete values) on top of already accepted effects;
 - :class:`JointFitTask`: refit accepted effects together with the calibrated parameters.
 
-Each result comes back with the CPU time the task took (:class:`Timed`).
+Each result comes back with the CPU and wall time the task took and the replays a cache
+answered (:class:`Timed`).
+
+A worker keeps the training residuals of the parameter sets it replayed last
+(:data:`TRAINING_CACHE_SIZE`), keyed by the exact FMU parameters a replay runs with
+(:func:`parameter_key`: nominal plus overrides, clipped into their ranges): a replay is
+deterministic, so a parameter set asked for again (the base model every fit of a round starts
+from, a least-squares fit's start that its global search evaluated, the model a joint refit
+starts from, proposals clipped to the same FMU parameters) is not run again, and the residual
+is the same array a fresh replay gives.
 
 The fit minimises the normalised training residual: position residual / sigma_x and current
 residual / sigma_i (sigma: the noise floors), over the training samples only; a replay for the
@@ -27,6 +36,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -60,14 +70,24 @@ PROFILE_EVALUATIONS = 3
 UNCERTAINTY_DRAWS = 400  # draws of a model's parameters that give its FMU parameters' intervals
 FAILURE_FACTOR = 10.0  # a failed replay's residual, relative to the fit's starting residual
 FAILURE_FLOOR = 1e3  # least normalised residual per sample of a failed replay
+# Training residuals a worker keeps (about 0.4 MB each for the 6.2 s training half of
+# scenarios/diagnosis.yaml): more than the replays of one fit, so that the base model every fit
+# of a round starts from stays in while the fits run.
+TRAINING_CACHE_SIZE = 128
+
+ParameterKey = tuple[tuple[str, float], ...]
 
 
 @dataclass(frozen=True)
 class Timed:
-    """A pool task's result and the CPU time (s) the worker spent on it."""
+    """A pool task's result, the CPU and wall time (s) the worker spent on it, the replays it
+    ran and the replays its cache answered."""
 
     result: Any
     cpu_s: float
+    wall_s: float = 0.0
+    replays_run: int = 0
+    cache_hits: int = 0
 
 
 def bounded(hypothesis: Hypothesis, ranges: dict[str, tuple[float, float]]) -> Hypothesis:
@@ -93,6 +113,17 @@ def clipped(
         low, high = ranges.get(name, (-np.inf, np.inf))
         result[name] = float(min(max(value, low), high))
     return result
+
+
+def parameter_key(
+    overrides: dict[str, float],
+    nominal: dict[str, float],
+    ranges: dict[str, tuple[float, float]],
+) -> ParameterKey:
+    """The FMU parameters a replay with ``overrides`` runs with (``nominal`` plus the overrides,
+    clipped into their ``ranges``), sorted by name: two override sets of the same key give the
+    same replay of a scenario."""
+    return tuple(sorted(clipped({**nominal, **overrides}, ranges).items()))
 
 
 @dataclass(frozen=True)
@@ -276,6 +307,8 @@ class FitResult:
     train_cost: float
     replays: int
     message: str
+    iterations: int = 0  # of the local least-squares fit (one Jacobian each)
+    search_replays: int = 0  # of the start's search (global search, profile) or the scan
 
 
 @dataclass(frozen=True)
@@ -300,6 +333,8 @@ class ReplaySpec:
         The FMU's model identifier, which selects the hypothesis library.
     ranges : dict
         (min, max) of every FMU parameter, from the variable table.
+    cache_size : int
+        Training residuals a worker keeps by parameter set (0: none kept).
     """
 
     training_scenarios: list[Scenario]
@@ -309,6 +344,20 @@ class ReplaySpec:
     training: TrainingData
     model: str
     ranges: dict[str, tuple[float, float]]
+    cache_size: int = TRAINING_CACHE_SIZE
+
+    def key(self, overrides: dict[str, float]) -> ParameterKey:
+        """The parameter set a replay with ``overrides`` runs with (:func:`parameter_key`)."""
+        return parameter_key(overrides, self.nominal, self.ranges)
+
+    def training_in_judging(self) -> list[int] | None:
+        """Per training scenario the index of the same judging scenario (a time split), or None
+        when a training scenario is replayed on its own."""
+        same = [
+            next((i for i, j in enumerate(self.judging) if j is t), None)
+            for t in self.training_scenarios
+        ]
+        return None if None in same else same  # type: ignore[return-value]
 
     def build(self) -> Replayer:
         """The worker."""
@@ -324,10 +373,14 @@ class Replayer:
         self.plant = Plant(Path(spec.fmu))
         self.failure_residual = FAILURE_FLOOR
         self.training_cut = [cut(s, spec.training.end) for s in spec.training_scenarios]
+        self.residuals: OrderedDict[ParameterKey, np.ndarray] = OrderedDict()
+        self.cache_hits = 0  # training replays answered by the cache, over the worker's life
+        self.replays_run = 0  # replays run, over the worker's life
 
     def replay(self, scenario: Scenario, overrides: dict[str, float]) -> RunRecord:
         """One scenario replayed with nominal plus ``overrides`` (clipped into their ranges)."""
         parameters = clipped({**self.spec.nominal, **overrides}, self.spec.ranges)
+        self.replays_run += 1
         return run_scenario(self.plant, scenario, plant_overrides=parameters)
 
     def simulate(self, task: SimulateTask) -> Replays:
@@ -342,17 +395,31 @@ class Replayer:
         return Replays(training, judging)
 
     def training_residual(self, overrides: dict[str, float]) -> np.ndarray:
-        """Normalised training residual; a failed replay scores a large constant residual."""
+        """Normalised training residual; a failed replay scores a large constant residual (the
+        fit's own, never kept). A parameter set replayed lately is answered from the cache."""
+        key = self.spec.key(overrides) if self.spec.cache_size else None
+        kept = self.residuals.get(key) if key is not None else None
+        if kept is not None:
+            self.residuals.move_to_end(key)
+            self.cache_hits += len(self.training_cut)
+            return kept.copy()
         try:
             records = [self.replay(s, overrides) for s in self.training_cut]
         except (RunAborted, PlantError):
             n = sum(2 * len(t) for t in self.spec.training.t)
             return np.full(n, self.failure_residual)
-        return normalised_residual(records, self.spec.training)
+        residual = normalised_residual(records, self.spec.training)
+        if key is not None:
+            self.residuals[key] = residual.copy()
+            while len(self.residuals) > self.spec.cache_size:
+                self.residuals.popitem(last=False)
+        return residual
 
     def __call__(self, task: SimulateTask | FitTask | JointFitTask | UncertaintyTask) -> Timed:
-        """The task's result and the CPU time it took."""
-        start = time.process_time()
+        """The task's result, the CPU and wall time it took, the replays it ran and those the
+        cache answered."""
+        start, wall = time.process_time(), time.perf_counter()
+        run, hits = self.replays_run, self.cache_hits
         if isinstance(task, SimulateTask):
             result = self.simulate(task)
         elif isinstance(task, JointFitTask):
@@ -361,7 +428,13 @@ class Replayer:
             result = self.uncertainty(task)
         else:
             result = self.fit(task)
-        return Timed(result, time.process_time() - start)
+        return Timed(
+            result,
+            time.process_time() - start,
+            time.perf_counter() - wall,
+            self.replays_run - run,
+            self.cache_hits - hits,
+        )
 
     def uncertainty(self, task: UncertaintyTask) -> Uncertainty:
         """The linearised uncertainty of a model's parameters on the training data.
@@ -498,6 +571,7 @@ class Replayer:
             FAILURE_FLOOR, FAILURE_FACTOR * float(np.sqrt(np.mean(start**2)))
         )
         best, cost, replays, message = u0, float(np.mean(start**2)), 1, "nothing to refit"
+        iterations = 0
         if len(u0):
             lower = np.r_[np.zeros(effect_count), -np.ones(len(calibrated))]
             upper = np.ones(len(u0))
@@ -514,6 +588,7 @@ class Replayer:
                 best, cost = solution.x, found
             replays += int(solution.nfev + (solution.njev or 0) * len(u0))
             message = solution.message
+            iterations = int(solution.njev or 0)
         values = values_of(best)
         return FitResult(
             "+".join(task.hypotheses),
@@ -530,6 +605,7 @@ class Replayer:
             cost,
             replays,
             message,
+            iterations=iterations,
         )
 
     def fit(self, task: FitTask) -> FitResult:
@@ -562,6 +638,7 @@ class Replayer:
                 min(costs),
                 len(candidates),
                 f"scanned {len(candidates)} values",
+                search_replays=len(candidates),
             )
 
         def residual_of_unit(u: np.ndarray) -> np.ndarray:
@@ -589,6 +666,8 @@ class Replayer:
             train_cost,
             replays,
             solution.message,
+            iterations=int(solution.njev or 0),
+            search_replays=grid_replays,
         )
 
     @staticmethod

@@ -5,31 +5,48 @@ each batch timed under a phase of the selection; keeps the calibration direction
 parameter set it was asked for (the joint refits and the backward pass ask for the same sets
 again); and replays a model with its best calibration correction.
 
+Replays of the judging runs by parameter set (:class:`JudgingCache`): a replay is deterministic,
+so a parameter set asked for again (the sequential model a joint refit is judged against, the
+candidate replay of the accepted effect, a calibration direction of a model seen before) is
+answered with the records of its first replay instead of a pool task.
+
 Where the time goes: wall seconds, pool tasks, replays and CPU per phase. Wall time on shared
 cores says as much about the other load as about the diagnosis, so each pool task also reports
 the CPU time it took (:class:`~twin_cosim.gap.which.replay.Timed`), and each batch of tasks the
 wall time it would take on otherwise idle workers (:func:`makespan`): a figure that does not
-depend on the machine's load.
+depend on the machine's load. Per fit (a hypothesis' fit, a joint refit): its replays, the
+iterations of its local fit, the replays of its start's search, its CPU and wall time.
 """
 
 from __future__ import annotations
 
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from twin_cosim.gap.floors.evidence import CalibrationBasis, CalibrationFloor
 from twin_cosim.gap.which.acceptance import Judging
-from twin_cosim.gap.which.replay import FitResult, Replays, SimulateTask, Uncertainty
+from twin_cosim.gap.which.replay import (
+    FitResult,
+    ParameterKey,
+    Replays,
+    SimulateTask,
+    Timed,
+    Uncertainty,
+)
 
 if TYPE_CHECKING:
     from twin_cosim.workers import BoundPool
 
 Progress = Callable[[int], None]
+# Judging replays the parent keeps (each about 3.6 MB for the 12.4 s of
+# scenarios/diagnosis.yaml): the repeats of a diagnosis come within a few batches.
+JUDGING_CACHE_SIZE = 32
 
 
 def makespan(durations: list[float], workers: int) -> float:
@@ -52,11 +69,21 @@ class Phase:
     tasks : int
         Pool tasks (a fit, a replay of the judging runs, a joint refit).
     replays : int
-        Replays the tasks ran (a fit's training replays, one per replayed scenario).
+        Replays the tasks asked for (a fit's training replays, one per judging scenario of a
+        replay task), whether run or answered by a cache.
     cpu_s : float
         CPU time of the tasks in the workers, s.
     idle_wall_s : float
         Wall time the phase's batches would take on otherwise idle workers, s.
+    replays_run : int
+        Replays the workers ran (a fit's replay of its base model included).
+    cache_hits : int
+        Replays answered by a cache (the workers' training residuals, the judging replays).
+    fits : list of dict
+        Per fit task, in the order they were handed out: ``fit`` (the hypothesis, or the
+        joint refit's ``a+b``), ``replays``, ``replays_run``, ``cache_hits``, ``iterations``
+        (of its local least-squares fit), ``search_replays`` (of its start's search or scan),
+        ``cpu_s`` and ``wall_s`` in the worker.
     """
 
     wall_s: float = 0.0
@@ -64,6 +91,9 @@ class Phase:
     replays: int = 0
     cpu_s: float = 0.0
     idle_wall_s: float = 0.0
+    replays_run: int = 0
+    cache_hits: int = 0
+    fits: list[dict[str, Any]] = field(default_factory=list)
 
 
 @dataclass
@@ -84,13 +114,81 @@ class PhaseTimes:
             entry.wall_s += time.perf_counter() - start
             entry.tasks += tasks
 
-    def as_dict(self) -> dict[str, dict[str, float]]:
-        """JSON-ready totals per phase and over all phases (``total``)."""
-        table = {name: dict(vars(p)) for name, p in self.phases.items()}
+    def as_dict(self) -> dict[str, dict[str, Any]]:
+        """JSON-ready totals per phase (with its fits) and over all phases (``total``)."""
+        table: dict[str, dict[str, Any]] = {
+            name: {**vars(p), "fits": list(p.fits)} for name, p in self.phases.items()
+        }
+        counted = [key for key in vars(Phase()) if key != "fits"]
         table["total"] = {
-            key: sum(getattr(p, key) for p in self.phases.values()) for key in vars(Phase())
+            key: sum(getattr(p, key) for p in self.phases.values()) for key in counted
         }
         return table
+
+
+def fit_record(timed: Timed) -> dict[str, Any] | None:
+    """What a fit task cost (:attr:`Phase.fits`), or None for another task."""
+    fit = timed.result
+    if not isinstance(fit, FitResult):
+        return None
+    return {
+        "fit": fit.hypothesis,
+        "replays": fit.replays,
+        "replays_run": timed.replays_run,
+        "cache_hits": timed.cache_hits,
+        "iterations": fit.iterations,
+        "search_replays": fit.search_replays,
+        "cpu_s": timed.cpu_s,
+        "wall_s": timed.wall_s,
+    }
+
+
+@dataclass
+class JudgingCache:
+    """Replays of :class:`~twin_cosim.gap.which.replay.SimulateTask` by the parameter set they
+    ran with, the latest :data:`JUDGING_CACHE_SIZE` kept.
+
+    Parameters
+    ----------
+    key : callable
+        The parameter set of a task's overrides
+        (:meth:`~twin_cosim.gap.which.replay.ReplaySpec.key`).
+    training_in_judging : list of int or None
+        Per training scenario the index of the same judging scenario (a time split: the
+        training replays are judging replays), or None.
+    size : int
+        Replays kept.
+    """
+
+    key: Callable[[dict[str, float]], ParameterKey]
+    training_in_judging: list[int] | None
+    size: int = JUDGING_CACHE_SIZE
+    entries: OrderedDict[tuple[ParameterKey, bool], Replays] = field(
+        default_factory=OrderedDict, repr=False
+    )
+
+    def get(self, task: SimulateTask) -> Replays | None:
+        """The replays of the task's parameter set when kept (with the training replays when
+        asked and known), else None."""
+        key = self.key(task.overrides)
+        for with_training in (task.with_training, not task.with_training):
+            found = self.entries.get((key, with_training))
+            if found is None:
+                continue
+            self.entries.move_to_end((key, with_training))
+            if not task.with_training:
+                return Replays(None, found.judging)
+            if found.training is not None:
+                return found
+            if self.training_in_judging is not None:
+                return Replays([found.judging[i] for i in self.training_in_judging], found.judging)
+        return None
+
+    def put(self, task: SimulateTask, replays: Replays) -> None:
+        """Keep the replays of the task's parameter set."""
+        self.entries[(self.key(task.overrides), task.with_training)] = replays
+        while len(self.entries) > self.size:
+            self.entries.popitem(last=False)
 
 
 def _replays_of(result: FitResult | Replays | Uncertainty) -> int:
@@ -120,6 +218,8 @@ class ReplayPool:
         Where the time went, per phase.
     bases : dict
         The calibration directions of each parameter set asked for.
+    cache : JudgingCache or None
+        The judging replays kept by parameter set (None: every replay task runs).
     """
 
     pool: BoundPool
@@ -130,21 +230,63 @@ class ReplayPool:
     progress: Progress | None = None
     times: PhaseTimes = field(default_factory=PhaseTimes)
     bases: dict[tuple, CalibrationBasis] = field(default_factory=dict, repr=False)
+    cache: JudgingCache | None = None
 
     def tasks(self, phase: str, tasks: list) -> list:
         """Results of tasks on the pool, in task order, reporting each completion; the time
-        they took and the replays they ran go to ``phase``."""
+        they took and the replays they asked for go to ``phase``. A replay task whose
+        parameter set was replayed before (or earlier in the batch) is answered from the
+        cache."""
         results: list = [None] * len(tasks)
         cpu = [0.0] * len(tasks)
+        sent, repeats = self._to_run(tasks, results)
+        fits: dict[int, dict[str, Any]] = {}
         with self.times.timed(phase, len(tasks)) as totals:
-            for i, timed in self.pool.imap(tasks):
+            for j, timed in self.pool.imap([tasks[i] for i in sent]):
+                i = sent[j]
                 results[i], cpu[i] = timed.result, timed.cpu_s
-                totals.replays += _replays_of(timed.result)
+                totals.replays_run += timed.replays_run
+                totals.cache_hits += timed.cache_hits
+                if (record := fit_record(timed)) is not None:
+                    fits[i] = record
+                if self.cache is not None and isinstance(tasks[i], SimulateTask):
+                    self.cache.put(tasks[i], timed.result)
                 if self.progress:
                     self.progress(1)
+            for i, first in repeats:
+                results[i] = results[first]
+            answered = set(range(len(tasks))) - set(sent)
+            for i, result in enumerate(results):
+                totals.replays += _replays_of(result)
+                if i in answered:
+                    totals.cache_hits += _replays_of(result)
+                    if self.progress:
+                        self.progress(1)
+            totals.fits.extend(fits[i] for i in sorted(fits))
             totals.cpu_s += sum(cpu)
             totals.idle_wall_s += makespan(cpu, self.pool.workers)
         return results
+
+    def _to_run(self, tasks: list, results: list) -> tuple[list[int], list[tuple[int, int]]]:
+        """The indices of the tasks to send to the pool, and (index, index of the same task
+        sent) of replay tasks repeated within the batch; the replay tasks the cache answers get
+        their results in ``results`` now."""
+        sent: list[int] = []
+        repeats: list[tuple[int, int]] = []
+        first: dict[tuple[ParameterKey, bool], int] = {}
+        for i, task in enumerate(tasks):
+            if self.cache is None or not isinstance(task, SimulateTask):
+                sent.append(i)
+                continue
+            key = (self.cache.key(task.overrides), task.with_training)
+            if key in first:
+                repeats.append((i, first[key]))
+            elif (kept := self.cache.get(task)) is not None:
+                results[i] = kept
+            else:
+                first[key] = i
+                sent.append(i)
+        return sent, repeats
 
     def basis(self, base: dict[str, float]) -> CalibrationBasis:
         """Calibration directions around the parameter set ``nominal + base`` (each set's
