@@ -46,7 +46,7 @@ if TYPE_CHECKING:
 Progress = Callable[[int], None]
 # Judging replays the parent keeps (each about 3.6 MB for the 12.4 s of
 # scenarios/diagnosis.yaml): the repeats of a diagnosis come within a few batches.
-JUDGING_CACHE_SIZE = 32
+JUDGING_CACHE_SIZE = 16
 
 
 def makespan(durations: list[float], workers: int) -> float:

@@ -15,6 +15,7 @@ from twin_cosim.gap.which.replay import (
     PROFILE_EVALUATIONS,
     PROFILE_POINTS,
     WARM_GENERATIONS,
+    FitTask,
     Replayer,
     bounded,
     clipped,
@@ -107,3 +108,59 @@ def test_profile_over_the_shape_finds_the_narrow_valley_of_the_true_width():
     assert np.mean(area_valley(start) ** 2) < 0.1 * np.mean(area_valley(np.array([0.2, 0.9])) ** 2)
     # each shape value: the level's evaluations and as many one-column Jacobians at most
     assert evaluations <= 2 * PROFILE_EVALUATIONS * PROFILE_POINTS
+
+
+# --- the worker's cache of training residuals, by the parameter set a replay runs with
+
+
+def test_a_parameter_set_asked_again_is_answered_by_the_cache_as_a_fresh_replay(small_spec):
+    cached, fresh = Replayer(small_spec()), Replayer(small_spec(0))
+    try:
+        guess = {"stribeck_friction": 0.15, "stribeck_speed": 0.5}
+        first = cached.training_residual(guess)
+        assert (cached.replays_run, cached.cache_hits) == (1, 0)
+        first[:] = 0.0  # what a caller does with its copy does not reach the cache
+        again = cached.training_residual(guess)
+        assert (cached.replays_run, cached.cache_hits) == (1, 1)
+        assert np.array_equal(again, fresh.training_residual(guess))  # bit for bit
+        assert np.any(again != 0.0)
+        # a value beyond its range runs clipped: the same parameter set, the same replay
+        low = cached.spec.ranges["stribeck_friction"][0]
+        beyond = cached.training_residual({**guess, "stribeck_friction": low - 1.0})
+        at_bound = cached.training_residual({**guess, "stribeck_friction": low})
+        assert (cached.replays_run, cached.cache_hits) == (2, 2)
+        assert np.array_equal(beyond, at_bound)
+        assert fresh.cache_hits == 0 and not fresh.residuals
+    finally:
+        cached.close()
+        fresh.close()
+
+
+def test_the_cache_keeps_the_latest_parameter_sets(small_spec):
+    spec = small_spec(cache_size=2)
+    replayer = Replayer(spec)
+    try:
+        for level in (0.1, 0.2, 0.3):
+            replayer.training_residual({"stribeck_friction": level})
+        assert len(replayer.residuals) == 2
+        replayer.training_residual({"stribeck_friction": 0.1})  # dropped: replayed again
+        assert (replayer.replays_run, replayer.cache_hits) == (4, 0)
+        replayer.training_residual({"stribeck_friction": 0.3})
+        assert replayer.cache_hits == 1
+    finally:
+        replayer.close()
+
+
+def test_a_fit_reports_its_iterations_and_search_and_its_cache_hits(small_spec):
+    replayer = Replayer(small_spec())
+    try:
+        timed = replayer(FitTask("coulomb_change", {}, DEFAULT_CONTEXT))
+        fit = timed.result
+        # the global search's last population member is where least squares starts: a hit
+        assert timed.cache_hits >= 1
+        assert timed.replays_run + timed.cache_hits == fit.replays + 1  # + the base model's
+        assert fit.search_replays > 0 and fit.iterations >= 1
+        assert fit.replays > fit.search_replays + fit.iterations  # each iteration: a Jacobian
+        assert timed.wall_s > 0 and timed.cpu_s > 0
+    finally:
+        replayer.close()
