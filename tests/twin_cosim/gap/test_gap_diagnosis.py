@@ -58,6 +58,33 @@ def test_null_run_accepts_nothing(tmp_path):
 
 
 @pytest.mark.slow
+def test_the_replay_caches_change_no_decision_and_no_value(tmp_path):
+    """The same diagnosis with and without the replay caches (a replay is deterministic):
+    every record of the summary is the same but where the time went; the caches answered
+    some replays, and the replays asked for are the same."""
+    scenario = load_scenario(SCENARIO)
+    synthesis = synthesize(
+        scenario, [parse_effect("coulomb_change:delta_coulomb=0.1")], perturb=0.02, seed=1
+    )
+    path = tmp_path / "run.csv"
+    synthesis.run.frame().to_csv(path, index=False)
+    settings = DiagnosisSettings(max_effects=1, hypotheses=("coulomb_change", "dead_time"))
+    results = [
+        summary(
+            diagnose(scenario, [read_measured_csv(path)], settings=settings, replay_cache=cache)
+        )
+        for cache in (True, False)
+    ]
+    cached, fresh = ({k: v for k, v in r.items() if k != "time"} for r in results)
+    assert cached["accepted"] == ["coulomb_change"]
+    assert cached == fresh
+    with_cache, without = (r["time"]["total"] for r in results)
+    assert with_cache["replays"] == without["replays"] and without["cache_hits"] == 0
+    assert with_cache["cache_hits"] > 0
+    assert with_cache["replays_run"] < without["replays_run"]
+
+
+@pytest.mark.slow
 def test_torque_ripple_is_found_and_closes_the_gap(tmp_path):
     summary = blind(tmp_path, ["torque_ripple:ripple_amplitude=0.08,ripple_order=6"])
     assert summary["accepted"] == ["torque_ripple"]
