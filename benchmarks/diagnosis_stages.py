@@ -16,7 +16,12 @@ written as CSV and read back, as ``twin synth`` then ``twin diagnose --measured`
    with fits, the fits' replays, local iterations, and the replays of their starts' searches;
 3. with ``--compare``, diagnoses each machine again without the replay caches, in the same
    run, and prints the ratios (replays run, CPU) and whether the decisions and every fitted
-   value are the same (they must be: a replay is deterministic).
+   value are the same (they must be: a replay is deterministic);
+4. with ``--lean-record``, measures what a lean compiled loop would save: the master compiled
+   just in time as it is, against a copy that records only the columns the fits and the
+   judging read (t, x, motor_angle, current), replays of the training half in turn (which goes
+   first alternates), the median of each and of the rounds' ratios, and checks that the read
+   columns are the same.
 
 The wall times follow the machine's load; the replays and the CPU per replay are the robust
 figures. Run it at ``nice -n 10`` on shared cores and say the load.
@@ -27,6 +32,7 @@ figures. Run it at ``nice -n 10`` on shared cores and say the load.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import statistics
@@ -34,6 +40,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -79,6 +86,66 @@ def replay_cost(repeats: int) -> dict[str, float]:
                 times.append(time.process_time() - start)
             cost[name] = statistics.median(times)
     return cost
+
+
+# The record's columns no fit and no judging reads: the stores a lean loop would leave out.
+UNREAD_STORES = (
+    "record[a, i, 1] = x_ref[a, i]",
+    "record[a, i, 2] = v_ref[a, i]",
+    "record[a, i, 4] = setpoint - position",
+    "record[a, i, 6] = outputs[a, OUT_SPEED]",
+    "record[a, i, 7] = sa[SPEED_CMD]",
+)
+
+
+def lean_record_ratio(rounds: int) -> dict[str, float]:
+    """CPU per training replay of the master compiled just in time, as it is and without the
+    stores of :data:`UNREAD_STORES` (medians of ``rounds``), the median of the rounds' ratios
+    lean / full; raises if the columns read differ."""
+    import numba
+
+    from twin_cosim import cosim
+    from twin_cosim.loops import kernels
+
+    source = inspect.getsource(kernels.master.py_func).replace("@numba.njit(cache=True)\n", "")
+    lean = source.replace("def master(", "def lean_master(")
+    for store in UNREAD_STORES:
+        lean = lean.replace(store, "pass")
+    namespace = dict(vars(kernels))
+    exec(source, namespace)  # the same function, compiled here as the lean one is
+    exec(lean, namespace)
+    loops = {
+        "full": SimpleNamespace(master=numba.njit(namespace["master"])),
+        "lean": SimpleNamespace(master=numba.njit(namespace["lean_master"])),
+    }
+    scenario = load_scenario(SCENARIO)
+    training = cut(scenario, scenario.reference.time[-1] / 2)
+    compiled = cosim.compiled_loops
+    times: dict[str, list[float]] = {"full": [], "lean": []}
+    records = {}
+    try:
+        with Plant(scenario.plant_fmu()) as plant:
+            for k in range(rounds + 1):  # the first round compiles
+                order = ("full", "lean") if k % 2 else ("lean", "full")
+                for name in order:
+                    cosim.compiled_loops = lambda name=name: loops[name]
+                    start = time.process_time()
+                    records[name] = run_scenario(plant, training)
+                    if k:
+                        times[name].append(time.process_time() - start)
+    finally:
+        cosim.compiled_loops = compiled
+    for column in ("t", "x", "motor_angle", "current"):
+        if not (records["full"][column] == records["lean"][column]).all():
+            raise AssertionError(f"the lean loop changes {column}")
+    return {
+        "full_cpu_s": statistics.median(times["full"]),
+        "lean_cpu_s": statistics.median(times["lean"]),
+        "ratio_of_medians": statistics.median(times["lean"]) / statistics.median(times["full"]),
+        "median_of_ratios": statistics.median(
+            [b / a for a, b in zip(times["full"], times["lean"], strict=True)]
+        ),
+    }
 
 
 def synthesized(name: str, folder: Path) -> Path:
@@ -193,6 +260,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--compare", action="store_true", help="diagnose again without the replay caches"
     )
+    parser.add_argument(
+        "--lean-record",
+        type=int,
+        default=0,
+        metavar="ROUNDS",
+        help="also time the compiled loop without the unread record columns, ROUNDS rounds",
+    )
     parser.add_argument("--json", type=Path, help="write every figure to this file")
     args = parser.parse_args(argv)
     load = os.getloadavg()[0]
@@ -203,6 +277,14 @@ def main(argv: list[str] | None = None) -> int:
         f"load average {load:.2f}"
     )
     report: dict[str, Any] = {"replay_cost": cost, "load_before": load, "machines": {}}
+    if args.lean_record:
+        lean = report["lean_record"] = lean_record_ratio(args.lean_record)
+        print(
+            f"lean record: {lean['lean_cpu_s']:.4f} s against {lean['full_cpu_s']:.4f} s CPU per "
+            f"training replay (medians of {args.lean_record}), ratio of the medians "
+            f"{lean['ratio_of_medians']:.3f}, median of the rounds' ratios "
+            f"{lean['median_of_ratios']:.3f}; t, x, motor_angle and current the same"
+        )
     identical = True
     with tempfile.TemporaryDirectory() as folder:
         for name in args.machines:
