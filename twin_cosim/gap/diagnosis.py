@@ -65,7 +65,7 @@ from twin_cosim.gap.location import Location, locate
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.gap.which.acceptance import Judging
-from twin_cosim.gap.which.replay import TRAINING_CACHE_SIZE, Replays, ReplaySpec, TrainingData
+from twin_cosim.gap.which.replay import TRAINING_CACHE_BYTES, Replays, ReplaySpec, TrainingData
 from twin_cosim.gap.which.replay_pool import JudgingCache, ReplayPool
 from twin_cosim.gap.which.selector import Round, Selection, Selector, Swap
 from twin_cosim.measured import MeasuredRun
@@ -440,7 +440,7 @@ def _replay_spec(
         training,
         context.model,
         context.ranges,
-        TRAINING_CACHE_SIZE if cache else 0,
+        TRAINING_CACHE_BYTES if cache else 0,
     )
 
 

@@ -12,8 +12,8 @@ A :class:`ReplaySpec` (the scenarios, numbers and the training data: it pickles)
 Each result comes back with the CPU and wall time the task took and the replays a cache
 answered (:class:`Timed`).
 
-A worker keeps the training residuals of the parameter sets it replayed last
-(:data:`TRAINING_CACHE_SIZE`), keyed by the exact FMU parameters a replay runs with
+A worker keeps the training residuals of the parameter sets it replayed last (up to
+:data:`TRAINING_CACHE_BYTES`), keyed by the exact FMU parameters a replay runs with
 (:func:`parameter_key`: nominal plus overrides, clipped into their ranges): a replay is
 deterministic, so a parameter set asked for again (the base model every fit of a round starts
 from, a least-squares fit's start that its global search evaluated, the model a joint refit
@@ -70,10 +70,10 @@ PROFILE_EVALUATIONS = 3
 UNCERTAINTY_DRAWS = 400  # draws of a model's parameters that give its FMU parameters' intervals
 FAILURE_FACTOR = 10.0  # a failed replay's residual, relative to the fit's starting residual
 FAILURE_FLOOR = 1e3  # least normalised residual per sample of a failed replay
-# Training residuals a worker keeps (about 0.4 MB each for the 6.2 s training half of
-# scenarios/diagnosis.yaml): more than the replays of one fit, so that the base model every fit
-# of a round starts from stays in while the fits run.
-TRAINING_CACHE_SIZE = 128
+# Bytes of training residuals a worker keeps: 160 of the 6.2 s training half of
+# scenarios/diagnosis.yaml (0.4 MB each), more than the replays of one fit, so that the base
+# model every fit of a round starts from stays in while the fits run.
+TRAINING_CACHE_BYTES = 64 * 2**20
 
 ParameterKey = tuple[tuple[str, float], ...]
 
@@ -333,8 +333,9 @@ class ReplaySpec:
         The FMU's model identifier, which selects the hypothesis library.
     ranges : dict
         (min, max) of every FMU parameter, from the variable table.
-    cache_size : int
-        Training residuals a worker keeps by parameter set (0: none kept).
+    cache_bytes : int
+        Bytes of training residuals a worker keeps by parameter set, the latest first (0: none
+        kept).
     """
 
     training_scenarios: list[Scenario]
@@ -344,7 +345,7 @@ class ReplaySpec:
     training: TrainingData
     model: str
     ranges: dict[str, tuple[float, float]]
-    cache_size: int = TRAINING_CACHE_SIZE
+    cache_bytes: int = TRAINING_CACHE_BYTES
 
     def key(self, overrides: dict[str, float]) -> ParameterKey:
         """The parameter set a replay with ``overrides`` runs with (:func:`parameter_key`)."""
@@ -397,7 +398,7 @@ class Replayer:
     def training_residual(self, overrides: dict[str, float]) -> np.ndarray:
         """Normalised training residual; a failed replay scores a large constant residual (the
         fit's own, never kept). A parameter set replayed lately is answered from the cache."""
-        key = self.spec.key(overrides) if self.spec.cache_size else None
+        key = self.spec.key(overrides) if self.spec.cache_bytes else None
         kept = self.residuals.get(key) if key is not None else None
         if kept is not None:
             self.residuals.move_to_end(key)
@@ -411,7 +412,7 @@ class Replayer:
         residual = normalised_residual(records, self.spec.training)
         if key is not None:
             self.residuals[key] = residual.copy()
-            while len(self.residuals) > self.spec.cache_size:
+            while sum(r.nbytes for r in self.residuals.values()) > self.spec.cache_bytes:
                 self.residuals.popitem(last=False)
         return residual
 

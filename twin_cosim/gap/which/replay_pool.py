@@ -44,9 +44,9 @@ if TYPE_CHECKING:
     from twin_cosim.workers import BoundPool
 
 Progress = Callable[[int], None]
-# Judging replays the parent keeps (each about 3.6 MB for the 12.4 s of
-# scenarios/diagnosis.yaml): the repeats of a diagnosis come within a few batches.
-JUDGING_CACHE_SIZE = 16
+# Bytes of judging replays the parent keeps (16 of the 12.4 s of scenarios/diagnosis.yaml, 3.6
+# MB each): the repeats of a diagnosis come within a few batches.
+JUDGING_CACHE_BYTES = 64 * 2**20
 
 
 def makespan(durations: list[float], workers: int) -> float:
@@ -143,10 +143,16 @@ def fit_record(timed: Timed) -> dict[str, Any] | None:
     }
 
 
+def _record_bytes(replays: Replays) -> int:
+    """Bytes of the distinct records of a task's replays."""
+    records = {id(r): r for r in [*(replays.training or []), *replays.judging]}
+    return sum(r.to_numpy().nbytes for r in records.values())
+
+
 @dataclass
 class JudgingCache:
     """Replays of :class:`~twin_cosim.gap.which.replay.SimulateTask` by the parameter set they
-    ran with, the latest :data:`JUDGING_CACHE_SIZE` kept.
+    ran with, the latest kept up to :data:`JUDGING_CACHE_BYTES`.
 
     Parameters
     ----------
@@ -156,13 +162,13 @@ class JudgingCache:
     training_in_judging : list of int or None
         Per training scenario the index of the same judging scenario (a time split: the
         training replays are judging replays), or None.
-    size : int
-        Replays kept.
+    size_bytes : int
+        Bytes of records kept.
     """
 
     key: Callable[[dict[str, float]], ParameterKey]
     training_in_judging: list[int] | None
-    size: int = JUDGING_CACHE_SIZE
+    size_bytes: int = JUDGING_CACHE_BYTES
     entries: OrderedDict[tuple[ParameterKey, bool], Replays] = field(
         default_factory=OrderedDict, repr=False
     )
@@ -187,7 +193,7 @@ class JudgingCache:
     def put(self, task: SimulateTask, replays: Replays) -> None:
         """Keep the replays of the task's parameter set."""
         self.entries[(self.key(task.overrides), task.with_training)] = replays
-        while len(self.entries) > self.size:
+        while sum(map(_record_bytes, self.entries.values())) > self.size_bytes:
             self.entries.popitem(last=False)
 
 

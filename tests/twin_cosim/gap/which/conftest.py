@@ -9,7 +9,7 @@ import pytest
 
 from twin_cosim.cosim import run_scenario
 from twin_cosim.gap.data.context import variable_ranges
-from twin_cosim.gap.which.replay import TRAINING_CACHE_SIZE, ReplaySpec, TrainingData, cut
+from twin_cosim.gap.which.replay import TRAINING_CACHE_BYTES, ReplaySpec, TrainingData, cut
 from twin_cosim.plant import Plant
 from twin_cosim.scenario import load_scenario
 
@@ -19,9 +19,9 @@ STRIBECK_SET = {"stribeck_friction": 0.2, "stribeck_speed": 0.4}  # N.m, rad/s
 
 @pytest.fixture()
 def small_spec(fmu_path: Path) -> Callable[..., ReplaySpec]:
-    """``small_spec(cache_size)``: replays of the first second of scenarios/diagnosis.yaml
+    """``small_spec(cache_bytes)``: replays of the first second of scenarios/diagnosis.yaml
     (0.5 s trained on, the whole second judged: a time split), its "measurement" the twin with
-    Stribeck friction; ``cache_size`` training residuals kept by a worker."""
+    Stribeck friction; ``cache_bytes`` of training residuals kept by a worker."""
     scenario = cut(load_scenario(ROOT / "scenarios" / "diagnosis.yaml"), 1.0)
     with Plant(fmu_path) as plant:
         ranges = variable_ranges(plant)
@@ -38,7 +38,7 @@ def small_spec(fmu_path: Path) -> Callable[..., ReplaySpec]:
         0.5,  # s
     )
 
-    def spec(cache_size: int = TRAINING_CACHE_SIZE) -> ReplaySpec:
+    def spec(cache_bytes: int = TRAINING_CACHE_BYTES) -> ReplaySpec:
         return ReplaySpec(
             [scenario],
             [scenario],
@@ -47,7 +47,7 @@ def small_spec(fmu_path: Path) -> Callable[..., ReplaySpec]:
             training,
             "drive2mass",
             ranges,
-            cache_size,
+            cache_bytes,
         )
 
     return spec

@@ -137,8 +137,10 @@ def test_a_parameter_set_asked_again_is_answered_by_the_cache_as_a_fresh_replay(
 
 
 def test_the_cache_keeps_the_latest_parameter_sets(small_spec):
-    spec = small_spec(cache_size=2)
-    replayer = Replayer(spec)
+    replayer = Replayer(small_spec())
+    residual_bytes = replayer.training_residual({}).nbytes
+    replayer.close()
+    replayer = Replayer(small_spec(cache_bytes=2 * residual_bytes))  # two residuals
     try:
         for level in (0.1, 0.2, 0.3):
             replayer.training_residual({"stribeck_friction": level})
