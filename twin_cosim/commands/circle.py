@@ -27,13 +27,13 @@ def _positive(text: str) -> float:
     return value
 
 
-def add_arguments(subparsers) -> None:
+def add_circle(subparsers) -> None:
     """The ``circle`` command and its options."""
     parser = command_parser(
         subparsers,
         "circle",
         "circular test (ISO 230-4: G, H, F, reversal spikes) on a machine",
-        run,
+        run_circle,
     )
     parser.add_argument("scenario", help="machine scenario (axes: X, Y), file or shipped name")
     parser.add_argument(
@@ -69,7 +69,7 @@ def add_arguments(subparsers) -> None:
     )
 
 
-def run(args: argparse.Namespace) -> int:
+def run_circle(args: argparse.Namespace) -> int:
     """Run the circle(s), write circle.json, circle.png and the records; print the result."""
     from twin_cosim.contour.circle_report import circular_test
 

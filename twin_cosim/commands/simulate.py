@@ -42,9 +42,9 @@ if TYPE_CHECKING:
     from twin_cosim.scenario import Scenario
 
 
-def add_arguments(subparsers) -> None:
+def add_simulate(subparsers) -> None:
     """The ``simulate`` command and its options."""
-    parser = command_parser(subparsers, "simulate", "run a scenario in closed loop", run)
+    parser = command_parser(subparsers, "simulate", "run a scenario in closed loop", run_simulate)
     parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     params_option(parser)
     plant_option(parser)
@@ -76,7 +76,7 @@ def add_arguments(subparsers) -> None:
     data_option(parser)
 
 
-def run(args: argparse.Namespace) -> int:
+def run_simulate(args: argparse.Namespace) -> int:
     """Simulate, write record.csv and summary.json, print the result, then plot run.png; 1 when
     the loop diverged or oscillates (a limit cycle, a chattering current). A machine scenario
     (axes:) or a part program runs on every axis."""
