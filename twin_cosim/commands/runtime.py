@@ -79,7 +79,7 @@ def add_serve(subparsers) -> None:
 
 def security_options(parser: argparse.ArgumentParser, who: str) -> None:
     """``--security``, ``--certificate``, ``--private-key`` (the user from the environment)."""
-    from twin_cosim.runtime.security import MODES, PASSWORD_ENV, USER_ENV
+    from twin_cosim.runtime.opcua import MODES, PASSWORD_ENV, USER_ENV
 
     parser.add_argument(
         "--security",
@@ -103,8 +103,8 @@ def run_serve(args: argparse.Namespace) -> int:
     import asyncio
 
     from twin_cosim.gap.synth import parse_effect
-    from twin_cosim.runtime.security import security_from
-    from twin_cosim.runtime.server import MachineServer, serve_machine
+    from twin_cosim.runtime.opcua import security_from
+    from twin_cosim.runtime.opcua import MachineServer, serve_machine
     from twin_cosim.runtime.virtual_machine import draw_machine, parse_drift
     from twin_cosim.scenario import resolve_scenario
 
@@ -215,8 +215,8 @@ def add_watch(subparsers) -> None:
 
 def run_watch(args: argparse.Namespace) -> int:
     """Watch; exit 0 without an alarm, 1 with alarms or a link given up, 128 + N on signal N."""
-    from twin_cosim.runtime.report import write_report
-    from twin_cosim.runtime.security import security_from
+    from twin_cosim.runtime.watch_log import write_report
+    from twin_cosim.runtime.opcua import security_from
     from twin_cosim.runtime.tracker import tracked_parameters
     from twin_cosim.runtime.watch import WatchOptions, watch
     from twin_cosim.scenario import resolve_scenario

@@ -1,7 +1,7 @@
 """``twin watch``: the twin beside the running machine.
 
 Three tasks share one event loop: the link reads each window off the server
-(:mod:`twin_cosim.runtime.link`) into a short queue; the checker takes them in order and runs
+(:mod:`twin_cosim.runtime.opcua`) into a short queue; the checker takes them in order and runs
 the tracker on each (:mod:`twin_cosim.runtime.tracker`; in a process of its own that owns the
 plant, so that a replay never holds up the link's reading); an alarm starts its diagnosis in
 another process (:mod:`twin_cosim.runtime.alarm_diagnosis`), whose answer joins the log when
@@ -9,16 +9,26 @@ it comes. The queue
 absorbs a slow window (the calibration); a checker slower than the machine for long fills it,
 the link then reads late and counts the windows it missed. Everything goes to the log
 (:mod:`twin_cosim.runtime.watch_log`) as it happens, alarms also to stderr and, when the server
-allows it, into its twin namespace; the live page (:mod:`twin_cosim.runtime.dashboard`) shows
-the same.
+allows it, into its twin namespace; the live page (:class:`Dashboard`) shows the same.
 
 SIGINT and SIGTERM stop the watch at once: the window being checked is dropped, a running
 diagnosis is ended, the log gets its ``end`` line, and the command exits 130 or 143.
+
+**The live page** of ``twin watch --dashboard PORT``: served on 127.0.0.1 only, the gap and the
+tracked effects' values per window, the last window's twin against the machine, and the
+alarms, updating as windows arrive.
+
+The page is one HTML file with its script inline (``dashboard.html`` beside this module; no
+file or library from elsewhere): it asks ``/state.json`` every second and draws SVG charts.
+The server is the standard library's HTTP server in a thread of its own, serving the
+watch's latest state (a dictionary the watch replaces whole after each window, so a reader
+never sees half an update).
 """
 
 from __future__ import annotations
 
 import asyncio
+import json
 import multiprocessing
 import os
 import signal
@@ -28,6 +38,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
 
@@ -42,11 +53,18 @@ from twin_cosim.runtime.alarm_diagnosis import (
     run_alarm_diagnosis,
     with_baseline,
 )
-from twin_cosim.runtime.information_model import WindowError, window_of
-from twin_cosim.runtime.link import LinkEvent, MachineLink, Missed, Notice, Received
-from twin_cosim.runtime.security import Security
+from twin_cosim.runtime.opcua import (
+    LinkEvent,
+    MachineLink,
+    Missed,
+    Notice,
+    Received,
+    Security,
+    WindowError,
+    window_of,
+)
 from twin_cosim.runtime.tracker import DEFAULT_TRACKED, UNEXPLAINED, Alarm, Tracker, WindowCheck
-from twin_cosim.runtime.watch_log import LOG_NAME, WindowLog, quantity
+from twin_cosim.runtime.watch_log import LOG_NAME, READABLE, WindowLog, plain, quantity
 from twin_cosim.runtime.window_replay import measured_run, window_case
 from twin_cosim.scenario import Scenario
 
@@ -427,8 +445,6 @@ class Watch:
         """Watch until the window limit, a signal, or the link gives up."""
         loop = asyncio.get_running_loop()
         if self.options.dashboard_port is not None:
-            from twin_cosim.runtime.dashboard import Dashboard
-
             self.dashboard = Dashboard(self.options.dashboard_port)
             self.dashboard.start()
         queue: asyncio.Queue[LinkEvent | None] = asyncio.Queue(QUEUE_WINDOWS)
@@ -490,7 +506,7 @@ class Watch:
     async def _read(self, queue: asyncio.Queue) -> None:
         """The link's events into the queue (waiting while it is full), until the window
         limit or the link gives up; then the end mark."""
-        from twin_cosim.runtime.link import LinkLost
+        from twin_cosim.runtime.opcua import LinkLost
 
         events = self.link.events()
         limit = self.options.windows
@@ -723,3 +739,72 @@ def rtf_figures(factors: list[float]) -> dict[str, float]:
     if not len(values):
         return {}
     return {"median": float(np.median(values)), "worst": float(np.min(values))}
+
+
+LOOPBACK = "127.0.0.1"
+
+PAGE = Path(__file__).with_name("dashboard.html")  # the page, its script inline
+
+
+class Dashboard:
+    """The live page's HTTP server on 127.0.0.1.
+
+    Parameters
+    ----------
+    port
+        TCP port.
+
+    Attributes
+    ----------
+    state : dict
+        The watch's latest state, replaced whole by the watch: ``windows`` (per window:
+        ``window``, ``sequence``, ``real_time_factor``, ``gap``, ``unexplained``,
+        ``values``), ``alarms`` (their log lines), ``last`` (the last window's ``t``,
+        ``position``, ``twin_position``, ``current``, ``twin_current``), ``units``,
+        ``status``.
+    """
+
+    def __init__(self, port: int) -> None:
+        self.state: dict[str, Any] = {"windows": [], "alarms": [], "last": None, "status": ""}
+        page = PAGE.read_text().replace("__READABLE__", json.dumps(READABLE)).encode()
+        owner = self
+
+        class Handler(BaseHTTPRequestHandler):
+            def do_GET(self) -> None:  # noqa: N802 - the standard library's name
+                if self.path in ("/", "/index.html"):
+                    body, kind = page, "text/html; charset=utf-8"
+                elif self.path.startswith("/state.json"):
+                    body, kind = json.dumps(plain(owner.state)).encode(), "application/json"
+                else:
+                    self.send_error(404)
+                    return
+                self.send_response(200)
+                self.send_header("Content-Type", kind)
+                self.send_header("Content-Length", str(len(body)))
+                self.send_header("Cache-Control", "no-store")
+                self.end_headers()
+                self.wfile.write(body)
+
+            def log_message(self, format: str, *args: Any) -> None:
+                return  # the watch's output is its own
+
+        try:
+            self.server = ThreadingHTTPServer((LOOPBACK, port), Handler)
+        except OSError as exc:
+            raise OSError(f"--dashboard {port}: cannot listen on {LOOPBACK} ({exc})") from None
+        self.server.daemon_threads = True
+        self._thread = threading.Thread(target=self.server.serve_forever, daemon=True)
+
+    @property
+    def url(self) -> str:
+        """The page's address."""
+        return f"http://{LOOPBACK}:{self.server.server_address[1]}/"
+
+    def start(self) -> None:
+        """Serve in a thread of its own."""
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop serving."""
+        self.server.shutdown()
+        self.server.server_close()
