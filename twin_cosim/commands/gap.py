@@ -443,8 +443,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
     The replay pool's processes start first, so that they load the co-simulation while this
     process reads the runs and replays the nominal twin.
     """
-    from twin_cosim.pool_runs import prepare_replay_worker
-    from twin_cosim.workers import make_pool
+    from twin_cosim.workers import make_pool, prepare_replay_worker
 
     with make_pool(None, args.workers, prepare_replay_worker) as pool:
         return _run_on(args, pool)

@@ -185,9 +185,8 @@ def run_optimize(args: argparse.Namespace) -> int:
     while this process reads the campaign.
     """
     from twin_cosim.painter import Painter
-    from twin_cosim.pool_runs import prepare_campaign_worker
     from twin_cosim.scenario import is_machine_scenario
-    from twin_cosim.workers import make_pool
+    from twin_cosim.workers import make_pool, prepare_campaign_worker
 
     if is_machine_scenario(args.scenario[0]):
         return run_machine_campaign(args)

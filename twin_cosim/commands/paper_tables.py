@@ -38,8 +38,7 @@ def add_table3(subparsers) -> None:
 
 def run_table3(args: argparse.Namespace) -> int:
     """Run every set on every scenario; write table3.md, table3.csv and the error plots."""
-    from twin_cosim import paper
-    from twin_cosim.controller_set import ControllerSet
+    from twin_cosim.controller_set import TABLE3, ControllerSet
     from twin_cosim.report import evaluate_sets, markdown_table, plot_set_errors
     from twin_cosim.scenario import resolve_scenario
     from twin_cosim.workers import SerialPool
@@ -49,7 +48,7 @@ def run_table3(args: argparse.Namespace) -> int:
         warn_plant_mismatch(scenario, plant_path(args))
     out = out_folder(args.out, Path("out") / "table3")
     out.mkdir(parents=True, exist_ok=True)
-    sets = {name.upper(): ControllerSet(tuned) for name, tuned in paper.TABLE3.items()}
+    sets = {name.upper(): ControllerSet(tuned) for name, tuned in TABLE3.items()}
     first = next(iter(scenarios.values()))
     with SerialPool() as pool:
         table, records = evaluate_sets(pool, first.plant_fmu(plant_path(args)), scenarios, sets)
@@ -107,8 +106,7 @@ def run_compare(args: argparse.Namespace) -> int:
     One pool serves every method; its processes start first, so that they load the
     co-simulation while this process reads the campaign file.
     """
-    from twin_cosim.pool_runs import prepare_campaign_worker
-    from twin_cosim.workers import make_pool
+    from twin_cosim.workers import make_pool, prepare_campaign_worker
 
     with make_pool(None, 1 if args.scheduler else args.workers, prepare_campaign_worker) as pool:
         from twin_cosim.optimize.comparison import load_comparison, run_comparison

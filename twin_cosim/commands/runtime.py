@@ -103,8 +103,7 @@ def run_serve(args: argparse.Namespace) -> int:
     import asyncio
 
     from twin_cosim.gap.synth import parse_effect
-    from twin_cosim.runtime.opcua import security_from
-    from twin_cosim.runtime.opcua import MachineServer, serve_machine
+    from twin_cosim.runtime.opcua import MachineServer, security_from, serve_machine
     from twin_cosim.runtime.virtual_machine import draw_machine, parse_drift
     from twin_cosim.scenario import resolve_scenario
 
@@ -215,10 +214,10 @@ def add_watch(subparsers) -> None:
 
 def run_watch(args: argparse.Namespace) -> int:
     """Watch; exit 0 without an alarm, 1 with alarms or a link given up, 128 + N on signal N."""
-    from twin_cosim.runtime.watch_log import write_report
     from twin_cosim.runtime.opcua import security_from
     from twin_cosim.runtime.tracker import tracked_parameters
     from twin_cosim.runtime.watch import WatchOptions, watch
+    from twin_cosim.runtime.watch_log import write_report
     from twin_cosim.scenario import resolve_scenario
 
     security = security_from(args.security, args.certificate, args.private_key)

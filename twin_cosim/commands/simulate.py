@@ -122,7 +122,7 @@ def _run_scenario(args: argparse.Namespace, painter: Painter | None) -> int:
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
     drawn = True
     if painter is not None:
-        from twin_cosim.paper import set_name
+        from twin_cosim.controller_set import set_name
 
         title = f"{scenario.name}: {args.params or set_name(scenario.tuned)}"
         sys.stdout.flush()  # the results show while the figure is drawn

@@ -74,10 +74,10 @@ from twin_cosim.optimize.store import (
     settings_fingerprint,
 )
 from twin_cosim.plant import PlantError
-from twin_cosim.pool_runs import prepare_worker
 from twin_cosim.scenario import load_axes_parameters, load_machine
 from twin_cosim.scenario.machine import MachineScenario
 from twin_cosim.schema import Checker
+from twin_cosim.workers import prepare_worker
 
 TARGETS = ("G", "spike", "contour")
 KEYS = {"target", "relative", "circles", "bounds", "iau_cap", "abort_error_um", "penalty_um"}

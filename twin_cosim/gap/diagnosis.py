@@ -71,10 +71,9 @@ from twin_cosim.gap.which.selector import Round, Selection, Selector, Swap
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
 from twin_cosim.plant_model import plant_model
-from twin_cosim.pool_runs import prepare_replay_worker
 from twin_cosim.scenario import Scenario
 from twin_cosim.scenario.plant_file import PlantParameters
-from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, make_pool
+from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, make_pool, prepare_replay_worker
 
 ProgressFactory = Callable[[int, str], Callable[[int], None]]
 # Wording of the verdict only: a rejected hypothesis that cuts the raw held-out gap by this share

@@ -68,9 +68,8 @@ from twin_cosim.gap.data.context import estimate_resolution
 from twin_cosim.gap.data.residuals import joined
 from twin_cosim.gap.floors.noise import Floors, noise_floors
 from twin_cosim.gap.settings import DiagnosisSettings
-from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.plant import Plant
-from twin_cosim.plant_model import plant_model
+from twin_cosim.plant_model import Hypothesis, plant_model
 from twin_cosim.run_record import RunRecord
 from twin_cosim.runtime.opcua import Window
 from twin_cosim.runtime.window_replay import (

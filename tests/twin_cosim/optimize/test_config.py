@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from twin_cosim.controller_set import TABLE3
 from twin_cosim.optimize.config import DEFAULT_BOUNDS, load_config, within_bounds
-from twin_cosim.paper import TABLE3
 from twin_cosim.scenario import ScenarioError, load_scenario
 
 BASE = (

@@ -7,12 +7,11 @@ import json
 import pytest
 from scenario_texts import scenario_text
 
-from twin_cosim.controller_set import ControllerSet
+from twin_cosim.controller_set import TABLE3, ControllerSet
 from twin_cosim.current_filters import Notch
 from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec
 from twin_cosim.optimize.config import load_config
 from twin_cosim.optimize.driver import run_campaign
-from twin_cosim.paper import TABLE3
 from twin_cosim.scenario import ScenarioError, load_controller_set, load_scenario
 
 NOTCH = (

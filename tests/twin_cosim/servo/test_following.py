@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from twin_cosim.paper import TABLE3
+from twin_cosim.controller_set import TABLE3
 from twin_cosim.scenario import load_scenario
 from twin_cosim.servo.following import following_test
 

@@ -48,8 +48,8 @@ from twin_cosim.gap.floors.evidence import (
 from twin_cosim.gap.floors.noise import Floors, MetricComparison, compare_metrics, metrics_off
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.which.replay import FitResult, Replays
-from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.measured import MeasuredRun
+from twin_cosim.plant_model import Hypothesis
 from twin_cosim.reference import ReferenceGrid
 
 

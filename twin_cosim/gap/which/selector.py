@@ -109,7 +109,7 @@ from twin_cosim.gap.which.replay import (
     shape_index,
 )
 from twin_cosim.gap.which.replay_pool import ReplayPool
-from twin_cosim.hypotheses import Hypothesis
+from twin_cosim.plant_model import Hypothesis
 
 
 @dataclass(frozen=True)
