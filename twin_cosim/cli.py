@@ -122,8 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if getattr(args, "data", None):
         os.environ[DATA_ENV] = args.data  # also seen by worker processes
-    from twin_cosim.interrupts import Terminated, stop_handlers
-    from twin_cosim.workers import command_temp_folder
+    from twin_cosim.workers import Terminated, command_temp_folder, stop_handlers
 
     with stop_handlers():  # a second signal never interrupts the shutdown the first began
         try:

@@ -14,7 +14,7 @@ from twin_cosim.machine import machine_metrics, prediction
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.plant import Plant
 from twin_cosim.scenario import load_scenario
-from twin_cosim.scenario.plant_file import PlantParameters, write_plant_parameters
+from twin_cosim.scenario.plant_parameters import PlantParameters, write_plant_parameters
 
 SHORT = scenario_text(speed=0.01, acceleration=0.1, move=0.4)
 

@@ -57,7 +57,7 @@ def add_step(subparsers) -> None:
 
 def run_step(args: argparse.Namespace) -> int:
     """Run the step, write step.json, step.txt, step.csv and step.png; print the table."""
-    from twin_cosim.servo.step import describe, plot_step, step_test
+    from twin_cosim.servo.position_loop import describe_step, plot_step, step_test
 
     _, warnings, out, result = run_axis_test(
         args,
@@ -76,7 +76,7 @@ def run_step(args: argparse.Namespace) -> int:
             f"twin step: note: the current reached its limit ({summary['current_limit_A']:g} A): "
             "the step is too large for a linear response"
         )
-    write_report(out, "step", summary, describe(result), files, warnings, args.json)
+    write_report(out, "step", summary, describe_step(result), files, warnings, args.json)
     return 0
 
 
@@ -101,7 +101,7 @@ def add_kv(subparsers) -> None:
 
 def run_kv(args: argparse.Namespace) -> int:
     """Run the speed levels, write kv.json, kv.txt and kv.png; print the table."""
-    from twin_cosim.servo.following import describe, following_test, plot_following
+    from twin_cosim.servo.position_loop import describe_following, following_test, plot_following
 
     _, warnings, out, result = run_axis_test(
         args, "kv", lambda plant, scenario: following_test(plant, scenario, args.speeds, args.dwell)
@@ -109,7 +109,9 @@ def run_kv(args: argparse.Namespace) -> int:
     files: dict[str, str] = {}
     if not args.no_plots:
         files["plot"] = str(plot_following(result, out / "kv.png", command_line("kv")))
-    write_report(out, "kv", result.summary(), describe(result), files, warnings, args.json)
+    write_report(
+        out, "kv", result.summary(), describe_following(result), files, warnings, args.json
+    )
     return 0
 
 
@@ -154,7 +156,7 @@ def run_friction(args: argparse.Namespace) -> int:
     import numpy as np
     import pandas as pd
 
-    from twin_cosim.scenario.plant_file import write_plant_parameters
+    from twin_cosim.scenario.plant_parameters import write_plant_parameters
     from twin_cosim.servo.friction import (
         default_speeds,
         describe,

@@ -130,11 +130,10 @@ def _print_circle(args: argparse.Namespace, summary: dict[str, Any], out: Path) 
 
 def _measured(args: argparse.Namespace, out: Path, command: str) -> int:
     """Replay and diagnose a measured test (the diagnosis of
-    :func:`twin_cosim.contour.circle_diagnosis.diagnose_circle`); write circle.json and
+    :func:`twin_cosim.contour.measured_circle.diagnose_circle`); write circle.json and
     circle.png (machine and twin); print the verdict."""
-    from twin_cosim.contour.circle_diagnosis import diagnose_circle
     from twin_cosim.contour.circle_report import paths_table, plot_circle
-    from twin_cosim.contour.measured_circle import read_measured_circle
+    from twin_cosim.contour.measured_circle import diagnose_circle, read_measured_circle
     from twin_cosim.scenario import load_machine
 
     machine = load_machine(args.scenario)

@@ -196,7 +196,7 @@ def _write_machine(path: Path, scenario: Scenario, truth: dict, out: Path, fmu: 
     the scenario's plant parameters with those synth changed; False for an FMU (``--plant``)
     of no model of the project."""
     from twin_cosim.plant_model import model_names
-    from twin_cosim.scenario.plant_file import PlantParameters, write_plant_parameters
+    from twin_cosim.scenario.plant_parameters import PlantParameters, write_plant_parameters
 
     model = scenario.model_name(Path(fmu) if fmu else None)
     if model not in model_names():
@@ -305,9 +305,9 @@ def run_machine_synth(
     ``library_effect(text, model)`` reads an ``--effect`` of a plant model's library (the one
     of ``twin synth`` for one axis)."""
     from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec, circle_motion
-    from twin_cosim.contour.circle_diagnosis import synthesize_motion
     from twin_cosim.contour.gcode import read_program
     from twin_cosim.contour.machine_run import plan_on
+    from twin_cosim.contour.measured_circle import synthesize_motion
     from twin_cosim.scenario import load_machine
 
     for option in _SINGLE_AXIS_OPTIONS:

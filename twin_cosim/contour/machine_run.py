@@ -6,7 +6,7 @@ runs on its own plant instance in the master (:func:`twin_cosim.cosim.run_axes`)
 contour record puts the programmed and the actual positions side by side with the contour
 error: the distance of the tool point to the programmed path (the tool point is the axes'
 positions moved by the machine's geometric errors,
-:class:`~twin_cosim.scenario.machine_geometry.MachineGeometry`). :func:`plot_contour` draws a
+:class:`~twin_cosim.scenario.machine.MachineGeometry`). :func:`plot_contour` draws a
 program's run.
 """
 
@@ -26,8 +26,7 @@ from twin_cosim.metrics import UM_PER_M, compute_metrics
 from twin_cosim.plant import Plant
 from twin_cosim.reference import ReferenceGrid, interpolate
 from twin_cosim.run_record import RunRecord
-from twin_cosim.scenario.machine import MachineScenario
-from twin_cosim.scenario.machine_geometry import MachineGeometry
+from twin_cosim.scenario.machine import MachineGeometry, MachineScenario
 
 MAGNIFICATION_SHARE = 0.05  # the drawn contour error at its largest: this share of the part's size
 

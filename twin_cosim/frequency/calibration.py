@@ -1,12 +1,12 @@
 """``twin calibrate --frf``: the two-mass parameters from a plant FRF, as ``plant.yaml``; the FRF
 files it reads (and ``twin bode`` writes), and the fit.
 
-The FRF file is read with its checks, its low-coherence bands masked; the two-mass model is
-fitted to the rest and its J_M, J_L, f_1, D_1 and F_V written as a plant parameter file
-(:mod:`twin_cosim.scenario.plant_file`) with where each value came from. The FRF is motor speed
-over the drive's torque setpoint, so the inertias are those that the drive's torque constant
-sees. Another calibration of the same machine (``--beside``, e.g. the ``plant.yaml`` of
-``twin diagnose``, the time-domain calibration) is reported beside it, parameter by parameter.
+The FRF file is read with its checks, its low-coherence bands masked; the two-mass model is fitted
+to the rest and its J_M, J_L, f_1, D_1 and F_V written as a plant parameter file
+(:mod:`twin_cosim.scenario.plant_parameters`) with where each value came from. The FRF is motor
+speed over the drive's torque setpoint, so the inertias are those that the drive's torque constant
+sees. Another calibration of the same machine (``--beside``, e.g. the ``plant.yaml`` of ``twin
+diagnose``, the time-domain calibration) is reported beside it, parameter by parameter.
 
 FRF files: a plant's measured frequency response as CSV. Layout (``#`` lines are comments; a
 header row names the columns)::
@@ -68,7 +68,7 @@ from twin_cosim.frequency.linear import TwoMass
 from twin_cosim.frequency.measurement import FrequencyResponse
 from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario import Scenario
-from twin_cosim.scenario.plant_file import (
+from twin_cosim.scenario.plant_parameters import (
     PlantParameters,
     fitted_plant,
     read_plant_parameters,

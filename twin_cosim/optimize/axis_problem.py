@@ -56,7 +56,7 @@ from twin_cosim.scenario import (
     resolve_scenario,
     with_controller_set,
 )
-from twin_cosim.scenario.plant_file import read_plant_parameters
+from twin_cosim.scenario.plant_parameters import read_plant_parameters
 from twin_cosim.workers import prepare_campaign_worker
 
 if TYPE_CHECKING:

@@ -30,7 +30,7 @@ from twin_cosim.controller import TUNED_NAMES, ControllerSettings, TunedParamete
 from twin_cosim.controller_set import TABLE3, ControllerSet
 from twin_cosim.current_filters import CurrentFilter
 from twin_cosim.plant_model import DRIVE_FACTS
-from twin_cosim.scenario.plant_section import PlantSection, drive_facts
+from twin_cosim.scenario.plant_parameters import PlantSection, drive_facts
 from twin_cosim.schema import Checker, ScenarioError, load_yaml
 
 SETTING_NAMES = {f.name for f in fields(ControllerSettings)}

@@ -35,7 +35,7 @@ class Scenario:
         The FMU file the scenario names (``plant.fmu``); None for a plant ``model``.
     plant_parameters : dict
         FMU parameter values by name (``load_position_start`` defaults to the reference start),
-        after the precedence rule of :mod:`twin_cosim.scenario.plant_section`.
+        after the precedence rule of :mod:`twin_cosim.scenario.plant_parameters`.
     tuned : TunedParameters
         The scenario's six tuned parameters (Fine-Tune by default).
     settings : ControllerSettings

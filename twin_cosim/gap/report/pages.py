@@ -34,7 +34,7 @@ from twin_cosim.gap.verdict import (
 )
 from twin_cosim.gap.which.selector import correlation
 from twin_cosim.plant_model import plant_model
-from twin_cosim.scenario.plant_file import calibrated_scenario, write_plant_parameters
+from twin_cosim.scenario.plant_parameters import calibrated_scenario, write_plant_parameters
 from twin_cosim.versions import versions
 
 if TYPE_CHECKING:
