@@ -23,10 +23,10 @@ from twin_cosim.commands.console import (
 )
 from twin_cosim.commands.options import (
     axis_test_options,
-    axis_test_parser,
     number_above,
     number_options,
     out_folder,
+    scenario_parser,
     whole_number,
 )
 
@@ -45,7 +45,7 @@ STEP_NUMBERS = (  # option, type, default, metavar, help
 
 def add_step(subparsers) -> None:
     """The ``step`` command and its options."""
-    parser = axis_test_parser(
+    parser = scenario_parser(
         subparsers,
         "step",
         "a position step at standstill: rise time, overshoot, settling time to a band, the tail",
@@ -82,7 +82,7 @@ def run_step(args: argparse.Namespace) -> int:
 
 def add_kv(subparsers) -> None:
     """The ``kv`` command and its options."""
-    parser = axis_test_parser(
+    parser = scenario_parser(
         subparsers, "kv", "the following error at constant speeds and the position gain Kv", run_kv
     )
     parser.add_argument(
@@ -131,7 +131,7 @@ FRICTION_NUMBERS = (  # option, type, default, metavar, help
 
 def add_friction(subparsers) -> None:
     """The ``friction`` command and its options."""
-    parser = axis_test_parser(
+    parser = scenario_parser(
         subparsers,
         "friction",
         "constant-speed runs both ways: the steady torque against speed, fitted to Coulomb, "

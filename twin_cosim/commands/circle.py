@@ -9,11 +9,11 @@ from typing import Any
 
 from twin_cosim.commands.console import command_line, write_summary
 from twin_cosim.commands.options import (
-    command_parser,
     feed_override_option,
     no_plots_option,
     out_folder,
     output_options,
+    scenario_parser,
 )
 
 
@@ -29,13 +29,13 @@ def _positive(text: str) -> float:
 
 def add_circle(subparsers) -> None:
     """The ``circle`` command and its options."""
-    parser = command_parser(
+    parser = scenario_parser(
         subparsers,
         "circle",
         "circular test (ISO 230-4: G, H, F, reversal spikes) on a machine",
         run_circle,
+        "machine scenario (axes: X, Y), file or shipped name",
     )
-    parser.add_argument("scenario", help="machine scenario (axes: X, Y), file or shipped name")
     parser.add_argument(
         "--radius", type=_positive, metavar="MM", help="radius, mm (required unless --measured)"
     )

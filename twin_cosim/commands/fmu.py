@@ -19,7 +19,10 @@ from fmu_build.build import (
     available_models,
     build_fmu,
 )
-from twin_cosim.commands.options import command_parser
+from twin_cosim.commands.options import (
+    command_parser,
+    scenario_parser,
+)
 
 
 def add_build(subparsers) -> None:
@@ -70,13 +73,13 @@ def run_build(args: argparse.Namespace) -> int:
 
 def add_ssp(subparsers) -> None:
     """The ``ssp`` command and its options."""
-    parser = command_parser(
+    parser = scenario_parser(
         subparsers,
         "ssp",
         "export a machine's plant (every axis' FMU and parameters) as SSP",
         run_ssp,
+        "machine scenario (axes:), file or shipped name",
     )
-    parser.add_argument("scenario", help="machine scenario (axes:), file or shipped name")
     parser.add_argument("--out", metavar="FILE.ssp", help="package to write (default: <name>.ssp)")
 
 

@@ -22,9 +22,8 @@ from twin_cosim.commands.console import (
 )
 from twin_cosim.commands.options import (
     axis_test_options,
-    command_parser,
+    coherence_option,
     data_option,
-    fraction,
     no_plots_option,
     number_above,
     out_folder,
@@ -32,6 +31,7 @@ from twin_cosim.commands.options import (
     plant_option,
     plant_parameters_option,
     plant_path,
+    scenario_parser,
     whole_number,
 )
 
@@ -40,13 +40,12 @@ LOOP_CHOICES = ("plant", "current", "speed", "position", "disturbance")  # curre
 
 def add_bode(subparsers) -> None:
     """The ``bode`` command and its options."""
-    parser = command_parser(
+    parser = scenario_parser(
         subparsers,
         "bode",
         "measure a loop's frequency response in closed loop, with margins",
         run_bode,
     )
-    parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     parser.add_argument(
         "--loop",
         required=True,
@@ -121,11 +120,8 @@ def _excitation_options(parser: argparse.ArgumentParser) -> None:
         help="white noise on the measured motor speed, rad/s RMS",
     )
     parser.add_argument("--seed", type=whole_number(0), default=0, help="seed of phases and noise")
-    parser.add_argument(
-        "--coherence-floor",
-        type=fraction(0.0, 1.0),
-        default=0.9,
-        help="a margin or figure read at or above a line of lower coherence is withheld",
+    coherence_option(
+        parser, 0.9, "a margin or figure read at or above a line of lower coherence is withheld"
     )
 
 
@@ -157,13 +153,13 @@ def run_bode(args: argparse.Namespace) -> int:
 
 def add_calibrate(subparsers) -> None:
     """The ``calibrate`` command and its options."""
-    parser = command_parser(
+    parser = scenario_parser(
         subparsers,
         "calibrate",
         "fit J_M, J_L, f_1, D_1 and viscous friction to a plant FRF",
         run_calibrate,
+        "scenario YAML file (or shipped name) of the machine",
     )
-    parser.add_argument("scenario", help="scenario YAML file (or shipped name) of the machine")
     parser.add_argument(
         "--frf",
         required=True,
@@ -172,12 +168,7 @@ def add_calibrate(subparsers) -> None:
         "motor torque [rad/s per N.m], optional coherence; e.g. frf.csv of twin bode --loop "
         "plant (required, no default)",
     )
-    parser.add_argument(
-        "--coherence-floor",
-        type=fraction(0.0, 1.0),
-        default=0.8,
-        help="lines of lower coherence are masked (left out of the fit)",
-    )
+    coherence_option(parser, 0.8, "lines of lower coherence are masked (left out of the fit)")
     parser.add_argument(
         "--beside",
         metavar="PLANT.yaml",
@@ -219,13 +210,12 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 def add_autotune(subparsers) -> None:
     """The ``autotune`` command and its options."""
-    parser = command_parser(
+    parser = scenario_parser(
         subparsers,
         "autotune",
         "set Kp_vel, Ki_vel, a notch, Kp_pos and the feedforwards from the plant FRF",
         run_autotune,
     )
-    parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     parser.add_argument(
         "--frf",
         metavar="FRF.csv",
@@ -239,12 +229,7 @@ def add_autotune(subparsers) -> None:
         help="the speed loop's phase-margin target, degrees: the integral time is set so that "
         "the loop has it (within 0.5 deg), or the command says why none can",
     )
-    parser.add_argument(
-        "--coherence-floor",
-        type=fraction(0.0, 1.0),
-        default=0.8,
-        help="lines of the FRF file of lower coherence are left out",
-    )
+    coherence_option(parser, 0.8, "lines of the FRF file of lower coherence are left out")
     plant_option(parser)
     plant_parameters_option(parser)
     output_options(parser, "output folder (default: out/autotune-<scenario name>)")

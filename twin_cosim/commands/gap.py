@@ -26,14 +26,17 @@ from twin_cosim.commands.console import warn_plant_mismatch, write_json
 from twin_cosim.commands.options import (
     column_map,
     columns_option,
-    command_parser,
     data_option,
     fraction,
     no_plots_option,
+    number_options,
     out_folder,
     output_options,
     plant_option,
     plant_path,
+    pool_options,
+    quiet_option,
+    scenario_parser,
     whole_number,
 )
 
@@ -72,19 +75,14 @@ units and ranges: models/<model>/README.md; e.g.
 
 def add_synth(subparsers) -> None:
     """The ``synth`` command and its options."""
-    parser = command_parser(
+    parser = scenario_parser(
         subparsers, "synth", "the virtual machine: a measured run with known effects", run_synth
     )
     parser.epilog = EFFECTS_HELP
-    parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
-    parser.add_argument(
-        "--effect",
-        action="append",
-        default=[],
-        metavar="NAME:param=value,...",
-        help="effect to switch on (repeatable); NAME from the plant model's library (listed "
-        "below) or 'plant'; a machine scenario's names its axis first, AXIS:NAME:... "
-        "(default: none)",
+    effect_option(
+        parser,
+        "effect to switch on (repeatable); NAME from the plant model's library (listed below) or "
+        "'plant'; a machine scenario's names its axis first, AXIS:NAME:... (default: none)",
     )
     _error_options(parser)
     plant_option(parser)
@@ -115,20 +113,24 @@ def add_synth(subparsers) -> None:
     data_option(parser)
 
 
+ERROR_NUMBERS = (  # option, type, default, metavar, help
+    ("--perturb", float, 0.0, None, "calibration error, relative (e.g. 0.03)"),
+    ("--seed", whole_number(0), 0, None, "seed of the noise and perturbation"),
+    ("--noise-position", float, 20e-9, None, "white noise on x, m (RMS)"),
+    ("--noise-current", float, 5e-3, None, "white noise on the current, A (RMS)"),
+)
+
+
+def effect_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--effect NAME:param=value,...`` (repeatable; ``what``: its help)."""
+    parser.add_argument(
+        "--effect", action="append", default=[], metavar="NAME:param=value,...", help=what
+    )
+
+
 def _error_options(parser: argparse.ArgumentParser) -> None:
     """The calibration error and the measurement noise, and their seed."""
-    parser.add_argument(
-        "--perturb", type=float, default=0.0, help="calibration error, relative (e.g. 0.03)"
-    )
-    parser.add_argument(
-        "--seed", type=whole_number(0), default=0, help="seed of the noise and perturbation"
-    )
-    parser.add_argument(
-        "--noise-position", type=float, default=20e-9, help="white noise on x, m (RMS)"
-    )
-    parser.add_argument(
-        "--noise-current", type=float, default=5e-3, help="white noise on the current, A (RMS)"
-    )
+    number_options(parser, ERROR_NUMBERS)
 
 
 def run_synth(args: argparse.Namespace) -> int:
@@ -394,10 +396,13 @@ def _machine_files(args: argparse.Namespace) -> tuple[Path, Path]:
 
 def add_diagnose(subparsers) -> None:
     """The ``diagnose`` command and its options."""
-    parser = command_parser(
-        subparsers, "diagnose", "where the twin is wrong, why, and by how much", run_diagnose
+    parser = scenario_parser(
+        subparsers,
+        "diagnose",
+        "where the twin is wrong, why, and by how much",
+        run_diagnose,
+        "scenario YAML file (or shipped name) the runs followed",
     )
-    parser.add_argument("scenario", help="scenario YAML file (or shipped name) the runs followed")
     parser.add_argument(
         "--measured",
         action="append",
@@ -421,16 +426,10 @@ def add_diagnose(subparsers) -> None:
         help="effects to accept at most (default: the scenario's diagnose.max_effects, else 3)",
     )
     plant_option(parser)
-    parser.add_argument(
-        "--workers",
-        type=whole_number(1),
-        help="local processes for the fits (default: all cores)",
-    )
+    pool_options(parser, "local processes for the fits (default: all cores)")
     output_options(parser, "report folder (default: out/diagnosis-<scenario name>)")
-    parser.add_argument(
-        "--quiet",
-        action="store_true",
-        help="no progress bar (there is none either with --json when stdout is not a terminal)",
+    quiet_option(
+        parser, "no progress bar (there is none either with --json when stdout is not a terminal)"
     )
     no_plots_option(parser)
     data_option(parser)

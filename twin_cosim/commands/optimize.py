@@ -23,6 +23,8 @@ from twin_cosim.commands.options import (
     plant_option,
     plant_parameters_option,
     plant_path,
+    pool_options,
+    quiet_option,
     whole_number,
 )
 from twin_cosim.optimize.algorithms import METHOD_NAMES, method_label, method_list
@@ -57,7 +59,7 @@ def add_optimize(subparsers) -> None:
     _robust_options(parser)
     _machine_options(parser)
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    quiet_option(parser, "no progress bar")
     no_plots_option(parser)
     data_option(parser)
 
@@ -96,15 +98,10 @@ def _campaign_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--budget", type=whole_number(1), help="maximum evaluations (default: the method's)"
     )
-    parser.add_argument(
-        "--workers",
-        type=whole_number(1),
-        help="local processes (default: all cores; 1: serial)",
-    )
-    parser.add_argument(
-        "--scheduler",
-        metavar="ADDR",
-        help="Dask scheduler address, e.g. tcp://host:8786 (default: none, a local pool)",
+    pool_options(
+        parser,
+        "local processes (default: all cores; 1: serial)",
+        "Dask scheduler address, e.g. tcp://host:8786 (default: none, a local pool)",
     )
     plant_option(parser)
     parser.add_argument(

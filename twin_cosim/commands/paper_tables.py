@@ -7,7 +7,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from twin_cosim.commands.console import warn_plant_mismatch
 from twin_cosim.commands.options import (
@@ -18,11 +17,10 @@ from twin_cosim.commands.options import (
     plant_option,
     plant_parameters_option,
     plant_path,
+    pool_options,
+    quiet_option,
     whole_number,
 )
-
-if TYPE_CHECKING:
-    pass
 
 
 def add_table3(subparsers) -> None:
@@ -87,15 +85,14 @@ def add_compare(subparsers) -> None:
         help="evaluations of every method (default: the campaign file's budgets: {METHOD: N}, "
         "else each method's own)",
     )
-    parser.add_argument(
-        "--workers", type=whole_number(1), help="local processes (default: all cores)"
-    )
-    parser.add_argument(
-        "--scheduler", metavar="ADDR", help="Dask scheduler address (default: none, a local pool)"
+    pool_options(
+        parser,
+        "local processes (default: all cores)",
+        "Dask scheduler address (default: none, a local pool)",
     )
     parser.add_argument("--out", metavar="DIR", help="output folder (default: out/<campaign name>)")
     plant_parameters_option(parser)
-    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    quiet_option(parser, "no progress bars")
     no_plots_option(parser)
     data_option(parser)
 

@@ -11,34 +11,82 @@ import argparse
 import sys
 from pathlib import Path
 
-from twin_cosim.commands.gap import EFFECTS_HELP, _error_options
+from twin_cosim.commands.gap import EFFECTS_HELP, _error_options, effect_option
 from twin_cosim.commands.options import (
-    command_parser,
     data_option,
     no_plots_option,
     number_above,
+    number_options,
     out_folder,
     plant_option,
     plant_parameters_option,
     plant_path,
+    quiet_option,
+    scenario_parser,
     whole_number,
+)
+
+SERVE_NUMBERS = (  # option, type, default, metavar, help
+    ("--windows", whole_number(1), None, None, "windows to publish (default: until stopped)"),
+    (
+        "--speed",
+        number_above(0.0),
+        1.0,
+        None,
+        "windows published this many times faster than real time",
+    ),
+    (
+        "--linger",
+        number_above(0.0, inclusive=True),
+        5.0,
+        None,
+        "seconds the server stays up after the last window",
+    ),
+)
+WATCH_NUMBERS = (  # option, type, default, metavar, help
+    (
+        "--baseline",
+        whole_number(3),
+        8,
+        None,
+        "windows of the baseline (calibration and the stationary scatter)",
+    ),
+    (
+        "--track",
+        str,
+        "coulomb_change,backlash_change,torque_ripple,inertia_change",
+        "EFFECT,...",
+        "the effects of the plant model's card to track",
+    ),
+    ("--windows", whole_number(1), None, None, "stop after this many windows (default: never)"),
+    (
+        "--arl",
+        number_above(1.0),
+        10_000.0,
+        None,
+        "average run length to a false alarm, windows (all tests together)",
+    ),
+    ("--poll", number_above(0.0), 1.0, None, "seconds between polls of Sequence"),
+    (
+        "--reconnect-timeout",
+        number_above(0.0),
+        60.0,
+        None,
+        "seconds without a connection before giving up",
+    ),
+    ("--dashboard", whole_number(1), None, "PORT", "live page on 127.0.0.1:PORT (default: none)"),
 )
 
 
 def add_serve(subparsers) -> None:
     """The ``serve`` command and its options."""
-    parser = command_parser(
+    parser = scenario_parser(
         subparsers, "serve", "the virtual machine behind an OPC UA server on 127.0.0.1", run_serve
     )
     parser.epilog = EFFECTS_HELP
-    parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     parser.add_argument("--port", type=whole_number(1), required=True, help="TCP port (required)")
-    parser.add_argument(
-        "--effect",
-        action="append",
-        default=[],
-        metavar="NAME:param=value,...",
-        help="hidden effect of the machine (repeatable; as twin synth) (default: none)",
+    effect_option(
+        parser, "hidden effect of the machine (repeatable; as twin synth) (default: none)"
     )
     parser.add_argument(
         "--drift",
@@ -52,26 +100,12 @@ def add_serve(subparsers) -> None:
         "--drift-start", type=whole_number(0), default=0, help="first window with a drift step"
     )
     _error_options(parser)
-    parser.add_argument(
-        "--windows", type=whole_number(1), help="windows to publish (default: until stopped)"
-    )
-    parser.add_argument(
-        "--speed",
-        type=number_above(0.0),
-        default=1.0,
-        help="windows published this many times faster than real time",
-    )
-    parser.add_argument(
-        "--linger",
-        type=number_above(0.0, inclusive=True),
-        default=5.0,
-        help="seconds the server stays up after the last window",
-    )
+    number_options(parser, SERVE_NUMBERS)
     parser.add_argument(
         "--no-motor-speed", action="store_true", help="publish no motor_speed array"
     )
     security_options(parser, "the server demands")
-    parser.add_argument("--quiet", action="store_true", help="no line per window")
+    quiet_option(parser, "no line per window")
     plant_option(parser)
     plant_parameters_option(parser)
     data_option(parser)
@@ -149,13 +183,12 @@ def run_serve(args: argparse.Namespace) -> int:
 
 def add_watch(subparsers) -> None:
     """The ``watch`` command and its options."""
-    parser = command_parser(
+    parser = scenario_parser(
         subparsers,
         "watch",
         "the twin beside the running machine: gap and drift, window by window",
         run_watch,
     )
-    parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
     parser.add_argument(
         "--endpoint", required=True, metavar="opc.tcp://HOST:PORT", help="the machine (required)"
     )
@@ -168,45 +201,10 @@ def add_watch(subparsers) -> None:
         help="the twin's baseline, the plant.yaml of twin diagnose (default: calibrate on the "
         "first windows)",
     )
-    parser.add_argument(
-        "--baseline",
-        type=whole_number(3),
-        default=8,
-        help="windows of the baseline (calibration and the stationary scatter)",
-    )
-    parser.add_argument(
-        "--track",
-        default="coulomb_change,backlash_change,torque_ripple,inertia_change",
-        metavar="EFFECT,...",
-        help="the effects of the plant model's card to track",
-    )
-    parser.add_argument(
-        "--windows", type=whole_number(1), help="stop after this many windows (default: never)"
-    )
-    parser.add_argument(
-        "--arl",
-        type=number_above(1.0),
-        default=10_000.0,
-        help="average run length to a false alarm, windows (all tests together)",
-    )
-    parser.add_argument(
-        "--poll", type=number_above(0.0), default=1.0, help="seconds between polls of Sequence"
-    )
-    parser.add_argument(
-        "--reconnect-timeout",
-        type=number_above(0.0),
-        default=60.0,
-        help="seconds without a connection before giving up",
-    )
-    parser.add_argument(
-        "--dashboard",
-        type=whole_number(1),
-        metavar="PORT",
-        help="live page on 127.0.0.1:PORT (default: none)",
-    )
+    number_options(parser, WATCH_NUMBERS)
     parser.add_argument("--no-diagnosis", action="store_true", help="no full diagnosis on an alarm")
     security_options(parser, "to connect with")
-    parser.add_argument("--quiet", action="store_true", help="no line per window on stdout")
+    quiet_option(parser, "no line per window on stdout")
     no_plots_option(parser)
     plant_option(parser)
     data_option(parser)

@@ -19,7 +19,6 @@ from twin_cosim.commands.console import (
 from twin_cosim.commands.options import (
     column_map,
     columns_option,
-    command_parser,
     data_option,
     feed_override_option,
     no_plots_option,
@@ -29,6 +28,7 @@ from twin_cosim.commands.options import (
     plant_option,
     plant_parameters_option,
     plant_path,
+    scenario_parser,
 )
 
 _SINGLE_AXIS_OPTIONS = ("plant", "plant_parameters", "machine")  # not for a machine's program
@@ -44,8 +44,7 @@ if TYPE_CHECKING:
 
 def add_simulate(subparsers) -> None:
     """The ``simulate`` command and its options."""
-    parser = command_parser(subparsers, "simulate", "run a scenario in closed loop", run_simulate)
-    parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
+    parser = scenario_parser(subparsers, "simulate", "run a scenario in closed loop", run_simulate)
     params_option(parser)
     plant_option(parser)
     plant_parameters_option(parser)

@@ -79,7 +79,7 @@ from twin_cosim.reference import ReferenceError, ReferenceGrid, check_periods
 from twin_cosim.scenario.controller_section import controller_section
 from twin_cosim.scenario.loader import MAX_SAMPLES, find_scenario, read_top_level
 from twin_cosim.scenario.plant_parameters import plant_section
-from twin_cosim.scenario.resolved import Scenario
+from twin_cosim.scenario.resolved import Scenario, ScenarioFile
 from twin_cosim.schema import Checker, ScenarioError, load_yaml
 
 UM = 1e-6  # m per um
@@ -359,17 +359,12 @@ class AxisSetup:
 
 
 @dataclass(frozen=True)
-class MachineScenario:
-    """A loaded, checked scenario of several axes.
+class MachineScenario(ScenarioFile):
+    """A loaded, checked scenario of several axes (its name, description and file:
+    :class:`~twin_cosim.scenario.resolved.ScenarioFile`).
 
     Attributes
     ----------
-    name : str
-        Its name (the default output folder).
-    description : str
-        Free text.
-    source : Path
-        The scenario file.
     axes : tuple of AxisSetup
         The axes in the order X, Y, Z.
     sample_period : float
@@ -392,9 +387,6 @@ class MachineScenario:
         The raw ``diagnose`` section (the diagnosis of each axis).
     """
 
-    name: str
-    description: str
-    source: Path
     axes: tuple[AxisSetup, ...]
     sample_period: float
     program: Path | None = None
