@@ -14,6 +14,7 @@ import json
 import re
 from collections.abc import Callable
 from dataclasses import asdict
+from operator import attrgetter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -117,25 +118,26 @@ def summary(d: Diagnosis) -> dict[str, Any]:
     )
 
 
+def _picked(source: Any, *names: str) -> dict[str, Any]:
+    """Attributes of ``source``, in the order named: ``name`` (the key is the attribute's name)
+    or ``key=path`` (the attribute at a dotted path, e.g. ``params=fit.values``)."""
+    entries = (name.partition("=") for name in names)
+    return {key: attrgetter(path or key)(source) for key, _, path in entries}
+
+
 def _metric_row(c: MetricComparison) -> dict[str, Any]:
     """A held-out run's figures of merit, measured and the twin's, and whether they are off."""
-    return {
-        "run": c.run,
-        "measured": c.measured,
-        "twin": c.twin,
-        "relative_error": c.relative_error,
-        "noise_spread": c.noise_spread,
-        "threshold": c.threshold,
-        "largest_relative_error": c.largest_relative_error,
-        "off": c.off,
-    }
+    return _picked(
+        c,
+        *("run", "measured", "twin", "relative_error", "noise_spread", "threshold"),
+        *("largest_relative_error", "off"),
+    )
 
 
 def _acceptance_tests(j: Judgement) -> dict[str, Any]:
     """What a candidate's acceptance tests measured (a round's candidates and a swap's rival)."""
     return {
-        "holdout_reduction": j.reduction,
-        "reduction_beyond_calibration": j.reduction_beyond_calibration,
+        **_picked(j, "holdout_reduction=reduction", "reduction_beyond_calibration"),
         **asdict(j.gain),  # evidence z, critical z, excess share, fair share
         "size_above_tolerance": j.size_above_tolerance,
     }
@@ -143,12 +145,18 @@ def _acceptance_tests(j: Judgement) -> dict[str, Any]:
 
 def _fitted(c: Candidate) -> dict[str, Any]:
     """A candidate's fit: its hypothesis, values, training cost and BIC, replays."""
+    return _picked(
+        c, "name", "params=fit.values", "train_cost=fit.train_cost", "bic", "replays=fit.replays"
+    )
+
+
+def _held_out_gaps(before: Round, after: Judgement) -> dict[str, Any]:
+    """The held-out position and current RMS before a candidate (its round's) and with it."""
     return {
-        "name": c.name,
-        "params": c.fit.values,
-        "train_cost": c.fit.train_cost,
-        "bic": c.bic,
-        "replays": c.fit.replays,
+        "holdout_gap_before_um": before.position_rms_um,
+        "holdout_gap_after_um": after.position_rms_um,
+        "holdout_current_before_A": before.current_rms,
+        "holdout_current_after_A": after.current_rms,
     }
 
 
@@ -156,10 +164,7 @@ def _row(c: Candidate, round_: Round) -> dict[str, Any]:
     judged = c.judgement
     return {
         **_fitted(c),
-        "holdout_gap_before_um": round_.position_rms_um,
-        "holdout_gap_after_um": judged.position_rms_um,
-        "holdout_current_before_A": round_.current_rms,
-        "holdout_current_after_A": judged.current_rms,
+        **_held_out_gaps(round_, judged),
         **_acceptance_tests(judged),
         "explained_normalised_rms": judged.explained,
         "calibration_floor_normalised_rms": round_.calibration.explained,
@@ -180,17 +185,11 @@ def _step(r: Round, dropped: list[str], swapped_out: list[str]) -> dict[str, Any
         "params": best.fit.values,
         "plant_parameters": best.fit.overrides,
         "context": r.context,
-        "holdout_gap_before_um": r.position_rms_um,
-        "holdout_gap_after_um": judged.position_rms_um,
-        "holdout_current_before_A": r.current_rms,
-        "holdout_current_after_A": judged.current_rms,
+        **_held_out_gaps(r, judged),
         "holdout_normalised_rms_before": r.holdout_rms,
         "holdout_normalised_rms_after": judged.holdout_rms,
-        "reduction": judged.reduction,
-        "reduction_beyond_calibration": judged.reduction_beyond_calibration,
-        "evidence_z": judged.gain.evidence_z,
-        "critical_z": judged.gain.critical_z,
-        "excess_share": judged.gain.excess_share,
+        **_picked(judged, "reduction", "reduction_beyond_calibration"),
+        **_picked(judged.gain, "evidence_z", "critical_z", "excess_share"),
         "dropped_in_backward_pass": best.name in dropped,
         "swapped_out": best.name in swapped_out,
         "ranking": [_row(c, r) for c in r.candidates],
@@ -205,9 +204,12 @@ def _swap_row(w: Swap) -> dict[str, Any]:
     return {
         "removed": w.removed,
         **_fitted(c),
-        "holdout_normalised_rms_after": judged.holdout_rms,
-        "holdout_gap_after_um": judged.position_rms_um,
-        "holdout_current_after_A": judged.current_rms,
+        **_picked(
+            judged,
+            "holdout_normalised_rms_after=holdout_rms",
+            "holdout_gap_after_um=position_rms_um",
+            "holdout_current_after_A=current_rms",
+        ),
         **_acceptance_tests(judged),
         "consistent": judged.consistent,
         "passes": c.passes,
@@ -218,11 +220,7 @@ def _swap_row(w: Swap) -> dict[str, Any]:
 def _refit_row(r: Refit) -> dict[str, Any]:
     """A cold refit that replaced its effect, and its gain against the rule."""
     return {
-        "effect": r.effect,
-        "values_before": r.values_before,
-        "values_after": r.values_after,
-        "left_before": r.left_before,
-        "left_after": r.left_after,
+        **_picked(r, "effect", "values_before", "values_after", "left_before", "left_after"),
         **asdict(r.gain),
         "significant": r.significant,
     }

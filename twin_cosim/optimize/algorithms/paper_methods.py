@@ -32,16 +32,17 @@ from scipy.special import expit, ndtr, ndtri
 
 from twin_cosim.optimize.algorithms.base import (
     Optimizer,
+    Settings,
     best_decrease,
     ceil_count,
-    check_int,
-    check_real,
     matlab_round,
+    real,
+    whole,
 )
 
 
 @dataclasses.dataclass(frozen=True)
-class CrossEntropySettings:
+class CrossEntropySettings(Settings):
     """Settings of :class:`CrossEntropy` (defaults: the paper's Table 2).
 
     Attributes
@@ -69,29 +70,16 @@ class CrossEntropySettings:
         Maximum evaluations; ``None`` means ``population_size * max_generations``.
     """
 
-    population_size: int = 20
-    max_generations: int = 100
-    alpha: float = 0.6
-    beta: float = 0.4
-    q: float = 0.1
-    epsilon: float = 1e-10
-    elite_fraction: float = 0.01
-    stall_generations: int = 10
-    sigma0: float = 0.3
-    budget: int | None = None
-
-    def __post_init__(self) -> None:
-        check_int("population_size", self.population_size, 1)
-        check_int("max_generations", self.max_generations, 1)
-        check_real("alpha", self.alpha, 0.0, 1.0, low_open=True)
-        check_real("beta", self.beta, 0.0, 1.0)
-        check_real("q", self.q, 0.0, low_open=True)
-        check_real("epsilon", self.epsilon, 0.0)
-        check_real("elite_fraction", self.elite_fraction, 0.0, 1.0, low_open=True)
-        check_int("stall_generations", self.stall_generations, 1)
-        check_real("sigma0", self.sigma0, 0.0, low_open=True)
-        if self.budget is not None:
-            check_int("budget", self.budget, 1)
+    population_size: int = whole(20, 1)
+    max_generations: int = whole(100, 1)
+    alpha: float = real(0.6, 0.0, 1.0, low_open=True)
+    beta: float = real(0.4, 0.0, 1.0)
+    q: float = real(0.1, 0.0, low_open=True)
+    epsilon: float = real(1e-10, 0.0)
+    elite_fraction: float = real(0.01, 0.0, 1.0, low_open=True)
+    stall_generations: int = whole(10, 1)
+    sigma0: float = real(0.3, 0.0, low_open=True)
+    budget: int | None = whole(None, 1)
 
     @property
     def max_evaluations(self) -> int:
@@ -188,7 +176,7 @@ MIN_STEP = math.sqrt(np.finfo(np.float64).eps)
 
 
 @dataclasses.dataclass(frozen=True)
-class GeneticSettings:
+class GeneticSettings(Settings):
     """Settings of :class:`GeneticAlgorithm` (defaults: the paper's Table 2 and MATLAB's ``ga``).
 
     Attributes
@@ -214,26 +202,14 @@ class GeneticSettings:
         non-elite children (2,000 with the defaults).
     """
 
-    population_size: int = 100
-    generations: int = 20
-    stall_generations: int = 10
-    function_tolerance: float = 1e-6
-    elite_fraction: float = 0.05
-    crossover_fraction: float = 0.8
-    time_limit_s: float | None = None
-    budget: int | None = None
-
-    def __post_init__(self) -> None:
-        check_int("population_size", self.population_size, 2)
-        check_int("generations", self.generations, 1)
-        check_int("stall_generations", self.stall_generations, 1)
-        check_real("function_tolerance", self.function_tolerance, 0.0)
-        check_real("elite_fraction", self.elite_fraction, 0.0, 1.0, high_open=True)
-        check_real("crossover_fraction", self.crossover_fraction, 0.0, 1.0)
-        if self.time_limit_s is not None:
-            check_real("time_limit_s", self.time_limit_s, 0.0, low_open=True)
-        if self.budget is not None:
-            check_int("budget", self.budget, 1)
+    population_size: int = whole(100, 2)
+    generations: int = whole(20, 1)
+    stall_generations: int = whole(10, 1)
+    function_tolerance: float = real(1e-6, 0.0)
+    elite_fraction: float = real(0.05, 0.0, 1.0, high_open=True)
+    crossover_fraction: float = real(0.8, 0.0, 1.0)
+    time_limit_s: float | None = real(None, 0.0, low_open=True)
+    budget: int | None = whole(None, 1)
 
     @property
     def child_counts(self) -> tuple[int, int, int]:
@@ -405,7 +381,7 @@ MIN_RELATIVE_SENSITIVITY = 1e-12
 
 
 @dataclasses.dataclass(frozen=True)
-class AnnealingSettings:
+class AnnealingSettings(Settings):
     """Settings of :class:`SimulatedAnnealing`.
 
     Attributes
@@ -430,25 +406,14 @@ class AnnealingSettings:
         Maximum evaluations over all chains (Table 2: 18,000 = 3000 x 6 parameters).
     """
 
-    initial_temperature: float = 100.0
-    cooling_factor: float = 0.95
-    reanneal_interval: int = 100
-    stall_iterations: int = 150
-    function_tolerance: float = 1e-6
-    max_iterations: int | None = None
-    chains: int = 4
-    budget: int = 18_000
-
-    def __post_init__(self) -> None:
-        check_real("initial_temperature", self.initial_temperature, 0.0, low_open=True)
-        check_real("cooling_factor", self.cooling_factor, 0.0, 1.0, low_open=True, high_open=True)
-        check_int("reanneal_interval", self.reanneal_interval, 1)
-        check_int("stall_iterations", self.stall_iterations, 1)
-        check_real("function_tolerance", self.function_tolerance, 0.0)
-        if self.max_iterations is not None:
-            check_int("max_iterations", self.max_iterations, 1)
-        check_int("chains", self.chains, 1)
-        check_int("budget", self.budget, 1)
+    initial_temperature: float = real(100.0, 0.0, low_open=True)
+    cooling_factor: float = real(0.95, 0.0, 1.0, low_open=True, high_open=True)
+    reanneal_interval: int = whole(100, 1)
+    stall_iterations: int = whole(150, 1)
+    function_tolerance: float = real(1e-6, 0.0)
+    max_iterations: int | None = whole(None, 1)
+    chains: int = whole(4, 1)
+    budget: int = whole(18_000, 1)
 
 
 def redraw_out_of_bounds(
