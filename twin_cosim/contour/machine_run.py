@@ -204,24 +204,6 @@ def plan_on(machine: MachineScenario, program: Program, feed_override: float = 1
     )
 
 
-def run_program(
-    machine: MachineScenario,
-    program: Program,
-    plants: MachinePlants,
-    fast: bool = True,
-    abort_error: float = math.inf,
-    feed_override: float = 1.0,
-) -> tuple[MachineRecord, PlannedMotion]:
-    """Run a part program on the machine: its planned motion (:func:`plan_on`), then the run of
-    every axis.
-
-    The program starts at the machine's origin (every axis at 0 m); ``abort_error`` as for
-    :func:`run_machine` (m); ``feed_override`` a factor on the programmed feeds.
-    """
-    motion = plan_on(machine, program, feed_override)
-    return run_machine(machine, motion, plants, fast, abort_error), motion
-
-
 def plot_contour(record: MachineRecord, title: str, command: str, path: Path) -> Path:
     """Programmed and actual path (the deviation magnified), contour error and axis errors.
 

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from twin_cosim.gap.verdict import number
+from twin_cosim.schema import json_lines
 
 LOG_NAME = "windows.jsonl"
 # How people read a tracked value: unit -> (factor, unit shown).
@@ -76,14 +77,12 @@ def read_log(path: Path) -> list[dict[str, Any]]:
         Naming the file and line of a line that is not a JSON object.
     """
     entries = []
+
+    def corrupt(line: int, exc: json.JSONDecodeError) -> str:
+        return f"{path}:{line}: not a JSON object ({exc.msg})"
+
     with path.open(encoding="utf-8") as file:
-        for number, line in enumerate(file, start=1):
-            if not line.strip():
-                continue
-            try:
-                entry = json.loads(line)
-            except json.JSONDecodeError as exc:
-                raise ValueError(f"{path}:{number}: not a JSON object ({exc.msg})") from None
+        for number, entry in json_lines(file, corrupt):
             if not isinstance(entry, dict):
                 raise ValueError(f"{path}:{number}: not a JSON object")
             entries.append(entry)
