@@ -215,7 +215,8 @@ def _signal(name: str, doc: str) -> property:
 
 
 class MeasuredDataError(ValueError):
-    """A measured run cannot be used; the message names the file, the column and the problem."""
+    """A measured file (a run; a frequency response, :mod:`twin_cosim.frequency.calibration`)
+    cannot be used; the message names the file, the column (or the frequency) and the problem."""
 
 
 @dataclass(frozen=True)
