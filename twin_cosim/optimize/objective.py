@@ -10,7 +10,7 @@ A candidate's fitness (um) is
 - penalty + E_pk when it violates the control-effort cap (IAU above the limit);
 - 2 x penalty when it fails: parameters the controller refuses, a run stopped because the error
   left the allowed band (unstable loop), a run that oscillates (a limit cycle or a chattering
-  current, :mod:`twin_cosim.run_checks`; status ``unstable``), or an FMU error. The reason is
+  current, :mod:`twin_cosim.oscillation`; status ``unstable``), or an FMU error. The reason is
   kept with the result.
 
 Robust objective: with several scenarios and plant samples (relative factors on plant
@@ -54,8 +54,8 @@ from twin_cosim.optimize.early_stop import (
     window_spans_run,
 )
 from twin_cosim.optimize.evaluators import evaluation_result
+from twin_cosim.oscillation import record_findings
 from twin_cosim.plant import Plant, PlantError
-from twin_cosim.run_checks import record_findings
 from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario
 
