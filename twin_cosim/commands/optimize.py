@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 from twin_cosim.commands.console import warn_plant_mismatch
 from twin_cosim.commands.options import (
+    budget_option,
     command_parser,
     data_option,
     no_plots_option,
@@ -95,9 +96,7 @@ def _campaign_options(parser: argparse.ArgumentParser) -> None:
         "--method", choices=METHOD_NAMES, help="optimizer (default: none; required unless --resume)"
     )
     parser.add_argument("--seed", type=whole_number(0), help="seed (default: 0)")
-    parser.add_argument(
-        "--budget", type=whole_number(1), help="maximum evaluations (default: the method's)"
-    )
+    budget_option(parser, "maximum evaluations (default: the method's)")
     pool_options(
         parser,
         "local processes (default: all cores; 1: serial)",

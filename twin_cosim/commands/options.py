@@ -178,6 +178,11 @@ def quiet_option(parser: argparse.ArgumentParser, what: str) -> None:
     parser.add_argument("--quiet", action="store_true", help=what)
 
 
+def budget_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--budget N``: evaluations of a campaign's method (``what``: its help)."""
+    parser.add_argument("--budget", type=whole_number(1), help=what)
+
+
 def pool_options(
     parser: argparse.ArgumentParser, workers: str, scheduler: str | None = None
 ) -> None:

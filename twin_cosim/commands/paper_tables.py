@@ -10,6 +10,7 @@ from pathlib import Path
 
 from twin_cosim.commands.console import warn_plant_mismatch
 from twin_cosim.commands.options import (
+    budget_option,
     command_parser,
     data_option,
     no_plots_option,
@@ -19,7 +20,6 @@ from twin_cosim.commands.options import (
     plant_path,
     pool_options,
     quiet_option,
-    whole_number,
 )
 
 
@@ -79,11 +79,10 @@ def add_compare(subparsers) -> None:
         "--methods",
         help="comma-separated subset of the campaign's methods (default: all of them)",
     )
-    parser.add_argument(
-        "--budget",
-        type=whole_number(1),
-        help="evaluations of every method (default: the campaign file's budgets: {METHOD: N}, "
-        "else each method's own)",
+    budget_option(
+        parser,
+        "evaluations of every method (default: the campaign file's budgets: {METHOD: N}, else "
+        "each method's own)",
     )
     pool_options(
         parser,

@@ -10,12 +10,7 @@ from typing import Any
 import cma
 import numpy as np
 
-from twin_cosim.optimize.algorithms.base import (
-    Optimizer,
-    Settings,
-    real,
-    whole,
-)
+from twin_cosim.optimize.algorithms.base import Optimizer, Settings, real, whole
 
 
 @dataclasses.dataclass(frozen=True)

@@ -17,13 +17,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import differential_evolution
 
-from twin_cosim.optimize.algorithms.base import (
-    Optimizer,
-    Settings,
-    check_real,
-    real,
-    whole,
-)
+from twin_cosim.optimize.algorithms.base import Optimizer, Settings, check_real, real, whole
 
 #: SciPy renamed ``seed`` to ``rng`` in 1.15; use whichever this SciPy has.
 _RNG_KEYWORD = "rng" if "rng" in inspect.signature(differential_evolution).parameters else "seed"
