@@ -193,6 +193,12 @@ OPEN_LOOP_COMPARED = "motor_speed"
 CLOSED_LOOP_COMPARED = "current"
 
 
+def compared_label(signal: str) -> tuple[str, str]:
+    """Words and SI unit of a signal compared beside the position (:attr:`MeasuredRun.compared`):
+    ``("current", "A")`` of a closed-loop run, ``("motor speed", "rad/s")`` of an open-loop one."""
+    return signal.replace("_", " "), SI_UNIT[signal]
+
+
 def _signal(name: str, doc: str) -> property:
     """A signal of a run's record as an attribute of the run (the column itself, a view);
     MeasuredDataError naming the file when the run has none."""

@@ -463,6 +463,7 @@ def _verdict_stage(
         (first.position_rms_um, first.current_rms),
         (hold_final.position_rms_um(), hold_final.current_rms()),
         (floors.sigma_position_m, floors.sigma_current),
+        context.compared,
         by_metrics_only,
     )
     below = [

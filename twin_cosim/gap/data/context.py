@@ -259,6 +259,12 @@ class DiagnosisContext:
     warnings: list[str]
     repeats: list[list[int]] = field(default_factory=list)
 
+    @property
+    def compared(self) -> str:
+        """The signal compared beside the position (``current``, or ``motor_speed`` of
+        open-loop runs): the name the residuals' ``current`` field holds."""
+        return self.train[0].compared
+
     def screw_angle(self, motor_angle: np.ndarray) -> np.ndarray:
         """The screw angle (rad) of motor angles (rad)."""
         return motor_angle / self.motor_per_screw

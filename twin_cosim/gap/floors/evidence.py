@@ -139,12 +139,17 @@ class CalibrationBasis:
         """Q (samples, parameters) and R (parameters, parameters) of the directions."""
         return np.linalg.qr(self.directions, mode="reduced")
 
-    def correction(self, residual: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Coefficients a (|a| <= 1, tolerances) and what the best correction leaves of r."""
+    def correction(
+        self,
+        residual: np.ndarray,
+        bounds: tuple[np.ndarray | float, np.ndarray | float] = (-1.0, 1.0),
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Coefficients a (tolerances, within ``bounds``: |a| <= 1 unless told) and what the
+        best correction leaves of r."""
         if self.directions.shape[1] == 0:
             return np.zeros(0), residual
         q, r = self._factors
-        fit = lsq_linear(r, q.T @ residual, bounds=(-1.0, 1.0))
+        fit = lsq_linear(r, q.T @ residual, bounds=bounds)
         return fit.x, residual - self.directions @ fit.x
 
     def left_after(self, residual: np.ndarray) -> float:

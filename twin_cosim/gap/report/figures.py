@@ -20,6 +20,7 @@ from twin_cosim.gap.data import regimes as regime_model  # noqa: E402
 from twin_cosim.gap.data.residuals import joined  # noqa: E402
 from twin_cosim.gap.diagnosis import Diagnosis  # noqa: E402
 from twin_cosim.gap.verdict import STROKE_END  # noqa: E402
+from twin_cosim.measured import compared_label  # noqa: E402
 from twin_cosim.metrics import UM_PER_M  # noqa: E402
 
 REGIME_COLOURS = {
@@ -66,7 +67,8 @@ def plot_residuals(d: Diagnosis, path: Path) -> Path:
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
     axes[0].set_ylabel("position residual [um]")
-    axes[1].set_ylabel("current residual [A]")
+    words, unit = compared_label(d.context.compared)
+    axes[1].set_ylabel(f"{words} residual [{unit}]")
     axes[1].set_xlabel(
         "t [s]  (shading: standstill grey, breakaway orange, acceleration blue, reversal red)"
     )

@@ -34,6 +34,7 @@ from twin_cosim.gap.verdict import (
     quantity,
 )
 from twin_cosim.gap.which.selector import correlation
+from twin_cosim.measured import compared_label
 from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario.plant_parameters import calibrated_scenario, write_plant_parameters
 from twin_cosim.versions import versions
@@ -263,8 +264,10 @@ def _yes(value: Any) -> str:
     return "yes" if value else "no"
 
 
-def _ranking_columns(units: dict[str, dict[str, str]]) -> list[Column]:
-    """The columns of a round's ranking (one row per :class:`Candidate`)."""
+def _ranking_columns(units: dict[str, dict[str, str]], compared: str) -> list[Column]:
+    """The columns of a round's ranking (one row per :class:`Candidate`); ``compared``: the
+    signal compared beside the position."""
+    words, unit = compared_label(compared)
 
     def fitted(c: Candidate) -> str:
         return parameters(c.fit.values, units.get(c.name, {}))
@@ -274,7 +277,7 @@ def _ranking_columns(units: dict[str, dict[str, str]]) -> list[Column]:
         ("fitted parameters", fitted),
         ("training BIC", lambda c: number(c.bic)),
         ("held-out position RMS with it [um]", lambda c: number(c.judgement.position_rms_um)),
-        ("held-out current RMS with it [A]", lambda c: number(c.judgement.current_rms)),
+        (f"held-out {words} RMS with it [{unit}]", lambda c: number(c.judgement.current_rms)),
         ("reduction of the normalised RMS", lambda c: percent(c.judgement.reduction)),
         ("evidence z", lambda c: number(c.judgement.gain.evidence_z)),
         ("needed z", lambda c: number(c.judgement.gain.critical_z)),
@@ -284,8 +287,10 @@ def _ranking_columns(units: dict[str, dict[str, str]]) -> list[Column]:
     ]
 
 
-def _step_columns(units: dict[str, dict[str, str]]) -> list[Column]:
-    """The columns of the accepted effects (one row per :class:`Round` that accepted one)."""
+def _step_columns(units: dict[str, dict[str, str]], compared: str) -> list[Column]:
+    """The columns of the accepted effects (one row per :class:`Round` that accepted one);
+    ``compared``: the signal compared beside the position."""
+    words, unit = compared_label(compared)
 
     def best(r: Round) -> Candidate:
         assert r.best is not None
@@ -302,8 +307,11 @@ def _step_columns(units: dict[str, dict[str, str]]) -> list[Column]:
             "with it, as fitted in its round [um]",
             lambda r: number(best(r).judgement.position_rms_um),
         ),
-        ("held-out current RMS before it [A]", lambda r: number(r.current_rms)),
-        ("with it, as fitted in its round [A]", lambda r: number(best(r).judgement.current_rms)),
+        (f"held-out {words} RMS before it [{unit}]", lambda r: number(r.current_rms)),
+        (
+            f"with it, as fitted in its round [{unit}]",
+            lambda r: number(best(r).judgement.current_rms),
+        ),
         ("reduction of the normalised RMS", lambda r: percent(best(r).judgement.reduction)),
     ]
 
@@ -365,14 +373,16 @@ def _pulses(value: dict[str, float] | None) -> str:
     )
 
 
-def _run_columns(runs: list[HeldOutRun]) -> list[Column]:
-    """The columns of the held-out runs (one row per :class:`HeldOutRun`)."""
+def _run_columns(runs: list[HeldOutRun], compared: str) -> list[Column]:
+    """The columns of the held-out runs (one row per :class:`HeldOutRun`); ``compared``: the
+    signal compared beside the position."""
+    words, unit = compared_label(compared)
     columns: list[Column] = [
         ("held-out run", lambda r: _text(r.source)),
         ("position RMS before [um]", lambda r: number(r.position_rms_um_before)),
         ("after [um]", lambda r: number(r.position_rms_um_after)),
-        ("current RMS before [A]", lambda r: number(r.current_rms_before)),
-        ("after [A]", lambda r: number(r.current_rms_after)),
+        (f"{words} RMS before [{unit}]", lambda r: number(r.current_rms_before)),
+        (f"after [{unit}]", lambda r: number(r.current_rms_after)),
         ("relative errors before", lambda r: _errors(r.relative_errors_before)),
         ("after", lambda r: _errors(r.relative_errors_after)),
     ]
@@ -422,6 +432,7 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
     followed by the table that holds each of its numbers (:func:`gap_table`).
     """
     units = hypothesis_units(d.context.model)
+    compared_words, compared_unit = compared_label(d.context.compared)
     first = next((r for r in d.rounds if r.candidates), None)
     before, after = d.metrics_before[0], d.metrics_after[0]
     figures = d.validation
@@ -459,7 +470,7 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
         ),
         (
             "Held-out runs, before and after the accepted effects",
-            _table(d.held_out_runs, _run_columns(d.held_out_runs)),
+            _table(d.held_out_runs, _run_columns(d.held_out_runs, d.context.compared)),
         ),
         (
             "Where the gap lies before the accepted effects (training and held-out data): "
@@ -494,8 +505,8 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
         (
             "Which: hypotheses fitted on the training data, judged on the held-out data (first "
             f"round; held-out position RMS before {number(d.rounds[0].position_rms_um)} um, "
-            f"current {number(d.rounds[0].current_rms)} A)",
-            _table(first.candidates if first else [], _ranking_columns(units)),
+            f"{compared_words} {number(d.rounds[0].current_rms)} {compared_unit})",
+            _table(first.candidates if first else [], _ranking_columns(units, d.context.compared)),
         ),
         *(
             [("Look-alike groups (a name in braces)", lookalikes(d))]
@@ -504,7 +515,7 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
         ),
         (
             "How far: each accepted effect on the held-out data, as fitted in its round",
-            _table(d.steps, _step_columns(units))
+            _table(d.steps, _step_columns(units, d.context.compared))
             if d.steps
             else "No effect passed the held-out test.",
         ),
