@@ -17,7 +17,9 @@ is the combination sum a_j c_j with every |a_j| <= 1 (bounded linear least squar
 one per sample) closest to r; what it leaves is the part of the gap that calibration error
 cannot explain, and a change counts only when it shrinks that part too. The correction is
 fitted on the held-out data themselves: calibration error gets every benefit of the doubt,
-bounded by the tolerance.
+bounded by the tolerance. Where this linear correction leaves a gap, the selection replays it and
+re-linearises around the corrected parameters
+(:meth:`twin_cosim.gap.which.replay_pool.ReplayPool.calibration`).
 
 **Is there a gap?** What the best calibration correction leaves, ``left``, against its
 distribution under noise at the floors alone. Residuals are correlated in time (the closed loop
