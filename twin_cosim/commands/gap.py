@@ -538,8 +538,10 @@ def _print_text(result: Diagnosis) -> None:
     """The verdict and each accepted effect's held-out gaps, numbers for people."""
     from twin_cosim.gap.report.pages import hypothesis_units
     from twin_cosim.gap.verdict import names, number, parameters
+    from twin_cosim.measured import compared_label
 
     units = hypothesis_units(result.context.model)
+    words, unit = compared_label(result.context.compared)
     print(result.verdict)
     for step in result.steps:
         best = step.best
@@ -547,7 +549,7 @@ def _print_text(result: Diagnosis) -> None:
         print(
             f"  {names([step.effect])}: held-out position gap "
             f"{number(step.position_rms_um)} -> {number(best.judgement.position_rms_um)} "
-            f"um, current {number(step.current_rms)} -> "
-            f"{number(best.judgement.current_rms)} A, as fitted in its round: "
+            f"um, {words} {number(step.current_rms)} -> "
+            f"{number(best.judgement.current_rms)} {unit}, as fitted in its round: "
             f"{parameters(best.fit.values, units.get(best.name, {}))}"
         )

@@ -80,6 +80,7 @@ def plot_regimes(d: Diagnosis, path: Path) -> Path:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     names = list(regime_model.REGIMES)
     x = np.arange(len(names))
+    titles = {"position": "position", "current": compared_label(d.context.compared)[0]}
     for ax, signal in zip(axes, ("position", "current"), strict=True):
         shares = getattr(d.where, signal)
         ax.bar(x - 0.2, [shares[n]["time_share"] for n in names], 0.4, label="time share")
@@ -87,7 +88,7 @@ def plot_regimes(d: Diagnosis, path: Path) -> Path:
             x + 0.2, [shares[n]["energy_share"] for n in names], 0.4, label="residual energy share"
         )
         ax.set_xticks(x, [n.replace("_", "\n") for n in names], fontsize=8)
-        ax.set_title(f"{signal} residual")
+        ax.set_title(f"{titles[signal]} residual")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3, axis="y")
     return _saved(fig, path)
@@ -101,8 +102,9 @@ def plot_spectra(d: Diagnosis, path: Path) -> Path:
     dt = float(np.median(np.diff(res.t)))
     stretches = regime_model.segments(res.regimes, regime_model.REGIMES.index("constant_velocity"))
     fig, axes = plt.subplots(3, 2, figsize=(11, 9.5))
+    compared, compared_unit = compared_label(d.context.compared)
     for column, (signal, values, unit) in enumerate(
-        (("position", res.position * UM_PER_M, "um"), ("current", res.current, "A"))
+        (("position", res.position * UM_PER_M, "um"), (compared, res.current, compared_unit))
     ):
         f, a = spectra.frequency_spectrum(values, dt)
         axes[0, column].loglog(f[1:], a[1:] + 1e-12, lw=0.7)

@@ -456,7 +456,8 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
         (
             "Noise floors",
             f"position {quantity(d.floors.sigma_position_m, 'm')} ({d.floors.position_source}); "
-            f"current {quantity(d.floors.sigma_current, 'A')} ({d.floors.current_source}).",
+            f"{compared_words} {quantity(d.floors.sigma_current, compared_unit)} "
+            f"({d.floors.current_source}).",
         ),
         (
             "Validation figures (training and held-out data before the accepted effects, as in "
@@ -478,7 +479,7 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
             _table(list(d.where.position.items()), SHARE_COLUMNS),
         ),
         (
-            "Before the accepted effects: current residual by regime",
+            f"Before the accepted effects: {compared_words} residual by regime",
             _table(list(d.where.current.items()), SHARE_COLUMNS),
         ),
         (
@@ -498,7 +499,8 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
             "constant-velocity stretches at one speed level, within 10 %; a peak at a fixed "
             "order across the groups, its frequency moving, is position-periodic)",
             "; ".join(
-                f"{k.replace('_', ' ')}: {v['verdict']} ({v['reason']})"
+                f"{k.replace('current_', compared_words + '_').replace('_', ' ')}: "
+                f"{v['verdict']} ({v['reason']})"
                 for k, v in d.where.periodicity.items()
             ),
         ),
