@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from emps_data import needs_emps_data
-from twin_cosim.paper import TABLE3
 
 from twin_cosim.cli import main
+from twin_cosim.controller_set import TABLE3
 from twin_cosim.cosim import run_scenario
 from twin_cosim.optimize.axis_problem import ObjectiveSpec
 from twin_cosim.optimize.objective import Objective
