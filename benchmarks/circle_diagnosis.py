@@ -3,9 +3,9 @@
 Each case hides one effect of the plant-model library in one axis of ``scenarios/xy_table.yaml``
 (plus a calibration error of up to ``--perturb`` on both axes' calibrated parameters and white
 measurement noise), runs a circle on that virtual machine
-(:func:`twin_cosim.contour.circle_diagnosis.synthesize_motion` of the circle), writes it as a
+(:func:`twin_cosim.contour.measured_circle.synthesize_motion` of the circle), writes it as a
 measured test and lets the diagnosis
-(:func:`twin_cosim.contour.circle_diagnosis.diagnose_circle`) name the axis and the effect
+(:func:`twin_cosim.contour.measured_circle.diagnose_circle`) name the axis and the effect
 without being told. A case counts when both are right (the effect may stand in
 an accepted look-alike group). Results are appended to ``--results`` as they come.
 
@@ -20,8 +20,11 @@ import tempfile
 from pathlib import Path
 
 from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec, circle_motion
-from twin_cosim.contour.circle_diagnosis import diagnose_circle, synthesize_motion
-from twin_cosim.contour.measured_circle import read_measured_circle
+from twin_cosim.contour.measured_circle import (
+    diagnose_circle,
+    read_measured_circle,
+    synthesize_motion,
+)
 from twin_cosim.gap.synth import parse_effect
 from twin_cosim.scenario import load_machine
 

@@ -16,7 +16,7 @@ Early stopping is exact for CE only: with another ``--method`` it is off and ``r
 ``ref1-full``. Then every tuned set (and Fine-Tune) is judged on each held-out scenario with
 ``twin simulate``. Prints per seed the cost (evaluations, simulated speed-loop steps, wall time)
 and the goal figures (with what of each held-out trajectory's motion lies beyond that of the
-tuning ones, :mod:`twin_cosim.motion_envelope`), and the medians over the seeds; writes
+tuning ones, :mod:`twin_cosim.reference`), and the medians over the seeds; writes
 ``<out>/robust.json``. The machine's load average is printed at start and end. Simulated steps
 are the cost measure that the machine's load does not blur.
 
@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from twin_cosim.motion_envelope import envelope_of, outside
+from twin_cosim.reference import envelope_of, outside
 from twin_cosim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]

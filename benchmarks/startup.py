@@ -146,8 +146,7 @@ def empty_cache() -> Iterator[None]:
 
 def pool_start(workers: int) -> dict[str, float]:
     """Times (s) until a pool of ``workers`` started now has answered one task per worker."""
-    from twin_cosim.pool_runs import prepare_campaign_worker
-    from twin_cosim.workers import ProcessPool
+    from twin_cosim.workers import ProcessPool, prepare_campaign_worker
 
     start = time.perf_counter()
     with ProcessPool(None, workers, prepare_campaign_worker) as pool:

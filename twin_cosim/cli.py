@@ -1,7 +1,8 @@
 """The ``twin`` command line: build, simulate, circle, optimize, compare, synth, diagnose, table3,
 ssp, bode, calibrate, autotune, step, kv, friction, serve, watch.
 
-Each command is a module of :mod:`twin_cosim.commands` (its arguments and ``run``). Only the
+Each command is a pair of functions in a module of :mod:`twin_cosim.commands` (its arguments,
+``add_<command>``, and ``run_<command>``), the commands of one concept in one module. Only the
 standard library and the light registries are imported at start, so that ``twin --help`` answers
 at once; each command imports what it needs (numpy, pandas, fmpy, numba, matplotlib) when it
 runs.
@@ -16,46 +17,38 @@ import signal
 import sys
 
 from twin_cosim.commands import (
-    autotune,
-    bode,
-    build,
-    calibrate,
+    axis_tests,
     circle,
-    compare,
-    diagnose,
-    friction,
-    kv,
+    fmu,
+    frequency,
+    gap,
     optimize,
-    serve,
+    paper_tables,
+    runtime,
     simulate,
-    ssp,
-    step,
-    synth,
-    table3,
-    watch,
 )
 from twin_cosim.commands.options import HelpFormatter
 from twin_cosim.environment import DATA_ENV
 
 COMMANDS = (
-    build,
-    simulate,
-    circle,
-    optimize,
-    compare,
-    synth,
-    diagnose,
-    table3,
-    ssp,
-    bode,
-    calibrate,
-    autotune,
-    step,
-    kv,
-    friction,
-    serve,
-    watch,
-)  # in the help's order
+    fmu.add_build,
+    simulate.add_simulate,
+    circle.add_circle,
+    optimize.add_optimize,
+    paper_tables.add_compare,
+    gap.add_synth,
+    gap.add_diagnose,
+    paper_tables.add_table3,
+    fmu.add_ssp,
+    frequency.add_bode,
+    frequency.add_calibrate,
+    frequency.add_autotune,
+    axis_tests.add_step,
+    axis_tests.add_kv,
+    axis_tests.add_friction,
+    runtime.add_serve,
+    runtime.add_watch,
+)  # each adds one command, in the help's order
 
 
 def user_errors() -> tuple[type[Exception], ...]:
@@ -78,13 +71,13 @@ def user_errors() -> tuple[type[Exception], ...]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``twin``: one subcommand per module of :data:`COMMANDS`."""
+    """The argument parser of ``twin``: one subcommand per function of :data:`COMMANDS`."""
     parser = argparse.ArgumentParser(
         prog="twin", description="Digital twin of a CNC feed axis", formatter_class=HelpFormatter
     )
     subparsers = parser.add_subparsers(dest="command", required=True)
-    for command in COMMANDS:
-        command.add_arguments(subparsers)
+    for add_command in COMMANDS:
+        add_command(subparsers)
     return parser
 
 
@@ -129,8 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if getattr(args, "data", None):
         os.environ[DATA_ENV] = args.data  # also seen by worker processes
-    from twin_cosim.interrupts import Terminated, stop_handlers
-    from twin_cosim.workers import command_temp_folder
+    from twin_cosim.workers import Terminated, command_temp_folder, stop_handlers
 
     with stop_handlers():  # a second signal never interrupts the shutdown the first began
         try:

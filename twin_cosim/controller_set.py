@@ -1,4 +1,5 @@
-"""A controller set: the six tuned parameters and what it changes of the fixed settings.
+"""Controller sets: the six tuned parameters and what a set changes of the fixed settings; the
+sets the paper publishes.
 
 A tuner sets more than the six parameters of eq. (7): ``twin autotune`` also sets the
 current-setpoint filters and the feedforwards (gains and the inertia they assume), and a
@@ -10,6 +11,10 @@ its own. As a file (YAML or JSON, what ``twin autotune --json`` prints)::
     settings:                       # optional: fields of ControllerSettings
       inertia: 7.1e-4
       filters: [{type: notch, frequency_hz: 109.5, bandwidth_hz: 60.0, depth_db: -20.0}]
+
+**The paper's sets** (Haber Guerra et al., IEEE Access 2020): Table 3 lists the six tuned parameters
+K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] of the industrial Fine-Tune method (FT, also eq. (8))
+and of the three optimizers. Units as in :mod:`twin_cosim.controller`.
 """
 
 from __future__ import annotations
@@ -52,3 +57,27 @@ class ControllerSet:
                 settings["filters"] = [current_filters.as_dict(f) for f in settings["filters"]]
             data["settings"] = settings
         return data
+
+
+TABLE3: dict[str, TunedParameters] = {
+    "ft": TunedParameters(
+        Kp_pos=66.6667, Kp_vel=0.2865, Ki_vel=0.0080, PP2=0.7184, PP3=0.0082, f_H=0.1288
+    ),
+    "ga": TunedParameters(
+        Kp_pos=74.8709, Kp_vel=0.3008, Ki_vel=0.00151, PP2=0.3012, PP3=0.03097, f_H=0.02605
+    ),
+    "ce": TunedParameters(
+        Kp_pos=74.5483, Kp_vel=0.4976, Ki_vel=0.0028, PP2=0.1085, PP3=0.0437, f_H=0.0262
+    ),
+    "sa": TunedParameters(
+        Kp_pos=64.4926, Kp_vel=0.4970, Ki_vel=0.00305, PP2=0.1715, PP3=0.0695, f_H=0.0006
+    ),
+}
+FINE_TUNE = TABLE3["ft"]
+
+
+def set_name(tuned: TunedParameters) -> str:
+    """The name the tables give a scenario's own set: the paper's (FT, GA, CE, SA) or "the
+    scenario's set"."""
+    named = [name.upper() for name, values in TABLE3.items() if values == tuned]
+    return f"{named[0]} (the scenario's set)" if named else "the scenario's set"

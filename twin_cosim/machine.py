@@ -32,7 +32,7 @@ from twin_cosim.plant import Plant
 from twin_cosim.plant_model import plant_model
 from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario, load_scenario
-from twin_cosim.scenario.plant_file import check_values, read_plant_parameters
+from twin_cosim.scenario.plant_parameters import check_values, read_plant_parameters
 from twin_cosim.schema import ScenarioError, load_yaml
 
 MEASURED_SUFFIXES = (".csv", ".mat")

@@ -1,13 +1,24 @@
-"""Measured runs: files of a real (or virtual) axis, their checks, and their match to a scenario.
+"""Measured runs: files of a real (or virtual) axis, the units of their signals, their checks,
+and their match to a scenario.
 
-One reader (:func:`read_measured`) for every format; each gives a :class:`MeasuredRun` in the SI
-units of the twin (a unit per signal):
+**Units of measured signals**: the units a file may carry, what each measures and its factor to
+the SI unit the twin computes in.
+
+A measured file says the unit of a column in its header (``x [mm]``, ``current (mA)``) or in a
+drive trace's metadata (TwinCAT Scope's ``Unit`` row); :func:`to_si` converts the values. Each
+signal of a run measures one quantity (:data:`QUANTITY_OF`: ``x`` a length, ``motor_speed`` an
+angular speed, ...), so that a unit of another quantity (``x [rpm]``) is refused rather than
+guessed, as is a unit this table does not know. A column without a unit is in the signal's SI
+unit (:data:`SI_UNIT`), the documented default of the project's CSV format.
+
+**Measured runs.** One reader (:func:`read_measured`) for every format; each gives a
+:class:`MeasuredRun` in the SI units of the twin (a unit per signal):
 
 - **CSV** (the project's format): ``t`` [s], ``x_ref`` [m], ``x`` [m] (measured load
   position), ``current`` [A]; optional ``motor_speed`` [rad/s], ``motor_angle`` [rad],
   ``load_speed`` [m/s], ``input_torque`` and ``measured_torque`` [N.m]. A header may carry each
   column's unit (``t [ms]``, ``x [mm]``, ``current (mA)``, ``motor_speed [rpm]``; the units of
-  :mod:`twin_cosim.signal_units`), converted on reading; a column without a unit is in the SI
+  :data:`QUANTITY_OF`), converted on reading; a column without a unit is in the SI
   unit above; an unknown unit, or one of another quantity, is an error naming the column. Other
   names map onto these by a column map (``--columns x=ActPos,t=Time``, or the scenario's
   ``measured_columns``). Extra columns are kept when their header names a known unit (another
@@ -41,6 +52,7 @@ report repeats.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -50,7 +62,122 @@ import numpy as np
 
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.run_record import RunRecord
-from twin_cosim.signal_units import QUANTITY_OF, SI_UNIT, UnitError, split_header, to_si
+
+# Unit (as written in a file) -> (quantity, factor to the quantity's SI unit).
+UNITS: dict[str, tuple[str, float]] = {
+    "s": ("time", 1.0),
+    "ms": ("time", 1e-3),
+    "us": ("time", 1e-6),
+    "m": ("length", 1.0),
+    "mm": ("length", 1e-3),
+    "um": ("length", 1e-6),
+    "µm": ("length", 1e-6),
+    "nm": ("length", 1e-9),
+    "rad": ("angle", 1.0),
+    "mrad": ("angle", 1e-3),
+    "deg": ("angle", math.pi / 180.0),
+    "°": ("angle", math.pi / 180.0),
+    "rev": ("angle", 2.0 * math.pi),
+    "rad/s": ("angular speed", 1.0),
+    "deg/s": ("angular speed", math.pi / 180.0),
+    "rpm": ("angular speed", 2.0 * math.pi / 60.0),
+    "1/min": ("angular speed", 2.0 * math.pi / 60.0),
+    "m/s": ("speed", 1.0),
+    "mm/s": ("speed", 1e-3),
+    "mm/min": ("speed", 1e-3 / 60.0),
+    "m/min": ("speed", 1.0 / 60.0),
+    "A": ("current", 1.0),
+    "mA": ("current", 1e-3),
+    "V": ("voltage", 1.0),
+    "mV": ("voltage", 1e-3),
+    "N": ("force", 1.0),
+    "N.m": ("torque", 1.0),
+    "Nm": ("torque", 1.0),
+    "N·m": ("torque", 1.0),
+    "mN.m": ("torque", 1e-3),
+    "mNm": ("torque", 1e-3),
+}
+# The SI unit of each quantity (the unit of the twin's records).
+QUANTITY_SI = {
+    "time": "s",
+    "length": "m",
+    "angle": "rad",
+    "angular speed": "rad/s",
+    "speed": "m/s",
+    "current": "A",
+    "voltage": "V",
+    "force": "N",
+    "torque": "N.m",
+}
+# The quantities each signal of a measured run may carry (the command: a current, or the
+# voltage of a drive commanded in V, as EMPS's).
+QUANTITY_OF: dict[str, tuple[str, ...]] = {
+    "t": ("time",),
+    "x_ref": ("length",),
+    "x": ("length",),
+    "current": ("current", "voltage"),
+    "motor_speed": ("angular speed",),
+    "motor_angle": ("angle",),
+    "angle_ref": ("angle",),
+    "load_speed": ("speed",),
+    "input_torque": ("torque",),
+    "measured_torque": ("torque",),
+}
+# A signal's unit when its column gives none.
+SI_UNIT = {name: QUANTITY_SI[quantities[0]] for name, quantities in QUANTITY_OF.items()}
+_HEADER = re.compile(r"^\s*(?P<name>.*?)\s*(?:\[(?P<bracket>[^\]]*)\]|\((?P<paren>[^)]*)\))\s*$")
+
+
+class UnitError(ValueError):
+    """A unit is unknown, or measures another quantity than its signal; the message names the
+    column."""
+
+
+def split_header(header: str) -> tuple[str, str | None]:
+    """A column header as (name, unit): ``"x [mm]"`` and ``"x (mm)"`` give ``("x", "mm")``,
+    ``"x"`` gives ``("x", None)``."""
+    match = _HEADER.match(header)
+    if match is None:
+        return header.strip(), None
+    unit = match.group("bracket") if match.group("bracket") is not None else match.group("paren")
+    return match.group("name"), unit.strip()
+
+
+def to_si(values, unit: str, signal: str, column: str):
+    """``values`` in ``unit`` as the SI unit of their quantity, and that unit.
+
+    Parameters
+    ----------
+    values
+        Numbers (a float or a numpy array).
+    unit
+        The unit the file gives (one of :data:`UNITS`).
+    signal
+        The signal the column holds (a key of :data:`QUANTITY_OF`), or any other name for a
+        column the twin does not interpret (its unit must still be known).
+    column
+        The column as the file names it, for messages.
+
+    Raises
+    ------
+    UnitError
+        For a unit not in :data:`UNITS`, or one of another quantity than the signal's.
+    """
+    known = UNITS.get(unit.strip())
+    if known is None:
+        raise UnitError(
+            f"column {column!r}: unknown unit {unit!r}; expected one of {', '.join(UNITS)}"
+        )
+    quantity, factor = known
+    expected = QUANTITY_OF.get(signal)
+    if expected is not None and quantity not in expected:
+        units = [u for u, (q, _) in UNITS.items() if q in expected]
+        raise UnitError(
+            f"column {column!r}: unit {unit!r} is a {quantity}, but {signal} is a "
+            f"{' or a '.join(expected)} (units {', '.join(units)})"
+        )
+    return values * factor, QUANTITY_SI[quantity]
+
 
 REQUIRED = ("t", "x_ref", "x", "current")
 # An open-loop run needs its motor speed and a position: x, or the rotor's angle.
@@ -64,6 +191,12 @@ UNIT_FACTORS = {1e3: "mm instead of m", 1e6: "um instead of m"}
 # run's second signal is its command, ``current``).
 OPEN_LOOP_COMPARED = "motor_speed"
 CLOSED_LOOP_COMPARED = "current"
+
+
+def compared_label(signal: str) -> tuple[str, str]:
+    """Words and SI unit of a signal compared beside the position (:attr:`MeasuredRun.compared`):
+    ``("current", "A")`` of a closed-loop run, ``("motor speed", "rad/s")`` of an open-loop one."""
+    return signal.replace("_", " "), SI_UNIT[signal]
 
 
 def _signal(name: str, doc: str) -> property:
@@ -88,7 +221,8 @@ def _signal(name: str, doc: str) -> property:
 
 
 class MeasuredDataError(ValueError):
-    """A measured run cannot be used; the message names the file, the column and the problem."""
+    """A measured file (a run; a frequency response, :mod:`twin_cosim.frequency.calibration`)
+    cannot be used; the message names the file, the column (or the frequency) and the problem."""
 
 
 @dataclass(frozen=True)
@@ -128,7 +262,7 @@ class MeasuredRun:
         scalars: Mapping[str, float] | None = None,
     ) -> MeasuredRun:
         """A run of ``signals`` by name (``t``, ``x_ref``, ``x``, ``current`` and any further
-        ones), in the SI units of :data:`twin_cosim.signal_units.SI_UNIT` unless ``units``
+        ones), in the SI units of :data:`twin_cosim.measured.SI_UNIT` unless ``units``
         names another."""
         known = {name: unit for name, unit in SI_UNIT.items() if name in signals}
         record = RunRecord.from_columns(signals, {**known, **(units or {})})

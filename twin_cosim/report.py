@@ -10,8 +10,8 @@ from typing import TYPE_CHECKING
 import pandas as pd
 
 from twin_cosim.metrics import compute_metrics
-from twin_cosim.pool_runs import run_records
 from twin_cosim.scenario import with_controller_set
+from twin_cosim.workers import run_records
 
 if TYPE_CHECKING:
     from twin_cosim.controller_set import ControllerSet

@@ -1,4 +1,5 @@
-"""The one YAML loader and the one checker of every input file the twin reads.
+"""The one YAML loader and the one checker of every input file the twin reads; the reader of
+JSON-lines files (a campaign's evaluation log, the watch's log).
 
 Scenarios, their ``optimize`` and ``diagnose`` sections, plant parameter files (``plant.yaml``)
 and plant-model cards are all read by :func:`load_yaml` and checked with :class:`Checker`, so that
@@ -8,8 +9,10 @@ file, the key path and what was expected.
 
 from __future__ import annotations
 
+import json
 import math
 import re
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +35,21 @@ _Loader.add_implicit_resolver(
     ),
     list("-+0123456789."),
 )
+
+
+def json_lines(
+    lines: Iterable[str], corrupt: Callable[[int, json.JSONDecodeError], str]
+) -> Iterator[tuple[int, Any]]:
+    """The values of a JSON-lines text, one a line, with their line numbers (from 1); blank lines
+    are skipped. A line that is not JSON raises ``ValueError`` with ``corrupt(number, error)``
+    (the message names the file and the line)."""
+    for number, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        try:
+            yield number, json.loads(line)
+        except json.JSONDecodeError as exc:
+            raise ValueError(corrupt(number, exc)) from None
 
 
 def load_yaml(path: Path | str, error: type[Exception] = ScenarioError) -> Any:

@@ -1,4 +1,21 @@
-"""Worker pools for FMU work: each worker builds its own plant once and reuses it for every task.
+"""Ctrl-C and SIGTERM in a process that drives workers: raised only where it is safe.
+
+Python runs a signal's handler between any two bytecodes of the main thread. Raised inside the
+machinery of a process pool or a Dask client (a future's lock taken, a queue half fed, a pool
+half shut down), the KeyboardInterrupt leaves that machinery locked, and the shutdown that
+follows waits for ever (issue 18). So:
+
+- :func:`deferred_signals`: within the block, SIGINT and SIGTERM are recorded, not raised; at
+  its end the first one recorded is sent again to the handlers the block restored, which raise
+  it there, outside the machinery;
+- :func:`wait_interruptibly`: a wait for workers made of short waits inside such a block, so
+  that a signal meanwhile ends the wait at once and is raised between two short waits;
+- :func:`stop_handlers`: the handlers of a command: a Ctrl-C (KeyboardInterrupt) or SIGTERM
+  (:class:`Terminated`) is raised, and absorbed while one is being handled (``timeout -s INT``
+  signals the command, then its group: two signals, one wish); one that Python dropped (raised
+  in a weakref callback) is raised again at the next wait for workers.
+
+Worker pools for FMU work: each worker builds its own plant once and reuses it for every task.
 
 A *factory* is a picklable object (plain values: paths, numbers, resolved scenarios) with a
 ``build()`` method returning the worker: a callable ``worker(task) -> result`` with a ``close()``
@@ -28,13 +45,18 @@ folder (:func:`command_temp_folder`); one left by a process that could not clean
 of a serial run) is removed by the next pool or command.
 
 The parent never lets a Ctrl-C or SIGTERM land inside the executor's machinery: submitting,
-waiting and shutting down run with those signals deferred (:mod:`twin_cosim.interrupts`), which
+waiting and shutting down run with those signals deferred (:mod:`twin_cosim.workers`), which
 are raised between two of those steps instead.
+
+**Scenario runs on a worker pool**: their records, for tables and figures. Light to import: the
+parent of a pool builds the tasks and never runs the plant; the plant and the compiled master are
+loaded in the workers (:class:`PlantTasks`), which start with :func:`prepare_worker`.
 """
 
 from __future__ import annotations
 
 import abc
+import importlib
 import multiprocessing
 import multiprocessing.util
 import os
@@ -49,10 +71,132 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol, Self
+from typing import TYPE_CHECKING, Any, Protocol, Self, TypeVar
 
-from twin_cosim.interrupts import deferred_signals, wait_interruptibly
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from twin_cosim.controller import TunedParameters
+    from twin_cosim.plant import Plant
+    from twin_cosim.run_record import RunRecord
+    from twin_cosim.scenario import Scenario
+
+
+T = TypeVar("T")
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+POLL_S = 0.1  # longest wait between two checks for a deferred signal
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM received: handled like Ctrl-C, so that every ``finally`` runs."""
+
+
+class Deferral:
+    """The signal recorded while signals were deferred (None: none came)."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+
+    def record(self, signum: int, frame: Any) -> None:
+        """A signal handler that keeps the first signal for later."""
+        if self.signum is None:
+            self.signum = signum
+
+
+@contextmanager
+def deferred_signals() -> Iterator[Deferral]:
+    """Record SIGINT and SIGTERM in this block; at its end, raise the first one recorded.
+
+    The signal goes again to the handlers restored at the end (a KeyboardInterrupt with
+    Python's, nothing where it is ignored). Outside the main thread, where handlers cannot be
+    set and signals are never raised, the block changes nothing.
+    """
+    deferral = Deferral()
+    if threading.current_thread() is not threading.main_thread():
+        yield deferral
+        return
+    previous = {signum: signal.signal(signum, deferral.record) for signum in STOP_SIGNALS}
+    try:
+        yield deferral
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        if deferral.signum is not None:
+            signal.raise_signal(deferral.signum)  # its handler runs before the next bytecode
+
+
+def wait_interruptibly(wait_some: Callable[[float], T | None]) -> T:
+    """The first answer of ``wait_some(timeout_s)``, called until it answers (not None).
+
+    Signals are deferred during each call, so they never land inside the machinery it waits
+    on; one that comes ends the waiting and is raised at most :data:`POLL_S` later.
+    """
+    while True:
+        raise_requested_stop()
+        with deferred_signals() as deferral:
+            while deferral.signum is None:
+                answer = wait_some(POLL_S)
+                if answer is not None:
+                    return answer
+
+
+_requested: int | None = None  # the stop signal a command was given (None: none yet)
+
+
+def _stop(signum: int, frame: Any) -> None:
+    """A command's handler: raise the stop, unless one is being handled (a second signal
+    during the shutdown the first began)."""
+    global _requested
+    if isinstance(sys.exc_info()[1], KeyboardInterrupt):
+        return
+    _requested = signum
+    _raise_stop(signum)
+
+
+def _raise_stop(signum: int) -> None:
+    if signum == signal.SIGTERM:
+        raise Terminated(f"signal {signum}")
+    raise KeyboardInterrupt
+
+
+def raise_requested_stop() -> None:
+    """Raise the stop signal a command was given again, if it was lost.
+
+    Python drops an exception raised where it cannot propagate (a weakref callback, a
+    ``__del__``: "Exception ignored in ..."); a Ctrl-C raised there would be lost. Each wait
+    for workers (:func:`wait_interruptibly`) calls this, so the command stops there.
+    """
+    if _requested is not None:
+        _raise_stop(_requested)
+
+
+@contextmanager
+def stop_handlers() -> Iterator[None]:
+    """In this block a Ctrl-C or SIGTERM raises (KeyboardInterrupt, :class:`Terminated`), except
+    while one is being handled, so that a second signal never breaks the shutdown the first
+    began; one Python dropped is raised again by :func:`raise_requested_stop`. The handlers
+    before are restored at the end."""
+    global _requested
+    _requested = None
+    previous = {signum: signal.signal(signum, _stop) for signum in STOP_SIGNALS}
+    previous_hook = sys.unraisablehook
+
+    def drop_quietly(unraisable: Any) -> None:
+        """A stop Python dropped is raised again (:func:`raise_requested_stop`): no traceback."""
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            previous_hook(unraisable)
+
+    sys.unraisablehook = drop_quietly
+    try:
+        yield
+    finally:
+        _requested = None
+        sys.unraisablehook = previous_hook
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
 
 POOL_PREFIX = "twin-pool-"
 PARENT_POLL_S = 0.2  # how often a worker checks that its parent is alive
@@ -501,3 +645,94 @@ def make_pool(
     call ``prepare`` as they start)."""
     check_workers(workers)
     return SerialPool(factory) if workers == 1 else ProcessPool(factory, workers, prepare)
+
+
+RunTask = tuple["Scenario", "TunedParameters | None"]  # a scenario and a set (None: its own)
+
+
+def prepare_worker(modules: tuple[str, ...] = ()) -> None:
+    """What a pool's process does as it starts, before its first task: import the co-simulation
+    (numpy, fmpy), load the compiled master and import ``modules`` (those of its workers), while
+    the parent prepares.
+
+    A pool of campaign or diagnosis workers takes :func:`prepare_campaign_worker` or
+    :func:`prepare_replay_worker`.
+    """
+    from twin_cosim.loops.ahead import ready_compiled_loops  # what this process is for
+
+    ready_compiled_loops()
+    for module in ("twin_cosim.cosim", *modules):
+        importlib.import_module(module)
+
+
+def prepare_campaign_worker() -> None:
+    """:func:`prepare_worker` of a campaign's pool: the objective's modules too."""
+    prepare_worker(("twin_cosim.optimize.objective",))
+
+
+def prepare_replay_worker() -> None:
+    """:func:`prepare_worker` of a diagnosis's pool: the replays and fits (SciPy's optimizers)."""
+    prepare_worker(("twin_cosim.gap.which.replay",))
+
+
+@dataclass(frozen=True)
+class PlantTasksSpec:
+    """The recipe of a :class:`PlantTasks` worker: the FMU its plant loads, and what it answers
+    for a task (a module-level function of the plant and the task, sent by reference)."""
+
+    fmu: str
+    answer: Callable[[Plant, Any], Any]
+
+    def build(self) -> PlantTasks:
+        """The worker, in the process that runs it."""
+        return PlantTasks(self.fmu, self.answer)
+
+
+class PlantTasks:
+    """A worker answering tasks on one plant of its own."""
+
+    def __init__(self, fmu: str, answer: Callable[[Plant, Any], Any]) -> None:
+        from twin_cosim.plant import Plant  # the run's modules: in the workers only
+
+        self.plant = Plant(fmu)
+        self.answer = answer
+
+    def __call__(self, task: Any) -> Any:
+        """What the worker answers for ``task``."""
+        return self.answer(self.plant, task)
+
+    def close(self) -> None:
+        """Free the plant."""
+        self.plant.close()
+
+
+def scenario_record(plant: Plant, task: RunTask) -> RunRecord:
+    """The record of a scenario run with a set (None: the scenario's own)
+    (:func:`twin_cosim.cosim.run_scenario`)."""
+    from twin_cosim.cosim import run_scenario  # in the workers only
+
+    scenario, tuned = task
+    return run_scenario(plant, scenario, tuned)
+
+
+def autotune_proposal(plant: Plant, scenario: Scenario) -> dict[str, Any]:
+    """The auto-tuner's proposal for a scenario from the twin's plant FRF measured on ``plant``
+    (:func:`twin_cosim.frequency.autotune.propose`; ``twin autotune``'s layout)."""
+    from twin_cosim.frequency.autotune import propose  # in the workers only
+
+    proposal, _ = propose(plant, scenario)
+    return proposal.summary()
+
+
+def run_records(pool: SerialPool | ProcessPool, fmu: Path, tasks: list[RunTask]) -> list[RunRecord]:
+    """The records of ``tasks`` run on ``fmu`` by the pool's workers, in task order."""
+    found = dict(pool.imap(tasks, PlantTasksSpec(str(fmu), scenario_record)))
+    return [found[i] for i in range(len(tasks))]
+
+
+def autotune_summary(
+    pool: SerialPool | ProcessPool, fmu: Path, scenario: Scenario
+) -> dict[str, Any]:
+    """The auto-tuner's proposal for ``scenario`` on ``fmu``, made by a worker of the pool."""
+    [(_, summary)] = pool.imap([scenario], PlantTasksSpec(str(fmu), autotune_proposal))
+    return summary

@@ -30,7 +30,7 @@ def test_build_prints_the_fmu_and_loops_paths(tmp_path, twin_cli):
 def test_build_warns_when_the_loops_cannot_be_compiled_ahead(tmp_path, monkeypatch, capsys):
     import argparse
 
-    from twin_cosim.commands import build
+    from twin_cosim.commands import fmu
     from twin_cosim.loops import ahead
 
     def fail(force: bool = False) -> Path:
@@ -38,7 +38,7 @@ def test_build_warns_when_the_loops_cannot_be_compiled_ahead(tmp_path, monkeypat
 
     monkeypatch.setattr(ahead, "build", fail)
     args = argparse.Namespace(model="drive2mass", out=str(tmp_path), force=False, fmi=2)
-    assert build.run(args) == 0
+    assert fmu.run_build(args) == 0
     captured = capsys.readouterr()
     assert captured.out.strip() == str(tmp_path / "drive2mass.fmu")
     assert "Python.h: not found; the loops will compile just in time" in captured.err

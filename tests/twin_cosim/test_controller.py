@@ -9,9 +9,9 @@ import pytest
 
 from twin_cosim import controller as c
 from twin_cosim.controller import ControllerSettings, TunedParameters
+from twin_cosim.controller_set import FINE_TUNE
 from twin_cosim.cosim import AxisRun, run_axes
 from twin_cosim.metrics import compute_metrics
-from twin_cosim.paper import FINE_TUNE
 from twin_cosim.reference import Dwell, Ramp, ReferenceGrid, interpolate, sample_segments
 
 

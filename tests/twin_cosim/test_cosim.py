@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from twin_cosim.controller_set import TABLE3
 from twin_cosim.cosim import (
     RECORD_COLUMNS,
     SPEED_LOOP_COLUMNS,
@@ -20,7 +21,6 @@ from twin_cosim.cosim import (
     run_axes,
     run_scenario,
 )
-from twin_cosim.paper import TABLE3
 from twin_cosim.plant import Plant, PlantError
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.scenario import load_scenario

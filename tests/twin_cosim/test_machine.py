@@ -7,14 +7,14 @@ from pathlib import Path
 import pytest
 from scenario_texts import scenario_text
 
-from twin_cosim import paper
+from twin_cosim.controller_set import FINE_TUNE
 from twin_cosim.cosim import run_scenario
 from twin_cosim.gap.synth import synthesize
 from twin_cosim.machine import machine_metrics, prediction
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.plant import Plant
 from twin_cosim.scenario import load_scenario
-from twin_cosim.scenario.plant_file import PlantParameters, write_plant_parameters
+from twin_cosim.scenario.plant_parameters import PlantParameters, write_plant_parameters
 
 SHORT = scenario_text(speed=0.01, acceleration=0.1, move=0.4)
 
@@ -28,12 +28,12 @@ def scenario(tmp_path):
 
 def twin_metrics(scenario):
     with Plant(scenario.plant_fmu()) as plant:
-        return compute_metrics(run_scenario(plant, scenario, paper.FINE_TUNE))
+        return compute_metrics(run_scenario(plant, scenario, FINE_TUNE))
 
 
 def test_twin_on_itself_predicts_exactly(scenario, tmp_path):
     same = write_plant_parameters(tmp_path / "same.yaml", PlantParameters("drive2mass", {}))
-    judged, kind = machine_metrics(scenario, paper.FINE_TUNE, same)
+    judged, kind = machine_metrics(scenario, FINE_TUNE, same)
     assert kind == "virtual machine"
     figures = prediction(twin_metrics(scenario), judged)
     assert all(f["relative_error_pct"] == 0.0 for f in figures.values())
@@ -43,7 +43,7 @@ def test_more_backlash_on_the_machine_shows_as_a_transfer_gap(scenario, tmp_path
     machine = write_plant_parameters(
         tmp_path / "machine.yaml", PlantParameters("drive2mass", {"backlash": 40e-6})
     )
-    judged, _ = machine_metrics(scenario, paper.FINE_TUNE, machine)
+    judged, _ = machine_metrics(scenario, FINE_TUNE, machine)
     twin = twin_metrics(scenario)
     figures = prediction(twin, judged)
     assert judged.E_pk_um > twin.E_pk_um  # a larger dead zone at every reversal
@@ -57,11 +57,11 @@ def test_machine_given_as_a_scenario_keeps_the_trajectory(scenario, tmp_path):
     machine.write_text(
         "plant:\n  parameters: {backlash: 40e-6}\nreference:\n  segments:\n    - dwell: 5.0\n"
     )
-    by_scenario, _ = machine_metrics(scenario, paper.FINE_TUNE, machine)
+    by_scenario, _ = machine_metrics(scenario, FINE_TUNE, machine)
     file = write_plant_parameters(
         tmp_path / "machine.yaml", PlantParameters("drive2mass", {"backlash": 40e-6})
     )
-    by_file, _ = machine_metrics(scenario, paper.FINE_TUNE, file)
+    by_file, _ = machine_metrics(scenario, FINE_TUNE, file)
     assert by_scenario == by_file
 
 
@@ -70,7 +70,7 @@ def test_measured_run_is_judged_from_its_own_record(scenario, tmp_path):
     run = synthesize(scenario, [], noise_position=0.0, noise_current=0.0).run
     path = Path(tmp_path / "run.csv")
     run.frame().to_csv(path, index=False)
-    judged, kind = machine_metrics(scenario, paper.FINE_TUNE, path)
+    judged, kind = machine_metrics(scenario, FINE_TUNE, path)
     assert kind == "measured run"
     figures = prediction(twin_metrics(scenario), judged)
     for name in ("E_pk_um", "ITAE", "IAU"):
@@ -90,8 +90,8 @@ def test_a_measured_run_in_other_units_and_names_is_judged_alike(scenario, tmp_p
     ].rename(
         columns={"x": "ActPos [um]", "x_ref": "SetPos [mm]", "current": "Iq [mA]", "t": "t [s]"}
     ).to_csv(other, index=False)
-    by_si, _ = machine_metrics(scenario, paper.FINE_TUNE, si)
+    by_si, _ = machine_metrics(scenario, FINE_TUNE, si)
     columns = {"x": "ActPos", "x_ref": "SetPos", "current": "Iq"}
-    by_other, _ = machine_metrics(scenario, paper.FINE_TUNE, other, columns)
+    by_other, _ = machine_metrics(scenario, FINE_TUNE, other, columns)
     for name in ("E_pk_um", "ITAE", "IAU"):
         assert getattr(by_other, name) == pytest.approx(getattr(by_si, name), rel=1e-9)

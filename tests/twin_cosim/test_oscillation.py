@@ -11,11 +11,11 @@ import pytest
 from emps_data import needs_emps_data
 
 from twin_cosim.cli import main
+from twin_cosim.controller_set import TABLE3
 from twin_cosim.cosim import run_scenario
 from twin_cosim.optimize.axis_problem import ObjectiveSpec
 from twin_cosim.optimize.objective import Objective
 from twin_cosim.oscillation import measure_oscillation, record_findings
-from twin_cosim.paper import TABLE3
 from twin_cosim.run_checks import loop_warnings
 from twin_cosim.scenario import load_scenario
 

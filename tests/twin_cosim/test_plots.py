@@ -7,7 +7,7 @@ import dataclasses
 import matplotlib.pyplot as plt
 import numpy as np
 
-from twin_cosim.paper import TABLE3, set_name
+from twin_cosim.controller_set import TABLE3, set_name
 from twin_cosim.plots import _close_up
 from twin_cosim.run_record import RunRecord
 

@@ -11,7 +11,7 @@ from scenario_texts import scenario_text
 
 from fmu_build.build import build_fmu
 from twin_cosim.cli import main
-from twin_cosim.commands.synth import EFFECTS_HELP
+from twin_cosim.commands.gap import EFFECTS_HELP
 from twin_cosim.optimize.comparison import load_comparison
 from twin_cosim.plant_model import model_names, plant_model
 from twin_cosim.scenario import ScenarioError, load_scenario

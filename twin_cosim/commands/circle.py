@@ -9,11 +9,11 @@ from typing import Any
 
 from twin_cosim.commands.console import command_line, write_summary
 from twin_cosim.commands.options import (
-    command_parser,
     feed_override_option,
     no_plots_option,
     out_folder,
     output_options,
+    scenario_parser,
 )
 
 
@@ -27,15 +27,15 @@ def _positive(text: str) -> float:
     return value
 
 
-def add_arguments(subparsers) -> None:
+def add_circle(subparsers) -> None:
     """The ``circle`` command and its options."""
-    parser = command_parser(
+    parser = scenario_parser(
         subparsers,
         "circle",
         "circular test (ISO 230-4: G, H, F, reversal spikes) on a machine",
-        run,
+        run_circle,
+        "machine scenario (axes: X, Y), file or shipped name",
     )
-    parser.add_argument("scenario", help="machine scenario (axes: X, Y), file or shipped name")
     parser.add_argument(
         "--radius", type=_positive, metavar="MM", help="radius, mm (required unless --measured)"
     )
@@ -69,7 +69,7 @@ def add_arguments(subparsers) -> None:
     )
 
 
-def run(args: argparse.Namespace) -> int:
+def run_circle(args: argparse.Namespace) -> int:
     """Run the circle(s), write circle.json, circle.png and the records; print the result."""
     from twin_cosim.contour.circle_report import circular_test
 
@@ -130,11 +130,10 @@ def _print_circle(args: argparse.Namespace, summary: dict[str, Any], out: Path) 
 
 def _measured(args: argparse.Namespace, out: Path, command: str) -> int:
     """Replay and diagnose a measured test (the diagnosis of
-    :func:`twin_cosim.contour.circle_diagnosis.diagnose_circle`); write circle.json and
+    :func:`twin_cosim.contour.measured_circle.diagnose_circle`); write circle.json and
     circle.png (machine and twin); print the verdict."""
-    from twin_cosim.contour.circle_diagnosis import diagnose_circle
     from twin_cosim.contour.circle_report import paths_table, plot_circle
-    from twin_cosim.contour.measured_circle import read_measured_circle
+    from twin_cosim.contour.measured_circle import diagnose_circle, read_measured_circle
     from twin_cosim.scenario import load_machine
 
     machine = load_machine(args.scenario)

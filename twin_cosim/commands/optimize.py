@@ -1,4 +1,8 @@
-"""``twin optimize``: tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] in a campaign folder."""
+"""``twin optimize``: tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H] in a campaign folder.
+
+A machine scenario (``axes:``) tunes every axis' parameters on circles or a part program: its
+problem is :class:`twin_cosim.contour.tuning.MachineProblem`, run by the same campaign driver.
+"""
 
 from __future__ import annotations
 
@@ -12,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 from twin_cosim.commands.console import warn_plant_mismatch
 from twin_cosim.commands.options import (
+    budget_option,
     command_parser,
     data_option,
     no_plots_option,
@@ -19,9 +24,16 @@ from twin_cosim.commands.options import (
     plant_option,
     plant_parameters_option,
     plant_path,
+    pool_options,
+    quiet_option,
     whole_number,
 )
 from twin_cosim.optimize.algorithms import METHOD_NAMES, method_label, method_list
+
+if TYPE_CHECKING:
+    from twin_cosim.optimize.driver import CampaignResult
+    from twin_cosim.workers import ProcessPool, SerialPool
+
 
 SETTLING_WEIGHT = 0.05  # um of fitness per ms of settling time: --objective settling
 
@@ -32,10 +44,10 @@ if TYPE_CHECKING:
     from twin_cosim.workers import ProcessPool, SerialPool
 
 
-def add_arguments(subparsers) -> None:
+def add_optimize(subparsers) -> None:
     """The ``optimize`` command and its options."""
     parser = command_parser(
-        subparsers, "optimize", "tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H]", run
+        subparsers, "optimize", "tune K = [Kp_pos, Kp_vel, Ki_vel, PP2, PP3, f_H]", run_optimize
     )
     parser.add_argument(
         "scenario",
@@ -48,7 +60,7 @@ def add_arguments(subparsers) -> None:
     _robust_options(parser)
     _machine_options(parser)
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    quiet_option(parser, "no progress bar")
     no_plots_option(parser)
     data_option(parser)
 
@@ -84,18 +96,11 @@ def _campaign_options(parser: argparse.ArgumentParser) -> None:
         "--method", choices=METHOD_NAMES, help="optimizer (default: none; required unless --resume)"
     )
     parser.add_argument("--seed", type=whole_number(0), help="seed (default: 0)")
-    parser.add_argument(
-        "--budget", type=whole_number(1), help="maximum evaluations (default: the method's)"
-    )
-    parser.add_argument(
-        "--workers",
-        type=whole_number(1),
-        help="local processes (default: all cores; 1: serial)",
-    )
-    parser.add_argument(
-        "--scheduler",
-        metavar="ADDR",
-        help="Dask scheduler address, e.g. tcp://host:8786 (default: none, a local pool)",
+    budget_option(parser, "maximum evaluations (default: the method's)")
+    pool_options(
+        parser,
+        "local processes (default: all cores; 1: serial)",
+        "Dask scheduler address, e.g. tcp://host:8786 (default: none, a local pool)",
     )
     plant_option(parser)
     parser.add_argument(
@@ -168,7 +173,7 @@ def objective_terms(text: str) -> dict[str, Any]:
     return terms
 
 
-def run(args: argparse.Namespace) -> int:
+def run_optimize(args: argparse.Namespace) -> int:
     """Run (or resume) the campaign, print its result, then write its plots.
 
     A machine scenario (axes:) runs its own campaign; otherwise the painter of the figures
@@ -176,13 +181,10 @@ def run(args: argparse.Namespace) -> int:
     while this process reads the campaign.
     """
     from twin_cosim.painter import Painter
-    from twin_cosim.pool_runs import prepare_campaign_worker
     from twin_cosim.scenario import is_machine_scenario
-    from twin_cosim.workers import make_pool
+    from twin_cosim.workers import make_pool, prepare_campaign_worker
 
     if is_machine_scenario(args.scenario[0]):
-        from twin_cosim.commands.optimize_machine import run_machine_campaign
-
         return run_machine_campaign(args)
     if args.program or args.target:
         raise ValueError("--program and --target: for a machine scenario (axes:)")
@@ -312,3 +314,105 @@ def _report(spec: CampaignSpec, result: CampaignResult, out: Path, as_json: bool
         f"{result.wall_s:.1f} s; {result.stop_reason}"
     )
     print("best parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in result.best_params.items()))
+
+
+_SINGLE_AXIS_OPTIONS = (
+    "plant",
+    "plant_parameters",
+    "tolerance",
+    "samples",
+    "objective",
+    "relative",
+    "scheduler",
+)
+
+
+def run_machine_campaign(args: argparse.Namespace) -> int:
+    """Run (or resume) the machine's campaign; print its result.
+
+    The pool's processes start first, so that they load the co-simulation while this process
+    reads the machine.
+    """
+    from twin_cosim.contour.tuning import prepare_machine_worker
+    from twin_cosim.workers import make_pool
+
+    for option in _SINGLE_AXIS_OPTIONS:
+        if getattr(args, option, None):
+            raise ValueError(f"--{option.replace('_', '-')}: for single-axis scenarios only")
+    if len(args.scenario) > 1:
+        raise ValueError("a machine's campaign takes one machine scenario (its circles grid)")
+    with make_pool(None, args.workers, prepare_machine_worker) as pool:
+        return _run_machine_on(args, pool)
+
+
+def _run_machine_on(args: argparse.Namespace, pool: SerialPool | ProcessPool) -> int:
+    """The campaign and its result with ``pool`` running the plants."""
+    from twin_cosim.contour.tuning import ContourCampaignSpec, MachineProblem, load_contour_spec
+    from twin_cosim.optimize.driver import run_campaign
+
+    given = {
+        "method": args.method,
+        "seed": args.seed,
+        "budget": args.budget,
+        "program": args.program,
+        "target": args.target,
+        "start": args.start,
+        "early_stop": False if args.no_early_stop else None,
+    }
+    given = {k: v for k, v in given.items() if v is not None}
+    if args.resume:
+        out = Path(args.resume)
+        spec = dataclasses.replace(load_contour_spec(out), scenario=args.scenario[0], **given)
+    else:
+        if args.method is None:
+            raise ValueError("--method is required unless --resume is given")
+        spec = ContourCampaignSpec(scenario=args.scenario[0], **given)
+        out = out_folder(args.out, Path("out") / f"optimize-machine-{spec.method}-seed{spec.seed}")
+    problem = MachineProblem.load(spec)
+    try:
+        result = run_campaign(
+            problem, out, resume=bool(args.resume), progress=not args.quiet, pool=pool
+        )
+    except KeyboardInterrupt as exc:
+        if (out / "campaign.json").exists():
+            exc.hint = f"; the log is intact: twin optimize {args.scenario[0]} --resume {out}"
+        raise
+    if args.json:
+        print(json.dumps(result.as_dict()))
+        return 0
+    print(f"{method_label(spec.method)}: {_outcome(result)}")
+    print(
+        f"  after {result.evaluations} evaluations in {result.wall_s:.1f} s; {result.stop_reason}"
+    )
+    for axis, params in result.best_params["axes"].items():
+        print(f"  {axis}: " + ", ".join(f"{k}={v:.6g}" for k, v in params.items()))
+    print(f"wrote {out}/result.json (twin circle ... --params {out}/result.json)")
+    return 0
+
+
+def _outcome(result: CampaignResult) -> str:
+    """The best candidate's worst case and the target's largest value, against the reference
+    sets, in words: a relative score as a ratio (each case scored against the reference sets'
+    value on it), values in um."""
+    details = result.details
+    target = details["target"]
+    metrics = result.metrics
+    if metrics is None:
+        return (
+            f"no valid run (the best candidate's status: {result.status}; its score "
+            f"{result.fitness:.4g} is a penalty; see evaluations.jsonl)"
+        )
+    cases = details["cases"]
+    reference = {case: values[target] for case, values in zip(cases, result.reference, strict=True)}
+    worst, largest = metrics["worst_case"], metrics[f"{target}_case"]
+    if details["relative"]:
+        ratio = result.fitness / details["reference_fitness"]
+        head = f"worst case {worst} at {ratio:.3f} of the reference sets' {target} on it"
+    else:
+        head = f"worst case {worst}"
+    text = (
+        f"{head} ({target} {metrics[f'worst_case_{target}']:.3f} um, reference sets "
+        f"{reference[worst]:.3f} um); largest {target} {metrics[target]:.3f} um on {largest} "
+        f"(reference sets {reference[largest]:.3f} um)"
+    )
+    return text if result.status == "ok" else f"{text}, above an IAU cap (penalised)"

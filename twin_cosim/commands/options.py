@@ -146,13 +146,21 @@ def plant_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def axis_test_parser(
-    subparsers, name: str, help: str, handler: Callable[[argparse.Namespace], int]
+SCENARIO_HELP = "scenario YAML file, or the name of a shipped one"
+
+
+def scenario_parser(
+    subparsers,
+    name: str,
+    help: str,
+    handler: Callable[[argparse.Namespace], int],
+    scenario: str = SCENARIO_HELP,
 ) -> argparse.ArgumentParser:
-    """The parser of a test of an axis, run by ``handler``: its scenario argument (its own
-    options follow, then :func:`axis_test_options`)."""
+    """The parser of a command on a scenario, run by ``handler``: its ``scenario`` argument
+    (``scenario``: its help), the command's own options follow (a test of an axis then ends with
+    :func:`axis_test_options`)."""
     parser = command_parser(subparsers, name, help, handler)
-    parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
+    parser.add_argument("scenario", help=scenario)
     return parser
 
 
@@ -163,6 +171,32 @@ def number_options(
     """Options of one number each: (option, type, default, metavar, help) per row."""
     for option, kind, default, metavar, text in table:
         parser.add_argument(option, type=kind, default=default, metavar=metavar, help=text)
+
+
+def quiet_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--quiet``: ``what`` the command then leaves out (its help)."""
+    parser.add_argument("--quiet", action="store_true", help=what)
+
+
+def budget_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--budget N``: evaluations of a campaign's method (``what``: its help)."""
+    parser.add_argument("--budget", type=whole_number(1), help=what)
+
+
+def pool_options(
+    parser: argparse.ArgumentParser, workers: str, scheduler: str | None = None
+) -> None:
+    """``--workers N`` (``workers``: its help) and, for a command that may run on Dask,
+    ``--scheduler ADDR`` (``scheduler``: its help)."""
+    parser.add_argument("--workers", type=whole_number(1), help=workers)
+    if scheduler is not None:
+        parser.add_argument("--scheduler", metavar="ADDR", help=scheduler)
+
+
+def coherence_option(parser: argparse.ArgumentParser, default: float, what: str) -> None:
+    """``--coherence-floor``: the coherence below which a line of an FRF counts as noise, and
+    ``what`` is done with such lines (its help)."""
+    parser.add_argument("--coherence-floor", type=fraction(0.0, 1.0), default=default, help=what)
 
 
 def axis_test_options(parser: argparse.ArgumentParser, folder: str) -> None:

@@ -19,7 +19,6 @@ from twin_cosim.commands.console import (
 from twin_cosim.commands.options import (
     column_map,
     columns_option,
-    command_parser,
     data_option,
     feed_override_option,
     no_plots_option,
@@ -29,6 +28,7 @@ from twin_cosim.commands.options import (
     plant_option,
     plant_parameters_option,
     plant_path,
+    scenario_parser,
 )
 
 _SINGLE_AXIS_OPTIONS = ("plant", "plant_parameters", "machine")  # not for a machine's program
@@ -42,10 +42,9 @@ if TYPE_CHECKING:
     from twin_cosim.scenario import Scenario
 
 
-def add_arguments(subparsers) -> None:
+def add_simulate(subparsers) -> None:
     """The ``simulate`` command and its options."""
-    parser = command_parser(subparsers, "simulate", "run a scenario in closed loop", run)
-    parser.add_argument("scenario", help="scenario YAML file, or the name of a shipped one")
+    parser = scenario_parser(subparsers, "simulate", "run a scenario in closed loop", run_simulate)
     params_option(parser)
     plant_option(parser)
     plant_parameters_option(parser)
@@ -76,7 +75,7 @@ def add_arguments(subparsers) -> None:
     data_option(parser)
 
 
-def run(args: argparse.Namespace) -> int:
+def run_simulate(args: argparse.Namespace) -> int:
     """Simulate, write record.csv and summary.json, print the result, then plot run.png; 1 when
     the loop diverged or oscillates (a limit cycle, a chattering current). A machine scenario
     (axes:) or a part program runs on every axis."""
@@ -122,7 +121,7 @@ def _run_scenario(args: argparse.Namespace, painter: Painter | None) -> int:
         print(f"twin simulate: warning: {warning}", file=sys.stderr)
     drawn = True
     if painter is not None:
-        from twin_cosim.paper import set_name
+        from twin_cosim.controller_set import set_name
 
         title = f"{scenario.name}: {args.params or set_name(scenario.tuned)}"
         sys.stdout.flush()  # the results show while the figure is drawn

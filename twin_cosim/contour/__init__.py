@@ -7,7 +7,7 @@
   (:func:`twin_cosim.cosim.run_axes`), its contour record, metrics and figure;
 - :mod:`~twin_cosim.contour.circle`: the circular test: its motion and run, the ISO 230-4
   figures and signatures, the polar plot, ``twin circle``'s files;
-- :mod:`~twin_cosim.contour.measured_circle`, :mod:`~twin_cosim.contour.circle_diagnosis`:
+- :mod:`~twin_cosim.contour.measured_circle`, :mod:`~twin_cosim.contour.measured_circle`:
   measured circular tests, their replay and per-axis diagnosis, virtual X-Y machines;
 - :mod:`~twin_cosim.contour.tuning`: tuning every axis for contours (a problem of the campaign
   driver);

@@ -27,7 +27,7 @@ On the data circle (360 degrees of actual positions around the nominal centre, t
   peak) is about v |T_X - T_Y|.
 
 The circle is evaluated on the tool's path: the axes' positions moved by the machine's geometric
-errors (:class:`~twin_cosim.scenario.machine_geometry.MachineGeometry`), as a ballbar sees it.
+errors (:class:`~twin_cosim.scenario.machine.MachineGeometry`), as a ballbar sees it.
 :mod:`~twin_cosim.contour.ballbar` fits the ballbar's diagnostics to it,
 :mod:`~twin_cosim.contour.circle_report` runs the test as ``twin circle`` does and draws it.
 """

@@ -6,7 +6,7 @@ runs on its own plant instance in the master (:func:`twin_cosim.cosim.run_axes`)
 contour record puts the programmed and the actual positions side by side with the contour
 error: the distance of the tool point to the programmed path (the tool point is the axes'
 positions moved by the machine's geometric errors,
-:class:`~twin_cosim.scenario.machine_geometry.MachineGeometry`). :func:`plot_contour` draws a
+:class:`~twin_cosim.scenario.machine.MachineGeometry`). :func:`plot_contour` draws a
 program's run.
 """
 
@@ -26,8 +26,7 @@ from twin_cosim.metrics import UM_PER_M, compute_metrics
 from twin_cosim.plant import Plant
 from twin_cosim.reference import ReferenceGrid, interpolate
 from twin_cosim.run_record import RunRecord
-from twin_cosim.scenario.machine import MachineScenario
-from twin_cosim.scenario.machine_geometry import MachineGeometry
+from twin_cosim.scenario.machine import MachineGeometry, MachineScenario
 
 MAGNIFICATION_SHARE = 0.05  # the drawn contour error at its largest: this share of the part's size
 
@@ -203,24 +202,6 @@ def plan_on(machine: MachineScenario, program: Program, feed_override: float = 1
         feed_override=feed_override,
         max_duration=longest_path(machine),
     )
-
-
-def run_program(
-    machine: MachineScenario,
-    program: Program,
-    plants: MachinePlants,
-    fast: bool = True,
-    abort_error: float = math.inf,
-    feed_override: float = 1.0,
-) -> tuple[MachineRecord, PlannedMotion]:
-    """Run a part program on the machine: its planned motion (:func:`plan_on`), then the run of
-    every axis.
-
-    The program starts at the machine's origin (every axis at 0 m); ``abort_error`` as for
-    :func:`run_machine` (m); ``feed_override`` a factor on the programmed feeds.
-    """
-    motion = plan_on(machine, program, feed_override)
-    return run_machine(machine, motion, plants, fast, abort_error), motion
 
 
 def plot_contour(record: MachineRecord, title: str, command: str, path: Path) -> Path:

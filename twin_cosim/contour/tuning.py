@@ -51,7 +51,8 @@ from twin_cosim.contour.machine_run import (
     MachinePlants,
     MachineRecord,
     contour_metrics,
-    run_program,
+    plan_on,
+    run_machine,
 )
 from twin_cosim.controller import TUNED_NAMES, TunedParameters
 from twin_cosim.cosim import RunAborted
@@ -74,10 +75,10 @@ from twin_cosim.optimize.store import (
     settings_fingerprint,
 )
 from twin_cosim.plant import PlantError
-from twin_cosim.pool_runs import prepare_worker
 from twin_cosim.scenario import load_axes_parameters, load_machine
 from twin_cosim.scenario.machine import MachineScenario
 from twin_cosim.schema import Checker
+from twin_cosim.workers import prepare_worker
 
 TARGETS = ("G", "spike", "contour")
 KEYS = {"target", "relative", "circles", "bounds", "iau_cap", "abort_error_um", "penalty_um"}
@@ -261,7 +262,8 @@ def run_case(
         run = run_circle(machine, plants, case.circle, abort_error=abort_error)
         spike = max(abs(s.height_um) for s in run.result.spikes)
         return run.record, {"G": run.result.G_um, "spike": spike}
-    return run_program(machine, case.program, plants, abort_error=abort_error)[0], {}
+    motion = plan_on(machine, case.program)  # from the machine's origin, every axis at 0 m
+    return run_machine(machine, motion, plants, abort_error=abort_error), {}
 
 
 def case_values(

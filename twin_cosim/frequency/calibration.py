@@ -1,12 +1,12 @@
 """``twin calibrate --frf``: the two-mass parameters from a plant FRF, as ``plant.yaml``; the FRF
 files it reads (and ``twin bode`` writes), and the fit.
 
-The FRF file is read with its checks, its low-coherence bands masked; the two-mass model is
-fitted to the rest and its J_M, J_L, f_1, D_1 and F_V written as a plant parameter file
-(:mod:`twin_cosim.scenario.plant_file`) with where each value came from. The FRF is motor speed
-over the drive's torque setpoint, so the inertias are those that the drive's torque constant
-sees. Another calibration of the same machine (``--beside``, e.g. the ``plant.yaml`` of
-``twin diagnose``, the time-domain calibration) is reported beside it, parameter by parameter.
+The FRF file is read with its checks, its low-coherence bands masked; the two-mass model is fitted
+to the rest and its J_M, J_L, f_1, D_1 and F_V written as a plant parameter file
+(:mod:`twin_cosim.scenario.plant_parameters`) with where each value came from. The FRF is motor
+speed over the drive's torque setpoint, so the inertias are those that the drive's torque constant
+sees. Another calibration of the same machine (``--beside``, e.g. the ``plant.yaml`` of ``twin
+diagnose``, the time-domain calibration) is reported beside it, parameter by parameter.
 
 FRF files: a plant's measured frequency response as CSV. Layout (``#`` lines are comments; a
 header row names the columns)::
@@ -66,9 +66,10 @@ from scipy.optimize import least_squares
 
 from twin_cosim.frequency.linear import TwoMass
 from twin_cosim.frequency.measurement import FrequencyResponse
+from twin_cosim.measured import MeasuredDataError
 from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario import Scenario
-from twin_cosim.scenario.plant_file import (
+from twin_cosim.scenario.plant_parameters import (
     PlantParameters,
     fitted_plant,
     read_plant_parameters,
@@ -106,10 +107,6 @@ FITTED_UNITS = {
     "damping_ratio": "1",
     "viscous_friction": "N.m.s/rad",
 }
-
-
-class FrfFileError(ValueError):
-    """An FRF file is refused; the message names the file, the column and the frequency."""
 
 
 @dataclass(frozen=True)
@@ -172,15 +169,17 @@ def _columns(path: Path, frame: pd.DataFrame) -> dict[str, str]:
     for canonical, names in ALIASES.items():
         present = [by_name[n] for n in names if n in by_name]
         if len(present) > 1:
-            raise FrfFileError(f"{path}: columns {present} all mean {canonical}; keep one")
+            raise MeasuredDataError(f"{path}: columns {present} all mean {canonical}; keep one")
         if present:
             found[canonical] = present[0]
     if "f" not in found:
-        raise FrfFileError(f"{path}: no frequency column (f [Hz]); columns: {list(frame.columns)}")
+        raise MeasuredDataError(
+            f"{path}: no frequency column (f [Hz]); columns: {list(frame.columns)}"
+        )
     polar = {"magnitude_db", "phase_deg"} <= set(found)
     cartesian = {"real", "imag"} <= set(found)
     if not (polar or cartesian):
-        raise FrfFileError(
+        raise MeasuredDataError(
             f"{path}: expected columns magnitude_db [dB] and phase_deg [deg], or real and imag; "
             f"columns: {list(frame.columns)}"
         )
@@ -188,7 +187,8 @@ def _columns(path: Path, frame: pd.DataFrame) -> dict[str, str]:
 
 
 def _numbers(path: Path, frame: pd.DataFrame, column: str, f: np.ndarray | None) -> np.ndarray:
-    """A column as finite floats; FrfFileError names a missing or bad value by its frequency."""
+    """A column as finite floats; a MeasuredDataError names a missing or bad value by its
+    frequency."""
     text = frame[column]
     values = pd.to_numeric(text, errors="coerce").to_numpy(dtype=np.float64)
     for row in np.flatnonzero(~np.isfinite(values)):
@@ -199,26 +199,26 @@ def _numbers(path: Path, frame: pd.DataFrame, column: str, f: np.ndarray | None)
             if pd.isna(raw) or not str(raw).strip()
             else f"{str(raw).strip()!r}, not a finite number"
         )
-        raise FrfFileError(f"{path}: column {column}: {what} at {at} (data row {row + 1})")
+        raise MeasuredDataError(f"{path}: column {column}: {what} at {at} (data row {row + 1})")
     return values
 
 
 def _check_frequencies(path: Path, column: str, f: np.ndarray) -> None:
     """Positive, increasing, without gaps."""
     if f[0] <= 0:
-        raise FrfFileError(f"{path}: column {column}: frequency {f[0]:g} Hz is not above 0")
+        raise MeasuredDataError(f"{path}: column {column}: frequency {f[0]:g} Hz is not above 0")
     steps = np.diff(f)
     bad = np.flatnonzero(steps <= 0)
     if len(bad):
         i = int(bad[0])
-        raise FrfFileError(
+        raise MeasuredDataError(
             f"{path}: column {column}: frequencies not increasing at f = {f[i + 1]:g} Hz "
             f"(data row {i + 2}, after {f[i]:g} Hz)"
         )
     for i in range(len(steps)):
         neighbours = [steps[j] for j in (i - 1, i + 1) if 0 <= j < len(steps)]
         if neighbours and all(steps[i] > GAP_FACTOR * n for n in neighbours):
-            raise FrfFileError(
+            raise MeasuredDataError(
                 f"{path}: column {column}: a gap, no line between {f[i]:g} and {f[i + 1]:g} Hz "
                 f"(a spacing over {GAP_FACTOR:g} times its neighbours'); give the band or "
                 "cut the file before it"
@@ -234,7 +234,7 @@ def _response(path: Path, columns: dict[str, str], values: dict[str, np.ndarray]
         cartesian = values["real"] + 1j * values["imag"]
         zero = np.flatnonzero(cartesian == 0)
         if len(zero):
-            raise FrfFileError(
+            raise MeasuredDataError(
                 f"{path}: columns {columns['real']}, {columns['imag']}: zero response at "
                 f"f = {f[zero[0]]:g} Hz"
             )
@@ -245,7 +245,7 @@ def _response(path: Path, columns: dict[str, str], values: dict[str, np.ndarray]
             | (np.abs(np.degrees(np.angle(ratio))) > AGREEMENT_DEG)
         )
         if len(off):
-            raise FrfFileError(
+            raise MeasuredDataError(
                 f"{path}: columns magnitude_db/phase_deg and real/imag disagree at "
                 f"f = {f[off[0]]:g} Hz; give one form"
             )
@@ -257,22 +257,22 @@ def read_frf(path: Path | str, coherence_floor: float = DEFAULT_COHERENCE_FLOOR)
 
     Raises
     ------
-    FrfFileError
+    MeasuredDataError
         Naming the file, the column and the frequency (see the module's list).
     """
     path = Path(path)
     if not path.is_file():
-        raise FrfFileError(f"{path}: FRF file not found")
+        raise MeasuredDataError(f"{path}: FRF file not found")
     try:
         frame = pd.read_csv(
             path, comment="#", dtype=str, skipinitialspace=True, keep_default_na=False
         )
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise FrfFileError(f"{path}: not a CSV file with a header row: {exc}") from None
+        raise MeasuredDataError(f"{path}: not a CSV file with a header row: {exc}") from None
     columns = _columns(path, frame)
     f = _numbers(path, frame, columns["f"], None)
     if len(f) < MIN_LINES:
-        raise FrfFileError(f"{path}: {len(f)} lines; a fit needs at least {MIN_LINES}")
+        raise MeasuredDataError(f"{path}: {len(f)} lines; a fit needs at least {MIN_LINES}")
     _check_frequencies(path, columns["f"], f)
     values = {k: _numbers(path, frame, c, f) for k, c in columns.items() if k != "f"}
     response = _response(path, columns, values, f)
@@ -283,14 +283,14 @@ def read_frf(path: Path | str, coherence_floor: float = DEFAULT_COHERENCE_FLOOR)
         outside = np.flatnonzero((coherence < 0) | (coherence > 1))
         if len(outside):
             i = int(outside[0])
-            raise FrfFileError(
+            raise MeasuredDataError(
                 f"{path}: column {columns['coherence']}: {coherence[i]:g} at f = {f[i]:g} Hz "
                 "is outside [0, 1]"
             )
         used = coherence >= coherence_floor
         bands = _runs(f, coherence, ~used)
         if used.sum() < MIN_LINES:
-            raise FrfFileError(
+            raise MeasuredDataError(
                 f"{path}: column {columns['coherence']}: only {int(used.sum())} lines at or "
                 f"above the coherence floor {coherence_floor:g}; a fit needs {MIN_LINES}"
             )

@@ -23,7 +23,7 @@ and the printed verdict are written from its fields):
    figures before and after (RMS gaps, the benchmark's relative errors).
 6. **The calibrated plant** (:func:`calibrated_plant`): the noise harmonics, the kept effects'
    FMU parameters and the calibration correction, each with where it came from (the file
-   ``plant.yaml``, :mod:`twin_cosim.scenario.plant_file`).
+   ``plant.yaml``, :mod:`twin_cosim.scenario.plant_parameters`).
 """
 
 from __future__ import annotations
@@ -71,10 +71,9 @@ from twin_cosim.gap.which.selector import Round, Selection, Selector, Swap
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
 from twin_cosim.plant_model import plant_model
-from twin_cosim.pool_runs import prepare_replay_worker
 from twin_cosim.scenario import Scenario
-from twin_cosim.scenario.plant_file import PlantParameters
-from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, make_pool
+from twin_cosim.scenario.plant_parameters import PlantParameters
+from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, make_pool, prepare_replay_worker
 
 ProgressFactory = Callable[[int, str], Callable[[int], None]]
 # Wording of the verdict only: a rejected hypothesis that cuts the raw held-out gap by this share
@@ -476,6 +475,7 @@ def _verdict_stage(
         (first.position_rms_um, first.current_rms),
         (hold_final.position_rms_um(), hold_final.current_rms()),
         (floors.sigma_position_m, floors.sigma_current),
+        context.compared,
         by_metrics_only,
     )
     below = [

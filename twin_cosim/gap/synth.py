@@ -50,7 +50,7 @@ from twin_cosim.reference import (
 from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario
 from twin_cosim.scenario.machine import DEFAULT_LIMITS, AxisLimits
-from twin_cosim.scenario.plant_file import dump_yaml, relocate_paths
+from twin_cosim.scenario.plant_parameters import dump_yaml, relocate_paths
 from twin_cosim.schema import load_yaml
 
 
@@ -143,7 +143,7 @@ def check_machine(
         Naming the option, the parameter, its value and the range, or the constraint of the
         card it breaks with the options that set its values.
     """
-    from twin_cosim.scenario.plant_file import range_problem
+    from twin_cosim.scenario.plant_parameters import range_problem
 
     card = plant_model(model)
     for name, option in set_by.items():

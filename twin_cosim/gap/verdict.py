@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 from twin_cosim.gap.floors.evidence import CalibrationFloor
 from twin_cosim.gap.location import AxisSpan, Location
+from twin_cosim.measured import compared_label
 
 DIGITS = 3
 # unit -> (scale, shown unit) from the largest to the smallest prefix
@@ -124,6 +125,7 @@ class Remaining:
     current_rms_before: float
     floor_position_m: float
     floor_current: float
+    compared: str
 
 
 def named_regimes(where: Location) -> list[str]:
@@ -175,6 +177,7 @@ def remaining_of(
     rms_before: tuple[float, float],
     rms_after: tuple[float, float],
     floors: tuple[float, float],
+    compared: str,
     by_metrics_only: bool = False,
 ) -> Remaining:
     """What is left, from the calibration floors of the held-out gap before and after.
@@ -192,6 +195,9 @@ def remaining_of(
         (position RMS um, current RMS A) of the held-out residual before and after.
     floors
         The noise floors (position m, current A) that normalise the residuals.
+    compared
+        The signal compared beside the position (``current``, or ``motor_speed`` of open-loop
+        runs, rad/s): "current" above stands for it.
     by_metrics_only
         Whether what is left is significant only because a figure of merit is off (the
         residual itself passes the test against noise).
@@ -199,12 +205,13 @@ def remaining_of(
     excess_before = max(before.before**2 - 1.0, 0.0)
     share = max(after.before**2 - 1.0, 0.0) / excess_before if excess_before > 0 else 0.0
     where = _located(location) if significant_left else ""
+    words, unit = compared_label(compared)
     text = (
         f"Left after the accepted effects: {number(after.before)} times the noise floor (the "
-        f"floors: position {quantity(floors[0], 'm')}, current {quantity(floors[1], 'A')} "
+        f"floors: position {quantity(floors[0], 'm')}, {words} {quantity(floors[1], unit)} "
         f"RMS), {percent(share)} of the held-out gap energy above the noise; a held-out gap "
-        f"of {number(rms_after[0])} um RMS in position and {number(rms_after[1])} A RMS in "
-        f"current. Of these {number(after.before)} times the noise floor, calibration error "
+        f"of {number(rms_after[0])} um RMS in position and {number(rms_after[1])} {unit} RMS "
+        f"in {words}. Of these {number(after.before)} times the noise floor, calibration error "
         f"within tolerance can explain {number(after.explained)} and leaves "
         f"{number(after.left)} (the two add in quadrature)"
     )
@@ -232,6 +239,7 @@ def remaining_of(
         rms_before[1],
         floors[0],
         floors[1],
+        compared,
     )
 
 
@@ -254,12 +262,13 @@ def gap_table(
         Where what is left lies (the after column of the regimes; the spans).
     """
     r = remaining
-    floor_x, floor_i = quantity(r.floor_position_m, "m"), quantity(r.floor_current, "A")
+    words, unit = compared_label(r.compared)
+    floor_x, floor_i = quantity(r.floor_position_m, "m"), quantity(r.floor_current, unit)
     rows = [
         ["noise floor of the position (RMS)", floor_x, floor_x],
-        ["noise floor of the current (RMS)", floor_i, floor_i],
+        [f"noise floor of the {words} (RMS)", floor_i, floor_i],
         ["position gap, RMS [um]", number(r.position_rms_um_before), number(r.position_rms_um)],
-        ["current gap, RMS [A]", number(r.current_rms_before), number(r.current_rms)],
+        [f"{words} gap, RMS [{unit}]", number(r.current_rms_before), number(r.current_rms)],
         [
             "normalised RMS of both [times the noise floor]",
             number(r.normalised_rms_before),

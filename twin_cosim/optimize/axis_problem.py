@@ -50,14 +50,14 @@ from twin_cosim.optimize.store import (
     settings_fingerprint,
 )
 from twin_cosim.plant_model import plant_model
-from twin_cosim.pool_runs import prepare_campaign_worker
 from twin_cosim.scenario import (
     Scenario,
     load_controller_set,
     resolve_scenario,
     with_controller_set,
 )
-from twin_cosim.scenario.plant_file import read_plant_parameters
+from twin_cosim.scenario.plant_parameters import read_plant_parameters
+from twin_cosim.workers import prepare_campaign_worker
 
 if TYPE_CHECKING:
     import numpy as np

@@ -22,7 +22,7 @@ Each method's campaign lives in ``<out>/<method>/`` and is resumed or reused whe
 so is the AT set (``<out>/autotune.json``).
 Writes ``tables.md`` (Table 3: parameters; Table 4: reference metrics, wall time, evaluations;
 Table 5: validation metrics; one table per held-out scenario, with what of its motion lies beyond
-that of the tuning trajectories (:mod:`twin_cosim.motion_envelope`); each with the scenario's own
+that of the tuning trajectories (:mod:`twin_cosim.reference`); each with the scenario's own
 set, Fine-Tune by default, as "FT", and the industrial baseline of ``twin autotune``, tuned from
 the twin's plant FRF, as "AT"),
 ``tables.json``, ``convergence.png``, ``errors_optimized.png`` and ``errors_validation.png``.
@@ -38,7 +38,6 @@ from typing import TYPE_CHECKING, Any
 from twin_cosim import current_filters
 from twin_cosim.controller import TUNED_NAMES
 from twin_cosim.controller_set import ControllerSet
-from twin_cosim.motion_envelope import MARGIN, envelope_of, outside
 from twin_cosim.optimize.algorithms import METHOD_NAMES, method_label
 from twin_cosim.optimize.axis_problem import (
     AGGREGATES,
@@ -48,12 +47,18 @@ from twin_cosim.optimize.axis_problem import (
 )
 from twin_cosim.optimize.config import check_uncertainty
 from twin_cosim.optimize.driver import run_campaign
-from twin_cosim.pool_runs import autotune_summary, prepare_campaign_worker
+from twin_cosim.reference import MARGIN, envelope_of, outside
 from twin_cosim.report import METRIC_COLUMNS, evaluate_sets, markdown_table, plot_set_errors
 from twin_cosim.scenario import Scenario, ScenarioError, load_controller_set, resolve_scenario
 from twin_cosim.scenario.loader import find_scenario
 from twin_cosim.schema import load_yaml
-from twin_cosim.workers import ProcessPool, SerialPool, make_pool
+from twin_cosim.workers import (
+    ProcessPool,
+    SerialPool,
+    autotune_summary,
+    make_pool,
+    prepare_campaign_worker,
+)
 
 if TYPE_CHECKING:
     from twin_cosim.run_record import RunRecord

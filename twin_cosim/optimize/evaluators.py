@@ -30,8 +30,15 @@ from concurrent.futures import CancelledError
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
-from twin_cosim.interrupts import deferred_signals, wait_interruptibly
-from twin_cosim.workers import BoundPool, ProcessPool, SerialPool, WorkerFactory, tasks_to_give
+from twin_cosim.workers import (
+    BoundPool,
+    ProcessPool,
+    SerialPool,
+    WorkerFactory,
+    deferred_signals,
+    tasks_to_give,
+    wait_interruptibly,
+)
 
 if TYPE_CHECKING:
     import numpy as np

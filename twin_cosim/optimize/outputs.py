@@ -17,11 +17,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from twin_cosim.controller_set import set_name
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.algorithms import method_label
 from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec
 from twin_cosim.optimize.store import logged_fitness
-from twin_cosim.paper import set_name
 from twin_cosim.scenario import Scenario
 
 if TYPE_CHECKING:

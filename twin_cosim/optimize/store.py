@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
+from twin_cosim.schema import json_lines
 from twin_cosim.workers import pid_alive
 
 if TYPE_CHECKING:
@@ -242,15 +243,12 @@ class EvaluationLog:
             ) from None
         lines = text.split("\n")
         complete = lines[:-1] if not text.endswith("\n") else lines
-        for number, line in enumerate(complete, start=1):
-            if not line.strip():
-                continue
-            try:
-                entry = json.loads(line)
-            except json.JSONDecodeError as exc:
-                raise ValueError(
-                    f"{self.path}: line {number}: corrupt line in the evaluation log: {exc}"
-                ) from exc
+        for number, entry in json_lines(
+            complete,
+            lambda number, exc: (
+                f"{self.path}: line {number}: corrupt line in the evaluation log: {exc}"
+            ),
+        ):
             missing = LOG_KEYS - set(entry) if isinstance(entry, dict) else LOG_KEYS
             if missing:
                 raise ValueError(

@@ -21,7 +21,7 @@ import numpy as np
 from twin_cosim.gap.synth import EffectSpec, effect_overrides, parse_effect, synthesize
 from twin_cosim.plant import Plant
 from twin_cosim.plant_model import model_names, plant_model
-from twin_cosim.runtime.information_model import Window
+from twin_cosim.runtime.opcua import Window
 from twin_cosim.scenario import Scenario
 
 

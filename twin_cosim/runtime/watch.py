@@ -1,24 +1,56 @@
 """``twin watch``: the twin beside the running machine.
 
 Three tasks share one event loop: the link reads each window off the server
-(:mod:`twin_cosim.runtime.link`) into a short queue; the checker takes them in order and runs
+(:mod:`twin_cosim.runtime.opcua`) into a short queue; the checker takes them in order and runs
 the tracker on each (:mod:`twin_cosim.runtime.tracker`; in a process of its own that owns the
 plant, so that a replay never holds up the link's reading); an alarm starts its diagnosis in
-another process (:mod:`twin_cosim.runtime.alarm_diagnosis`), whose answer joins the log when
+another process (:func:`run_alarm_diagnosis`, below), whose answer joins the log when
 it comes. The queue
 absorbs a slow window (the calibration); a checker slower than the machine for long fills it,
 the link then reads late and counts the windows it missed. Everything goes to the log
 (:mod:`twin_cosim.runtime.watch_log`) as it happens, alarms also to stderr and, when the server
-allows it, into its twin namespace; the live page (:mod:`twin_cosim.runtime.dashboard`) shows
-the same.
+allows it, into its twin namespace; the live page (:class:`Dashboard`) shows the same.
 
 SIGINT and SIGTERM stop the watch at once: the window being checked is dropped, a running
 diagnosis is ended, the log gets its ``end`` line, and the command exits 130 or 143.
+
+**The live page** of ``twin watch --dashboard PORT``: served on 127.0.0.1 only, the gap and the
+tracked effects' values per window, the last window's twin against the machine, and the
+alarms, updating as windows arrive.
+
+The page is one HTML file with its script inline (``dashboard.html`` beside this module; no
+file or library from elsewhere): it asks ``/state.json`` every second and draws SVG charts.
+The server is the standard library's HTTP server in a thread of its own, serving the
+watch's latest state (a dictionary the watch replaces whole after each window, so a reader
+never sees half an update).
+
+**The alarm's diagnosis**: the full diagnosis an alarm asks for, restricted to what the alarm points
+at and to the recent windows, run in a process of its own while the twin keeps checking windows.
+
+What it runs: :func:`twin_cosim.gap.diagnosis.diagnose` (the whole pipeline: floors, where,
+rounds of fits judged on held-out data against the noise and calibration floors) of the
+baseline twin, with one effect at most and the hypotheses near the alarmed one: the tracked
+effects (the alarmed one among them), or the plant model's whole library for an alarm on the
+unexplained gap. The data: the first window from the alarm's on whose gap is at least
+:data:`DIAGNOSABLE_GAP` times the noise floor (the sequential test sees a drift of a fraction
+of the noise floor that no single window can show: the diagnosis waits for one that can, at
+most :data:`LONGEST_WAIT` windows) and the one after it: the fit on the first, the judgement
+on the second (a cycle's half may hold no reversal, which the diagnosis needs in each part);
+when the two ran different references, or the wait ran out, the last window is split in
+time. The calibration tolerance is how well the baseline calibration knows the calibrated
+parameters (three of their standard errors, at least :data:`LEAST_TOLERANCE`; the datasheet
+tolerance of the diagnosis when the baseline came from a plant file): a drift since the
+baseline is not calibration error. Its replays run on :data:`WORKERS` processes. Its answer
+joins the alarm: the effect accepted (or none), the held-out gap before and after it, and how
+long it took (the wall time, and the diagnosis' own estimate of the wall time on otherwise
+idle cores).
 """
 
 from __future__ import annotations
 
 import asyncio
+import dataclasses
+import json
 import multiprocessing
 import os
 import signal
@@ -28,25 +60,26 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from twin_cosim.gap.verdict import number
-from twin_cosim.runtime.alarm_diagnosis import (
-    DIAGNOSABLE_GAP,
-    LONGEST_WAIT,
-    AlarmJob,
-    alarm_tolerance,
-    run_alarm_diagnosis,
-    with_baseline,
+from twin_cosim.measured import MeasuredRun
+from twin_cosim.runtime.opcua import (
+    LinkEvent,
+    MachineLink,
+    Missed,
+    Notice,
+    Received,
+    Security,
+    WindowError,
+    window_of,
 )
-from twin_cosim.runtime.information_model import WindowError, window_of
-from twin_cosim.runtime.link import LinkEvent, MachineLink, Missed, Notice, Received
-from twin_cosim.runtime.security import Security
 from twin_cosim.runtime.tracker import DEFAULT_TRACKED, UNEXPLAINED, Alarm, Tracker, WindowCheck
-from twin_cosim.runtime.watch_log import LOG_NAME, WindowLog, quantity
+from twin_cosim.runtime.watch_log import LOG_NAME, READABLE, WindowLog, plain, quantity
 from twin_cosim.runtime.window_replay import measured_run, window_case
 from twin_cosim.scenario import Scenario
 
@@ -427,8 +460,6 @@ class Watch:
         """Watch until the window limit, a signal, or the link gives up."""
         loop = asyncio.get_running_loop()
         if self.options.dashboard_port is not None:
-            from twin_cosim.runtime.dashboard import Dashboard
-
             self.dashboard = Dashboard(self.options.dashboard_port)
             self.dashboard.start()
         queue: asyncio.Queue[LinkEvent | None] = asyncio.Queue(QUEUE_WINDOWS)
@@ -490,7 +521,7 @@ class Watch:
     async def _read(self, queue: asyncio.Queue) -> None:
         """The link's events into the queue (waiting while it is full), until the window
         limit or the link gives up; then the end mark."""
-        from twin_cosim.runtime.link import LinkLost
+        from twin_cosim.runtime.opcua import LinkLost
 
         events = self.link.events()
         limit = self.options.windows
@@ -723,3 +754,180 @@ def rtf_figures(factors: list[float]) -> dict[str, float]:
     if not len(values):
         return {}
     return {"median": float(np.median(values)), "worst": float(np.min(values))}
+
+
+LOOPBACK = "127.0.0.1"
+
+PAGE = Path(__file__).with_name("dashboard.html")  # the page, its script inline
+
+
+class Dashboard:
+    """The live page's HTTP server on 127.0.0.1.
+
+    Parameters
+    ----------
+    port
+        TCP port.
+
+    Attributes
+    ----------
+    state : dict
+        The watch's latest state, replaced whole by the watch: ``windows`` (per window:
+        ``window``, ``sequence``, ``real_time_factor``, ``gap``, ``unexplained``,
+        ``values``), ``alarms`` (their log lines), ``last`` (the last window's ``t``,
+        ``position``, ``twin_position``, ``current``, ``twin_current``), ``units``,
+        ``status``.
+    """
+
+    def __init__(self, port: int) -> None:
+        self.state: dict[str, Any] = {"windows": [], "alarms": [], "last": None, "status": ""}
+        page = PAGE.read_text().replace("__READABLE__", json.dumps(READABLE)).encode()
+        owner = self
+
+        class Handler(BaseHTTPRequestHandler):
+            def do_GET(self) -> None:  # noqa: N802 - the standard library's name
+                if self.path in ("/", "/index.html"):
+                    body, kind = page, "text/html; charset=utf-8"
+                elif self.path.startswith("/state.json"):
+                    body, kind = json.dumps(plain(owner.state)).encode(), "application/json"
+                else:
+                    self.send_error(404)
+                    return
+                self.send_response(200)
+                self.send_header("Content-Type", kind)
+                self.send_header("Content-Length", str(len(body)))
+                self.send_header("Cache-Control", "no-store")
+                self.end_headers()
+                self.wfile.write(body)
+
+            def log_message(self, format: str, *args: Any) -> None:
+                return  # the watch's output is its own
+
+        try:
+            self.server = ThreadingHTTPServer((LOOPBACK, port), Handler)
+        except OSError as exc:
+            raise OSError(f"--dashboard {port}: cannot listen on {LOOPBACK} ({exc})") from None
+        self.server.daemon_threads = True
+        self._thread = threading.Thread(target=self.server.serve_forever, daemon=True)
+
+    @property
+    def url(self) -> str:
+        """The page's address."""
+        return f"http://{LOOPBACK}:{self.server.server_address[1]}/"
+
+    def start(self) -> None:
+        """Serve in a thread of its own."""
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop serving."""
+        self.server.shutdown()
+        self.server.server_close()
+
+
+DIAGNOSABLE_GAP = 1.5  # normalised RMS gap of a window worth diagnosing
+LONGEST_WAIT = 10  # windows after the alarm: the diagnosis runs then at the latest
+LEAST_TOLERANCE = 0.001  # relative
+WORKERS = 2  # replay processes of the diagnosis: the two cores of a small machine
+
+
+def alarm_tolerance(precision: float | None) -> float:
+    """The calibration tolerance of an alarm's diagnosis from the baseline calibration's
+    precision (relative; None: no calibration, the diagnosis' own tolerance)."""
+    from twin_cosim.gap.settings import DiagnosisSettings
+
+    if precision is None:
+        return DiagnosisSettings().calibration_tolerance
+    return max(3.0 * precision, LEAST_TOLERANCE)
+
+
+@dataclass(frozen=True)
+class AlarmJob:
+    """What the diagnosis of one alarm needs (sent to its process).
+
+    Attributes
+    ----------
+    alarm : int
+        The alarm's number (0 for the first).
+    window : int
+        The alarm's window.
+    effect : str
+        The alarmed effect (or ``unexplained``).
+    scenario : Scenario
+        The window's scenario with the baseline twin's plant parameters.
+    training : MeasuredRun
+        The window the effects are fitted on.
+    holdout : MeasuredRun or None
+        The window they are judged on (None: ``training`` is split in time).
+    hypotheses : tuple of str or None
+        The hypotheses to fit (None: the whole library).
+    fmu : str
+        The plant FMU.
+    alarm_window : int
+        The window at which the alarm was raised (``window`` may come later: the first whose
+        gap is large enough to diagnose).
+    calibration_tolerance : float
+        How well the baseline twin's calibrated parameters are known (relative).
+    """
+
+    alarm: int
+    window: int
+    effect: str
+    scenario: Scenario
+    training: MeasuredRun
+    holdout: MeasuredRun | None
+    hypotheses: tuple[str, ...] | None
+    fmu: str
+    alarm_window: int
+    calibration_tolerance: float
+
+
+def with_baseline(scenario: Scenario, parameters: dict[str, float]) -> Scenario:
+    """The scenario with the baseline twin's FMU parameters."""
+    return dataclasses.replace(
+        scenario, plant_parameters={**scenario.plant_parameters, **parameters}
+    )
+
+
+def run_alarm_diagnosis(job: AlarmJob) -> dict[str, Any]:
+    """Run the diagnosis of one alarm; what the log records of it."""
+    from twin_cosim.gap.diagnosis import diagnose
+    from twin_cosim.gap.settings import DiagnosisSettings
+
+    start = time.perf_counter()
+    settings = DiagnosisSettings(
+        max_effects=1, hypotheses=job.hypotheses, calibration_tolerance=job.calibration_tolerance
+    )
+    holdout = [job.holdout] if job.holdout is not None else []
+    found = diagnose(job.scenario, [job.training], holdout, job.fmu, settings, workers=WORKERS)
+    remaining = found.remaining
+    accepted = [a if isinstance(a, str) else "+".join(a) for a in found.accepted]
+    before, after = remaining.normalised_rms_before, remaining.times_noise_floor
+    return {
+        "event": "diagnosis",
+        "alarm": job.alarm,
+        "window": job.window,
+        "alarm_window": job.alarm_window,
+        "alarmed_effect": job.effect,
+        "calibration_tolerance": job.calibration_tolerance,
+        "hypotheses": list(job.hypotheses) if job.hypotheses else "library",
+        "held_out": "the next window" if job.holdout is not None else "the window's second half",
+        "significant": bool(found.significant),
+        "accepted": accepted,
+        "effect": accepted[0] if accepted else None,
+        "agrees": bool(accepted) and job.effect in accepted[0].split("+"),
+        "gap_before": before,
+        "gap_after": after,
+        "gap_shrinks_by": 1.0 - after / before if before > 0 else 0.0,
+        "position_rms_um_before": remaining.position_rms_um_before,
+        "position_rms_um_after": remaining.position_rms_um,
+        "verdict": found.verdict,
+        "seconds": time.perf_counter() - start,
+        "idle_wall_s": found.times["diagnosis"]["idle_wall_estimate_s"],
+        "workers": WORKERS,
+    }
+
+
+def warm_up() -> None:
+    """Import what the diagnosis uses (a pool's initializer: the first alarm waits less)."""
+    import twin_cosim.gap.diagnosis  # noqa: F401

@@ -32,7 +32,7 @@ from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.run_record import RunRecord
-from twin_cosim.runtime.information_model import Window, check_period
+from twin_cosim.runtime.opcua import Window, check_period
 from twin_cosim.scenario import Scenario
 
 SETTLE_TIME_CONSTANTS = 5.0  # position-loop time constants left out after a start in motion

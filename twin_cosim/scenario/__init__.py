@@ -3,10 +3,10 @@ diagnose sections), loaded and checked once into a typed :class:`Scenario`.
 
 - :mod:`~twin_cosim.scenario.loader`: the file, its sections, :func:`load_scenario`; shipped
   scenarios by name (:func:`find_scenario`);
-- :mod:`~twin_cosim.scenario.plant_section`: the plant, the precedence of plant parameters
+- :mod:`~twin_cosim.scenario.plant_parameters`: the plant, the precedence of plant parameters
   (model start values < scenario < plant.yaml < command line), the plant facts, the mismatch
   warning;
-- :mod:`~twin_cosim.scenario.plant_file`: ``plant.yaml`` files;
+- :mod:`~twin_cosim.scenario.plant_parameters`: ``plant.yaml`` files;
 - :mod:`~twin_cosim.scenario.reference_section`: segments, CSV and measured references;
 - :mod:`~twin_cosim.scenario.controller_section`: the ``controller`` section (the six tuned
   parameters, ``controller.settings``, current filters; also per axis) and controller sets
@@ -28,7 +28,7 @@ from twin_cosim.scenario.machine import (
     is_machine_scenario,
     load_machine,
 )
-from twin_cosim.scenario.plant_section import plant_mismatch, with_plant_parameters
+from twin_cosim.scenario.plant_parameters import plant_mismatch, with_plant_parameters
 from twin_cosim.scenario.resolved import Scenario, for_measured_run, with_controller_set
 from twin_cosim.schema import ScenarioError
 

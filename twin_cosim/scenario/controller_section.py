@@ -25,12 +25,12 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-from twin_cosim import current_filters, paper
+from twin_cosim import current_filters
 from twin_cosim.controller import TUNED_NAMES, ControllerSettings, TunedParameters
-from twin_cosim.controller_set import ControllerSet
+from twin_cosim.controller_set import TABLE3, ControllerSet
 from twin_cosim.current_filters import CurrentFilter
 from twin_cosim.plant_model import DRIVE_FACTS
-from twin_cosim.scenario.plant_section import PlantSection, drive_facts
+from twin_cosim.scenario.plant_parameters import PlantSection, drive_facts
 from twin_cosim.schema import Checker, ScenarioError, load_yaml
 
 SETTING_NAMES = {f.name for f in fields(ControllerSettings)}
@@ -72,12 +72,12 @@ def filters_section(check: Checker, data: Any, key: str) -> tuple[CurrentFilter,
 def tuned_section(data: Any, where: str) -> TunedParameters:
     """Tuned parameters from a mapping, or the name of a set of the paper's Table 3."""
     if isinstance(data, str):
-        if data.lower() not in paper.TABLE3:
+        if data.lower() not in TABLE3:
             raise ScenarioError(
-                f"{where}: expected the six parameters or a set of Table 3 {sorted(paper.TABLE3)}"
+                f"{where}: expected the six parameters or a set of Table 3 {sorted(TABLE3)}"
                 f", got {data!r}"
             )
-        return paper.TABLE3[data.lower()]
+        return TABLE3[data.lower()]
     return tuned_from_mapping(data, where)
 
 
@@ -116,12 +116,12 @@ def load_controller_set(spec: str) -> ControllerSet:
     ``twin autotune`` prints) or ``best_params`` (what ``twin optimize`` writes), with the fixed
     settings it changes under ``settings`` (:mod:`twin_cosim.controller_set`).
     """
-    if spec.lower() in paper.TABLE3:
-        return ControllerSet(paper.TABLE3[spec.lower()])
+    if spec.lower() in TABLE3:
+        return ControllerSet(TABLE3[spec.lower()])
     path = Path(spec)
     if not path.is_file():
         raise ScenarioError(
-            f"--params {spec}: neither a set of Table 3 {sorted(paper.TABLE3)} nor a file"
+            f"--params {spec}: neither a set of Table 3 {sorted(TABLE3)} nor a file"
         )
     data = load_yaml(path)
     for key in ("params", "best_params"):
@@ -154,12 +154,12 @@ def load_axes_parameters(spec: str, axes: tuple[str, ...]) -> dict[str, TunedPar
     (``{X: {Kp_pos: ...}, Y: {...}}``, at the top level or under ``best_params``: what a contour
     campaign writes) gives each axis its own, the axes it does not name keep theirs.
     """
-    if spec.lower() in paper.TABLE3:
-        return dict.fromkeys(axes, paper.TABLE3[spec.lower()])
+    if spec.lower() in TABLE3:
+        return dict.fromkeys(axes, TABLE3[spec.lower()])
     path = Path(spec)
     if not path.is_file():
         raise ScenarioError(
-            f"--params {spec}: neither a set of Table 3 {sorted(paper.TABLE3)} nor a file"
+            f"--params {spec}: neither a set of Table 3 {sorted(TABLE3)} nor a file"
         )
     data = load_yaml(path)
     where = str(path)

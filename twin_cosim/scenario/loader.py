@@ -5,7 +5,7 @@ Layout (every section but ``reference`` is optional)::
 
     name: reference1
     description: free text
-    plant: {...}                             # twin_cosim.scenario.plant_section
+    plant: {...}                             # twin_cosim.scenario.plant_parameters
     controller:
       parameters: {Kp_pos: 66.667, ...}      # the six tuned parameters, or the name of a set of
                                              # the paper's Table 3 (ft, ga, ce, sa); default: ft
@@ -33,7 +33,7 @@ from typing import Any
 
 from twin_cosim.measured import SIGNALS
 from twin_cosim.scenario.controller_section import controller_section
-from twin_cosim.scenario.plant_section import (
+from twin_cosim.scenario.plant_parameters import (
     check_friction_below_peak_torque,
     plant_section,
     with_plant_parameters,

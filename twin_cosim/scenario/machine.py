@@ -1,5 +1,5 @@
 """A machine of several axes: the ``axes:`` scenario file read and checked once into the typed
-:class:`MachineScenario`.
+:class:`MachineScenario`, and the geometric errors of the machine.
 
 Layout (``axes`` is required, every other section optional)::
 
@@ -18,7 +18,7 @@ Layout (``axes`` is required, every other section optional)::
       path_mode: G61                    # G61: exact stop at every block end; G64: blending
       tolerance: 5.0e-6                 # m: G64's P (Q: P/2), how far the path may leave a corner
       look_ahead: 200                   # blocks the planner looks ahead
-    geometry: {...}                     # geometric errors (twin_cosim.scenario.machine_geometry)
+    geometry: {...}                     # geometric errors (below)
     program: part.nc                    # a part program (G-code), relative to the file
     run:
       settle: 0.2                       # s of standstill recorded after the path's end
@@ -27,7 +27,7 @@ Layout (``axes`` is required, every other section optional)::
     diagnose: {...}                     # the diagnosis of each axis (twin_cosim.gap.settings)
 
 ``X`` and ``Y`` are required, ``Z`` optional. Each axis' ``plant`` and ``controller`` read as the
-sections of a single-axis scenario (:mod:`~twin_cosim.scenario.plant_section`,
+sections of a single-axis scenario (:mod:`~twin_cosim.scenario.plant_parameters`,
 :mod:`~twin_cosim.scenario.controller_section`), and all axes must share the CNC's rates
 (position- and speed-loop periods): the master steps them in lockstep. Every error names the file
 and the full key path (``axes.Y.plant.parameters.backlash``).
@@ -36,6 +36,30 @@ Each axis is a plant (model or FMU file, its parameters) with its own controller
 limits the interpolator must respect; :meth:`MachineScenario.axis_scenario` gives one axis as an
 ordinary single-axis :class:`~twin_cosim.scenario.resolved.Scenario` once its reference is known
 (the per-axis diagnosis and campaigns take that).
+
+**Geometric errors** of a machine: where the tool point is, given the axes' positions.
+
+Each axis' position is what its scale reads (the position the loop closes on). The tool point
+that a ballbar or a part sees differs from it by the machine's geometry, the ``geometry:``
+section of a machine scenario (every value optional, 0 by default)::
+
+    geometry:
+      squareness: 20.0                  # um/m: + when the angle between +X and +Y exceeds 90 deg
+      scale: {X: 15.0, Y: -10.0}        # um/m: each axis' scale error (+: the tool goes further)
+      straightness: {X: 4.0, Y: 0.0}    # um: each axis' bow over its travel (limits.travel),
+                                        # + toward + of the other axis (X's toward +Y)
+      cyclic: {X: {amplitude_um: 1.5, period_mm: 10.0}}   # each axis' cyclic (pitch) error
+
+With the axes' positions x, y (m) and the errors in SI (scale s, squareness alpha in rad, bow
+b over a travel of centre c and half-length h, cyclic amplitude A and period P)::
+
+    x_s = x (1 + s_X) + A_X sin(2 pi x / P_X)       y_s = y (1 + s_Y) + A_Y sin(2 pi y / P_Y)
+    x_t = x_s - alpha y_s + b_Y (1 - ((y - c_Y) / h_Y)^2)
+    y_t = y_s + b_X (1 - ((x - c_X) / h_X)^2)
+
+(first order in the errors: the +Y axis runs along (-alpha, 1), so that the angle between +X and
++Y is 90 deg + alpha; a straightness bow is 0 at both ends of the travel and b in its middle).
+A Z axis has no geometric errors here.
 """
 
 from __future__ import annotations
@@ -46,16 +70,158 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from fmu_build.build import build_fmu
 from twin_cosim.controller import ControllerSettings, TunedParameters
 from twin_cosim.plant_model import model_of, plant_model
 from twin_cosim.reference import ReferenceError, ReferenceGrid, check_periods
 from twin_cosim.scenario.controller_section import controller_section
 from twin_cosim.scenario.loader import MAX_SAMPLES, find_scenario, read_top_level
-from twin_cosim.scenario.machine_geometry import MachineGeometry, geometry_section
-from twin_cosim.scenario.plant_section import plant_section
-from twin_cosim.scenario.resolved import Scenario
+from twin_cosim.scenario.plant_parameters import plant_section
+from twin_cosim.scenario.resolved import Scenario, ScenarioFile
 from twin_cosim.schema import Checker, ScenarioError, load_yaml
+
+UM = 1e-6  # m per um
+MM = 1e-3  # m per mm
+PLANE = ("X", "Y")
+GEOMETRY_KEYS = {"squareness", "scale", "straightness", "cyclic"}
+
+
+@dataclass(frozen=True)
+class CyclicError:
+    """A cyclic error along one axis: the tool is off by ``amplitude sin(2 pi x / period)``.
+
+    Attributes
+    ----------
+    amplitude : float
+        Amplitude, m.
+    period : float
+        Period along the axis, m (a screw's lead, a scale's grating period).
+    """
+
+    amplitude: float
+    period: float
+
+
+@dataclass(frozen=True)
+class MachineGeometry:
+    """The geometric errors between the axes' positions and the tool point (module docstring).
+
+    Attributes
+    ----------
+    squareness : float
+        Squareness of Y to X, rad: + when the angle between +X and +Y exceeds 90 deg.
+    scale : dict
+        Axis name -> scale error, 1 (m/m).
+    straightness : dict
+        Axis name -> bow over its travel, m (+ toward + of the other axis).
+    travel : dict
+        Axis name -> (low, high) travel, m: where the bow of an axis with straightness is 0.
+    cyclic : dict
+        Axis name -> its :class:`CyclicError`.
+    """
+
+    squareness: float = 0.0
+    scale: dict[str, float] = field(default_factory=dict)
+    straightness: dict[str, float] = field(default_factory=dict)
+    travel: dict[str, tuple[float, float]] = field(default_factory=dict)
+    cyclic: dict[str, CyclicError] = field(default_factory=dict)
+
+    @property
+    def is_ideal(self) -> bool:
+        """Whether the tool point is the axes' positions (no error at all)."""
+        return (
+            self.squareness == 0.0
+            and not any(self.scale.values())
+            and not any(self.straightness.values())
+            and not any(c.amplitude for c in self.cyclic.values())
+        )
+
+    def _bow(self, axis: str, position: np.ndarray) -> np.ndarray:
+        """The bow of ``axis`` at its positions (m): 0 at both ends of the travel."""
+        bow = self.straightness.get(axis, 0.0)
+        if bow == 0.0:
+            return np.zeros_like(position)
+        low, high = self.travel[axis]
+        centre, half = (low + high) / 2, (high - low) / 2
+        return bow * (1.0 - ((position - centre) / half) ** 2)
+
+    def _along(self, axis: str, position: np.ndarray) -> np.ndarray:
+        """The axis' own direction: its scale and cyclic errors applied (m)."""
+        moved = position * (1.0 + self.scale.get(axis, 0.0))
+        cyclic = self.cyclic.get(axis)
+        if cyclic is not None and cyclic.amplitude:
+            moved = moved + cyclic.amplitude * np.sin(2 * math.pi * position / cyclic.period)
+        return moved
+
+    def tool_point(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The tool point (m) where the X and Y axes read ``x`` and ``y`` (m)."""
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        if self.is_ideal:
+            return x, y
+        x_s, y_s = self._along("X", x), self._along("Y", y)
+        return x_s - self.squareness * y_s + self._bow("Y", y), y_s + self._bow("X", x)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The section as written (um/m, um, mm), for JSON files."""
+        return {
+            "squareness": self.squareness / UM,
+            "scale": {axis: value / UM for axis, value in self.scale.items()},
+            "straightness": {axis: value / UM for axis, value in self.straightness.items()},
+            "cyclic": {
+                axis: {"amplitude_um": c.amplitude / UM, "period_mm": c.period / MM}
+                for axis, c in self.cyclic.items()
+            },
+        }
+
+
+def geometry_section(
+    check: Checker, data: Any, travel: dict[str, tuple[float, float] | None]
+) -> MachineGeometry:
+    """The checked ``geometry:`` section; ``travel`` (m) is each axis' ``limits.travel``, which
+    a straightness bow needs.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and the key, e.g. ``geometry.scale.X: expected a number``.
+    """
+    given = check.mapping(data, "geometry", GEOMETRY_KEYS)
+    scale = _per_axis(check, given.get("scale"), "geometry.scale")
+    bows = _per_axis(check, given.get("straightness"), "geometry.straightness")
+    for axis, bow in bows.items():
+        if bow and travel.get(axis) is None:
+            raise check.fail(
+                f"axes.{axis}.limits.travel",
+                f"a travel [low, high] in m: geometry.straightness.{axis} is a bow over it",
+            )
+    cyclic = {}
+    for axis, value in check.mapping(given.get("cyclic"), "geometry.cyclic", set(PLANE)).items():
+        key = f"geometry.cyclic.{axis}"
+        entry = check.mapping(value, key, {"amplitude_um", "period_mm"})
+        for name in ("amplitude_um", "period_mm"):
+            if name not in entry:
+                raise check.fail(f"{key}.{name}", "a number (amplitude um, period mm)")
+        cyclic[axis] = CyclicError(
+            amplitude=check.number(entry["amplitude_um"], f"{key}.amplitude_um", minimum=0.0) * UM,
+            period=check.number(entry["period_mm"], f"{key}.period_mm", positive=True) * MM,
+        )
+    return MachineGeometry(
+        squareness=check.number(given.get("squareness", 0.0), "geometry.squareness") * UM,
+        scale={axis: value * UM for axis, value in scale.items()},
+        straightness={axis: value * UM for axis, value in bows.items()},
+        travel={axis: span for axis, span in travel.items() if span is not None},
+        cyclic=cyclic,
+    )
+
+
+def _per_axis(check: Checker, data: Any, key: str) -> dict[str, float]:
+    """A mapping of X and Y to numbers."""
+    values = check.mapping(data, key, set(PLANE))
+    return {axis: check.number(value, f"{key}.{axis}") for axis, value in values.items()}
+
 
 AXIS_NAMES = ("X", "Y", "Z")
 SINGLE_AXIS_KEYS = {"plant", "controller", "reference"}  # a single-axis scenario's sections
@@ -156,7 +322,7 @@ class AxisSetup:
         FMU file of the axis' plant; None for a model.
     plant_parameters : dict
         FMU parameter values by name (SI units), after the precedence rule of
-        :mod:`twin_cosim.scenario.plant_section`.
+        :mod:`twin_cosim.scenario.plant_parameters`.
     plant_parameters_file : Path or None
         The axis' ``plant.parameters_file``.
     tuned : TunedParameters
@@ -193,17 +359,12 @@ class AxisSetup:
 
 
 @dataclass(frozen=True)
-class MachineScenario:
-    """A loaded, checked scenario of several axes.
+class MachineScenario(ScenarioFile):
+    """A loaded, checked scenario of several axes (its name, description and file:
+    :class:`~twin_cosim.scenario.resolved.ScenarioFile`).
 
     Attributes
     ----------
-    name : str
-        Its name (the default output folder).
-    description : str
-        Free text.
-    source : Path
-        The scenario file.
     axes : tuple of AxisSetup
         The axes in the order X, Y, Z.
     sample_period : float
@@ -226,9 +387,6 @@ class MachineScenario:
         The raw ``diagnose`` section (the diagnosis of each axis).
     """
 
-    name: str
-    description: str
-    source: Path
     axes: tuple[AxisSetup, ...]
     sample_period: float
     program: Path | None = None

@@ -20,8 +20,8 @@ from twin_cosim.schema import ScenarioError
 
 
 @dataclass(frozen=True)
-class Scenario:
-    """A loaded, checked scenario.
+class ScenarioFile:
+    """What names a scenario, of one axis or of a machine: its name, its text and its file.
 
     Attributes
     ----------
@@ -31,11 +31,24 @@ class Scenario:
         Free text.
     source : Path
         The scenario file.
+    """
+
+    name: str
+    description: str
+    source: Path
+
+
+@dataclass(frozen=True)
+class Scenario(ScenarioFile):
+    """A loaded, checked scenario (its name, description and file: :class:`ScenarioFile`).
+
+    Attributes
+    ----------
     fmu : Path or None
         The FMU file the scenario names (``plant.fmu``); None for a plant ``model``.
     plant_parameters : dict
         FMU parameter values by name (``load_position_start`` defaults to the reference start),
-        after the precedence rule of :mod:`twin_cosim.scenario.plant_section`.
+        after the precedence rule of :mod:`twin_cosim.scenario.plant_parameters`.
     tuned : TunedParameters
         The scenario's six tuned parameters (Fine-Tune by default).
     settings : ControllerSettings
@@ -75,9 +88,6 @@ class Scenario:
         Open loop: the plant's current command per position-loop sample, A.
     """
 
-    name: str
-    description: str
-    source: Path
     fmu: Path | None
     plant_parameters: dict[str, float]
     tuned: TunedParameters

@@ -65,7 +65,7 @@ from twin_cosim.plant import Plant
 from twin_cosim.plant_model import plant_model
 from twin_cosim.report import text_table
 from twin_cosim.scenario import Scenario
-from twin_cosim.scenario.plant_file import PlantParameters, fitted_plant
+from twin_cosim.scenario.plant_parameters import PlantParameters, fitted_plant
 from twin_cosim.servo.motion import level_statistics, run_motion, speed_levels
 
 SPEEDS = 24  # levels per direction

@@ -15,7 +15,7 @@ from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec, evaluate_circle, r
 from twin_cosim.contour.machine_run import MachinePlants
 from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import load_machine
-from twin_cosim.scenario.machine_geometry import CyclicError, MachineGeometry
+from twin_cosim.scenario.machine import CyclicError, MachineGeometry
 
 R = 0.05  # m
 SPEED = 1000 * MM_PER_MIN  # m/s

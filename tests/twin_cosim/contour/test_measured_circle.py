@@ -7,9 +7,13 @@ import json
 import pytest
 
 from twin_cosim.contour.circle import MM_PER_MIN, CircleSpec, circle_motion
-from twin_cosim.contour.circle_diagnosis import diagnose_circle, synthesize_motion
 from twin_cosim.contour.machine_run import MachinePlants
-from twin_cosim.contour.measured_circle import read_measured_circle, replay_circle
+from twin_cosim.contour.measured_circle import (
+    diagnose_circle,
+    read_measured_circle,
+    replay_circle,
+    synthesize_motion,
+)
 from twin_cosim.gap.synth import parse_effect
 from twin_cosim.measured import MeasuredDataError
 from twin_cosim.scenario import load_machine

@@ -9,7 +9,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from twin_cosim.commands.optimize_machine import _outcome
+from twin_cosim.commands.optimize import _outcome
 from twin_cosim.contour.machine_run import contour_metrics
 from twin_cosim.contour.tuning import (
     ContourCampaignSpec,

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from twin_cosim.controller import ControllerSettings
+from twin_cosim.controller_set import FINE_TUNE
 from twin_cosim.frequency.autotune import (
     POSITION_GAIN_MARGIN_DB,
     POSITION_PEAK_DB,
@@ -17,7 +18,6 @@ from twin_cosim.frequency.autotune import (
 )
 from twin_cosim.frequency.linear import LinearLoops, TwoMass
 from twin_cosim.frequency.margins import dense_grid, margins_of_data, margins_of_system
-from twin_cosim.paper import FINE_TUNE
 
 SETTINGS = ControllerSettings()
 F = np.geomspace(2.0, 1000.0, 180)

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 import yaml
 
-from twin_cosim.frequency.calibration import FrfFileError, fit_two_mass, read_frf
+from twin_cosim.frequency.calibration import fit_two_mass, read_frf
 from twin_cosim.frequency.linear import TwoMass
+from twin_cosim.measured import MeasuredDataError
 
 F = np.geomspace(2.0, 1000.0, 200)
 TABLE1 = TwoMass.from_paper(2.9e-4, 4.2e-4, 70.0, 0.15)
@@ -128,14 +129,14 @@ def set_cell(row, column, value):
 )
 def test_bad_files_are_refused_naming_file_column_and_frequency(tmp_path, edit, message):
     path = frf_lines(tmp_path, edit)
-    with pytest.raises(FrfFileError, match=message) as info:
+    with pytest.raises(MeasuredDataError, match=message) as info:
         read_frf(path)
     assert str(path) in str(info.value)
 
 
 def test_too_few_coherent_lines_are_refused(tmp_path):
     path = write_csv(tmp_path / "d.csv", F, TABLE1.speed_per_torque(F), np.full(len(F), 0.5))
-    with pytest.raises(FrfFileError, match="only 0 lines at or above the coherence floor"):
+    with pytest.raises(MeasuredDataError, match="only 0 lines at or above the coherence floor"):
         read_frf(path)
 
 

@@ -11,6 +11,7 @@ import pytest
 from scipy.signal import cont2discrete
 
 from twin_cosim.controller import ControllerSettings
+from twin_cosim.controller_set import TABLE3
 from twin_cosim.current_filters import Notch
 from twin_cosim.frequency.linear import (
     LinearLoops,
@@ -20,7 +21,6 @@ from twin_cosim.frequency.linear import (
     speed_loop_of_plant,
 )
 from twin_cosim.frequency.margins import dense_grid, margins_of_data, margins_of_system
-from twin_cosim.paper import TABLE3
 
 J_M, J_L, F_1, D_1 = 2.9e-4, 4.2e-4, 70.0, 0.15  # Table 1
 W_01 = 2 * math.pi * F_1

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from twin_cosim.controller import ControllerSettings
+from twin_cosim.controller_set import TABLE3
 from twin_cosim.current_filters import Notch
 from twin_cosim.frequency.bode import bode
 from twin_cosim.frequency.linear import TwoMass
@@ -20,7 +21,6 @@ from twin_cosim.frequency.measurement import (
     measure,
     multisine,
 )
-from twin_cosim.paper import TABLE3
 from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario import load_scenario
 

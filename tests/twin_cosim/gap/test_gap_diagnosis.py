@@ -25,7 +25,7 @@ from twin_cosim.gap.which.replay import FitResult, Replays, Uncertainty
 from twin_cosim.gap.which.selector import Accepted, Round, Selection
 from twin_cosim.measured import read_measured_csv
 from twin_cosim.scenario import load_scenario
-from twin_cosim.scenario.plant_file import read_plant_parameters, write_plant_parameters
+from twin_cosim.scenario.plant_parameters import read_plant_parameters, write_plant_parameters
 
 ROOT = Path(__file__).resolve().parents[3]
 SCENARIO = ROOT / "scenarios" / "diagnosis.yaml"

@@ -66,6 +66,7 @@ def _remaining():
         (1.50612, 0.286512),
         (0.785712, 0.0854512),
         FLOORS,
+        "current",
     )
 
 
@@ -117,6 +118,7 @@ def test_nothing_left_names_no_place():
         (1.3, 0.28),
         (0.02, 0.005),
         FLOORS,
+        "current",
     )
     assert "located" not in remaining.text and "not significant" in remaining.text
     table = gap_table(remaining, _shares(0.52, 0.46), AFTER)
@@ -207,6 +209,7 @@ def test_a_gap_significant_only_by_a_figure_of_merit_says_so():
         (1.3, 0.28),
         (0.0216, 0.0881),
         FLOORS,
+        "current",
         by_metrics_only=True,
     )
     assert "0.839 times the noise floor" in remaining.text
@@ -216,3 +219,22 @@ def test_a_gap_significant_only_by_a_figure_of_merit_says_so():
 def test_a_span_at_the_start_of_travel_reads_as_a_position():
     span = AxisSpan(-3.25e-05, 1.0, 0, 0.23, 1030.0, at_stroke_end=True)
     assert span_label(span).startswith("0-1 mm, both directions")
+
+
+def test_an_open_loop_run_s_verdict_names_the_motor_speed_and_its_unit():
+    remaining = remaining_of(
+        _floor(41.8, 30.1),
+        True,
+        _floor(0.701, 0.700),
+        False,
+        AFTER,
+        (1.3, 12.5),
+        (0.02, 0.4),
+        FLOORS,
+        "motor_speed",
+    )
+    assert "0.400 rad/s RMS in motor speed" in remaining.text
+    assert " A " not in remaining.text and "current" not in remaining.text
+    rows = {row[0]: row[1:] for row in gap_table(remaining, _shares(0.52, 0.46), AFTER)}
+    assert rows["motor speed gap, RMS [rad/s]"] == ["12.5", "0.400"]
+    assert "noise floor of the motor speed (RMS)" in rows

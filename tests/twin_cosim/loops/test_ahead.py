@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from twin_cosim.controller_set import TABLE3
 from twin_cosim.cosim import AxisRun, run_axes, run_scenario
 from twin_cosim.frequency.measurement import MeasurementSettings, measure
 from twin_cosim.loops import ahead, kernels
-from twin_cosim.paper import TABLE3
 from twin_cosim.plant import Plant
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.scenario import load_scenario

@@ -11,7 +11,7 @@ from scenario_texts import scenario_text
 from twin_cosim.optimize.axis_problem import AxisProblem, CampaignSpec
 from twin_cosim.optimize.driver import run_campaign
 from twin_cosim.optimize.store import CampaignError
-from twin_cosim.scenario.plant_file import PlantParameters, write_plant_parameters
+from twin_cosim.scenario.plant_parameters import PlantParameters, write_plant_parameters
 
 SMALL_CE = "methods: {ce: {population_size: 10, elite_fraction: 0.2}}"
 SHORT = scenario_text(optimize=SMALL_CE)

@@ -10,12 +10,12 @@ import pytest
 from scenario_texts import scenario_text
 
 from twin_cosim.controller import TunedParameters
+from twin_cosim.controller_set import TABLE3
 from twin_cosim.cosim import run_scenario
 from twin_cosim.metrics import compute_metrics
 from twin_cosim.optimize.axis_problem import ObjectiveSpec
 from twin_cosim.optimize.early_stop import EvaluationTask, lower_bound_above
 from twin_cosim.optimize.objective import Objective
-from twin_cosim.paper import TABLE3
 from twin_cosim.scenario import load_scenario
 
 REFERENCE1 = str(Path(__file__).resolve().parents[3] / "scenarios" / "reference1.yaml")

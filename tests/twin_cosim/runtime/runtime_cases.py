@@ -43,14 +43,14 @@ def free_port() -> int:
 
 
 class ServerThread:
-    """A :class:`~twin_cosim.runtime.server.MachineServer` on its own event loop in a thread,
+    """A :class:`~twin_cosim.runtime.opcua.MachineServer` on its own event loop in a thread,
     driven by the test: publish windows, stop, start again on the same port."""
 
     def __init__(self, port: int, security=None, with_motor_speed: bool = True) -> None:
         import asyncio
         import threading
 
-        from twin_cosim.runtime.server import MachineServer
+        from twin_cosim.runtime.opcua import MachineServer
 
         self.loop = asyncio.new_event_loop()
         self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)

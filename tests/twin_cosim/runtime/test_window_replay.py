@@ -8,7 +8,7 @@ import pytest
 from runtime_cases import cycle
 
 from twin_cosim.plant import Plant
-from twin_cosim.runtime.information_model import Window
+from twin_cosim.runtime.opcua import Window
 from twin_cosim.runtime.virtual_machine import draw_machine
 from twin_cosim.runtime.window_replay import (
     gap_of,

@@ -8,7 +8,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from twin_cosim import paper
+from twin_cosim.controller_set import FINE_TUNE, TABLE3
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.scenario import ScenarioError, is_machine_scenario, load_machine
 
@@ -24,7 +24,7 @@ def test_xy_table_has_two_drive2mass_axes_with_fine_tune():
     assert machine.axis_names == ("X", "Y")
     for axis in machine.axes:
         assert axis.model == "drive2mass"
-        assert axis.tuned == paper.FINE_TUNE
+        assert axis.tuned == FINE_TUNE
         assert axis.settings.position_period == 250e-6
     assert machine.sample_period == 0.004
     assert is_machine_scenario("xy_table") and not is_machine_scenario("reference1")
@@ -47,7 +47,7 @@ def test_each_axis_has_its_own_plant_parameters_and_controller(tmp_path):
     x, y, z = machine.axes
     assert x.plant_parameters == {"coulomb_friction": 0.5}
     assert x.settings.friction_torque == 0.5  # the plant fact follows the axis' own plant
-    assert x.tuned == paper.TABLE3["ga"]
+    assert x.tuned == TABLE3["ga"]
     assert y.plant_parameters == {"backlash": 3.0e-5}
     assert y.limits.velocity == 0.1 and y.limits.acceleration == 2.0
     assert z.name == "Z"

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from fmu_build.build import CACHE_ENV
-from twin_cosim import paper
+from twin_cosim.controller_set import FINE_TUNE, TABLE3
 from twin_cosim.environment import DATA_ENV
 from twin_cosim.scenario import (
     ScenarioError,
@@ -33,7 +33,7 @@ reference:
 @pytest.mark.parametrize("name", ["reference1", "reference2"])
 def test_shipped_scenarios_load(name):
     scenario = load_scenario(SCENARIOS / f"{name}.yaml")
-    assert scenario.tuned == paper.FINE_TUNE
+    assert scenario.tuned == FINE_TUNE
     assert scenario.reference.period == 250e-6
 
 
@@ -109,10 +109,10 @@ def test_malformed_yaml(tmp_path):
 
 
 def test_params_from_table3_or_file(tmp_path):
-    assert load_controller_set("GA").tuned == paper.TABLE3["ga"]
+    assert load_controller_set("GA").tuned == TABLE3["ga"]
     path = tmp_path / "best.json"
-    path.write_text('{"best_params": ' + str(paper.TABLE3["ce"].as_dict()).replace("'", '"') + "}")
-    assert load_controller_set(str(path)).tuned == paper.TABLE3["ce"]
+    path.write_text('{"best_params": ' + str(TABLE3["ce"].as_dict()).replace("'", '"') + "}")
+    assert load_controller_set(str(path)).tuned == TABLE3["ce"]
     with pytest.raises(ScenarioError, match="neither a set of Table 3"):
         load_controller_set("xx")
 
@@ -126,7 +126,7 @@ def test_shipped_scenarios_are_found_by_name():
 
 def test_fine_tune_is_taken_by_name_from_the_paper(tmp_path):
     scenario = load_scenario(write(tmp_path, BASE + "controller:\n  parameters: ga\n"))
-    assert scenario.tuned == paper.TABLE3["ga"]
+    assert scenario.tuned == TABLE3["ga"]
 
 
 def test_controller_plant_facts_follow_the_scenario_plant(tmp_path):

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from twin_cosim.scenario import load_scenario
-from twin_cosim.scenario.plant_file import read_plant_parameters
+from twin_cosim.scenario.plant_parameters import read_plant_parameters
 from twin_cosim.servo.friction import (
     FrictionDataError,
     FrictionPoint,

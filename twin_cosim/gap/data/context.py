@@ -38,7 +38,6 @@ from scipy.ndimage import median_filter
 from twin_cosim.gap.data import regimes as regime_model
 from twin_cosim.gap.data.residuals import Residuals, residuals_of
 from twin_cosim.gap.settings import DiagnosisSettings
-from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.measured import (
     MeasuredDataError,
     MeasuredRun,
@@ -46,7 +45,7 @@ from twin_cosim.measured import (
     current_warnings,
 )
 from twin_cosim.plant import Plant
-from twin_cosim.plant_model import PlantModelError, plant_model
+from twin_cosim.plant_model import Hypothesis, PlantModelError, plant_model
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario, for_measured_run
@@ -259,6 +258,12 @@ class DiagnosisContext:
     split: str
     warnings: list[str]
     repeats: list[list[int]] = field(default_factory=list)
+
+    @property
+    def compared(self) -> str:
+        """The signal compared beside the position (``current``, or ``motor_speed`` of
+        open-loop runs): the name the residuals' ``current`` field holds."""
+        return self.train[0].compared
 
     def screw_angle(self, motor_angle: np.ndarray) -> np.ndarray:
         """The screw angle (rad) of motor angles (rad)."""

@@ -17,7 +17,9 @@ is the combination sum a_j c_j with every |a_j| <= 1 (bounded linear least squar
 one per sample) closest to r; what it leaves is the part of the gap that calibration error
 cannot explain, and a change counts only when it shrinks that part too. The correction is
 fitted on the held-out data themselves: calibration error gets every benefit of the doubt,
-bounded by the tolerance.
+bounded by the tolerance. Where this linear correction leaves a gap, the selection replays it and
+re-linearises around the corrected parameters
+(:meth:`twin_cosim.gap.which.replay_pool.ReplayPool.calibration`).
 
 **Is there a gap?** What the best calibration correction leaves, ``left``, against its
 distribution under noise at the floors alone. Residuals are correlated in time (the closed loop
@@ -139,12 +141,17 @@ class CalibrationBasis:
         """Q (samples, parameters) and R (parameters, parameters) of the directions."""
         return np.linalg.qr(self.directions, mode="reduced")
 
-    def correction(self, residual: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Coefficients a (|a| <= 1, tolerances) and what the best correction leaves of r."""
+    def correction(
+        self,
+        residual: np.ndarray,
+        bounds: tuple[np.ndarray | float, np.ndarray | float] = (-1.0, 1.0),
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Coefficients a (tolerances, within ``bounds``: |a| <= 1 unless told) and what the
+        best correction leaves of r."""
         if self.directions.shape[1] == 0:
             return np.zeros(0), residual
         q, r = self._factors
-        fit = lsq_linear(r, q.T @ residual, bounds=(-1.0, 1.0))
+        fit = lsq_linear(r, q.T @ residual, bounds=bounds)
         return fit.x, residual - self.directions @ fit.x
 
     def left_after(self, residual: np.ndarray) -> float:

@@ -20,6 +20,7 @@ from twin_cosim.gap.data import regimes as regime_model  # noqa: E402
 from twin_cosim.gap.data.residuals import joined  # noqa: E402
 from twin_cosim.gap.diagnosis import Diagnosis  # noqa: E402
 from twin_cosim.gap.verdict import STROKE_END  # noqa: E402
+from twin_cosim.measured import compared_label  # noqa: E402
 from twin_cosim.metrics import UM_PER_M  # noqa: E402
 
 REGIME_COLOURS = {
@@ -66,7 +67,8 @@ def plot_residuals(d: Diagnosis, path: Path) -> Path:
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
     axes[0].set_ylabel("position residual [um]")
-    axes[1].set_ylabel("current residual [A]")
+    words, unit = compared_label(d.context.compared)
+    axes[1].set_ylabel(f"{words} residual [{unit}]")
     axes[1].set_xlabel(
         "t [s]  (shading: standstill grey, breakaway orange, acceleration blue, reversal red)"
     )
@@ -78,6 +80,7 @@ def plot_regimes(d: Diagnosis, path: Path) -> Path:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     names = list(regime_model.REGIMES)
     x = np.arange(len(names))
+    titles = {"position": "position", "current": compared_label(d.context.compared)[0]}
     for ax, signal in zip(axes, ("position", "current"), strict=True):
         shares = getattr(d.where, signal)
         ax.bar(x - 0.2, [shares[n]["time_share"] for n in names], 0.4, label="time share")
@@ -85,7 +88,7 @@ def plot_regimes(d: Diagnosis, path: Path) -> Path:
             x + 0.2, [shares[n]["energy_share"] for n in names], 0.4, label="residual energy share"
         )
         ax.set_xticks(x, [n.replace("_", "\n") for n in names], fontsize=8)
-        ax.set_title(f"{signal} residual")
+        ax.set_title(f"{titles[signal]} residual")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3, axis="y")
     return _saved(fig, path)
@@ -99,8 +102,9 @@ def plot_spectra(d: Diagnosis, path: Path) -> Path:
     dt = float(np.median(np.diff(res.t)))
     stretches = regime_model.segments(res.regimes, regime_model.REGIMES.index("constant_velocity"))
     fig, axes = plt.subplots(3, 2, figsize=(11, 9.5))
+    compared, compared_unit = compared_label(d.context.compared)
     for column, (signal, values, unit) in enumerate(
-        (("position", res.position * UM_PER_M, "um"), ("current", res.current, "A"))
+        (("position", res.position * UM_PER_M, "um"), (compared, res.current, compared_unit))
     ):
         f, a = spectra.frequency_spectrum(values, dt)
         axes[0, column].loglog(f[1:], a[1:] + 1e-12, lw=0.7)

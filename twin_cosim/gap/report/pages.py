@@ -14,6 +14,7 @@ import json
 import re
 from collections.abc import Callable
 from dataclasses import asdict
+from operator import attrgetter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -33,8 +34,9 @@ from twin_cosim.gap.verdict import (
     quantity,
 )
 from twin_cosim.gap.which.selector import correlation
+from twin_cosim.measured import compared_label
 from twin_cosim.plant_model import plant_model
-from twin_cosim.scenario.plant_file import calibrated_scenario, write_plant_parameters
+from twin_cosim.scenario.plant_parameters import calibrated_scenario, write_plant_parameters
 from twin_cosim.versions import versions
 
 if TYPE_CHECKING:
@@ -117,25 +119,26 @@ def summary(d: Diagnosis) -> dict[str, Any]:
     )
 
 
+def _picked(source: Any, *names: str) -> dict[str, Any]:
+    """Attributes of ``source``, in the order named: ``name`` (the key is the attribute's name)
+    or ``key=path`` (the attribute at a dotted path, e.g. ``params=fit.values``)."""
+    entries = (name.partition("=") for name in names)
+    return {key: attrgetter(path or key)(source) for key, _, path in entries}
+
+
 def _metric_row(c: MetricComparison) -> dict[str, Any]:
     """A held-out run's figures of merit, measured and the twin's, and whether they are off."""
-    return {
-        "run": c.run,
-        "measured": c.measured,
-        "twin": c.twin,
-        "relative_error": c.relative_error,
-        "noise_spread": c.noise_spread,
-        "threshold": c.threshold,
-        "largest_relative_error": c.largest_relative_error,
-        "off": c.off,
-    }
+    return _picked(
+        c,
+        *("run", "measured", "twin", "relative_error", "noise_spread", "threshold"),
+        *("largest_relative_error", "off"),
+    )
 
 
 def _acceptance_tests(j: Judgement) -> dict[str, Any]:
     """What a candidate's acceptance tests measured (a round's candidates and a swap's rival)."""
     return {
-        "holdout_reduction": j.reduction,
-        "reduction_beyond_calibration": j.reduction_beyond_calibration,
+        **_picked(j, "holdout_reduction=reduction", "reduction_beyond_calibration"),
         **asdict(j.gain),  # evidence z, critical z, excess share, fair share
         "size_above_tolerance": j.size_above_tolerance,
     }
@@ -143,12 +146,18 @@ def _acceptance_tests(j: Judgement) -> dict[str, Any]:
 
 def _fitted(c: Candidate) -> dict[str, Any]:
     """A candidate's fit: its hypothesis, values, training cost and BIC, replays."""
+    return _picked(
+        c, "name", "params=fit.values", "train_cost=fit.train_cost", "bic", "replays=fit.replays"
+    )
+
+
+def _held_out_gaps(before: Round, after: Judgement) -> dict[str, Any]:
+    """The held-out position and current RMS before a candidate (its round's) and with it."""
     return {
-        "name": c.name,
-        "params": c.fit.values,
-        "train_cost": c.fit.train_cost,
-        "bic": c.bic,
-        "replays": c.fit.replays,
+        "holdout_gap_before_um": before.position_rms_um,
+        "holdout_gap_after_um": after.position_rms_um,
+        "holdout_current_before_A": before.current_rms,
+        "holdout_current_after_A": after.current_rms,
     }
 
 
@@ -156,10 +165,7 @@ def _row(c: Candidate, round_: Round) -> dict[str, Any]:
     judged = c.judgement
     return {
         **_fitted(c),
-        "holdout_gap_before_um": round_.position_rms_um,
-        "holdout_gap_after_um": judged.position_rms_um,
-        "holdout_current_before_A": round_.current_rms,
-        "holdout_current_after_A": judged.current_rms,
+        **_held_out_gaps(round_, judged),
         **_acceptance_tests(judged),
         "explained_normalised_rms": judged.explained,
         "calibration_floor_normalised_rms": round_.calibration.explained,
@@ -180,17 +186,11 @@ def _step(r: Round, dropped: list[str], swapped_out: list[str]) -> dict[str, Any
         "params": best.fit.values,
         "plant_parameters": best.fit.overrides,
         "context": r.context,
-        "holdout_gap_before_um": r.position_rms_um,
-        "holdout_gap_after_um": judged.position_rms_um,
-        "holdout_current_before_A": r.current_rms,
-        "holdout_current_after_A": judged.current_rms,
+        **_held_out_gaps(r, judged),
         "holdout_normalised_rms_before": r.holdout_rms,
         "holdout_normalised_rms_after": judged.holdout_rms,
-        "reduction": judged.reduction,
-        "reduction_beyond_calibration": judged.reduction_beyond_calibration,
-        "evidence_z": judged.gain.evidence_z,
-        "critical_z": judged.gain.critical_z,
-        "excess_share": judged.gain.excess_share,
+        **_picked(judged, "reduction", "reduction_beyond_calibration"),
+        **_picked(judged.gain, "evidence_z", "critical_z", "excess_share"),
         "dropped_in_backward_pass": best.name in dropped,
         "swapped_out": best.name in swapped_out,
         "ranking": [_row(c, r) for c in r.candidates],
@@ -205,9 +205,12 @@ def _swap_row(w: Swap) -> dict[str, Any]:
     return {
         "removed": w.removed,
         **_fitted(c),
-        "holdout_normalised_rms_after": judged.holdout_rms,
-        "holdout_gap_after_um": judged.position_rms_um,
-        "holdout_current_after_A": judged.current_rms,
+        **_picked(
+            judged,
+            "holdout_normalised_rms_after=holdout_rms",
+            "holdout_gap_after_um=position_rms_um",
+            "holdout_current_after_A=current_rms",
+        ),
         **_acceptance_tests(judged),
         "consistent": judged.consistent,
         "passes": c.passes,
@@ -218,11 +221,7 @@ def _swap_row(w: Swap) -> dict[str, Any]:
 def _refit_row(r: Refit) -> dict[str, Any]:
     """A cold refit that replaced its effect, and its gain against the rule."""
     return {
-        "effect": r.effect,
-        "values_before": r.values_before,
-        "values_after": r.values_after,
-        "left_before": r.left_before,
-        "left_after": r.left_after,
+        **_picked(r, "effect", "values_before", "values_after", "left_before", "left_after"),
         **asdict(r.gain),
         "significant": r.significant,
     }
@@ -265,8 +264,10 @@ def _yes(value: Any) -> str:
     return "yes" if value else "no"
 
 
-def _ranking_columns(units: dict[str, dict[str, str]]) -> list[Column]:
-    """The columns of a round's ranking (one row per :class:`Candidate`)."""
+def _ranking_columns(units: dict[str, dict[str, str]], compared: str) -> list[Column]:
+    """The columns of a round's ranking (one row per :class:`Candidate`); ``compared``: the
+    signal compared beside the position."""
+    words, unit = compared_label(compared)
 
     def fitted(c: Candidate) -> str:
         return parameters(c.fit.values, units.get(c.name, {}))
@@ -276,7 +277,7 @@ def _ranking_columns(units: dict[str, dict[str, str]]) -> list[Column]:
         ("fitted parameters", fitted),
         ("training BIC", lambda c: number(c.bic)),
         ("held-out position RMS with it [um]", lambda c: number(c.judgement.position_rms_um)),
-        ("held-out current RMS with it [A]", lambda c: number(c.judgement.current_rms)),
+        (f"held-out {words} RMS with it [{unit}]", lambda c: number(c.judgement.current_rms)),
         ("reduction of the normalised RMS", lambda c: percent(c.judgement.reduction)),
         ("evidence z", lambda c: number(c.judgement.gain.evidence_z)),
         ("needed z", lambda c: number(c.judgement.gain.critical_z)),
@@ -286,8 +287,10 @@ def _ranking_columns(units: dict[str, dict[str, str]]) -> list[Column]:
     ]
 
 
-def _step_columns(units: dict[str, dict[str, str]]) -> list[Column]:
-    """The columns of the accepted effects (one row per :class:`Round` that accepted one)."""
+def _step_columns(units: dict[str, dict[str, str]], compared: str) -> list[Column]:
+    """The columns of the accepted effects (one row per :class:`Round` that accepted one);
+    ``compared``: the signal compared beside the position."""
+    words, unit = compared_label(compared)
 
     def best(r: Round) -> Candidate:
         assert r.best is not None
@@ -304,8 +307,11 @@ def _step_columns(units: dict[str, dict[str, str]]) -> list[Column]:
             "with it, as fitted in its round [um]",
             lambda r: number(best(r).judgement.position_rms_um),
         ),
-        ("held-out current RMS before it [A]", lambda r: number(r.current_rms)),
-        ("with it, as fitted in its round [A]", lambda r: number(best(r).judgement.current_rms)),
+        (f"held-out {words} RMS before it [{unit}]", lambda r: number(r.current_rms)),
+        (
+            f"with it, as fitted in its round [{unit}]",
+            lambda r: number(best(r).judgement.current_rms),
+        ),
         ("reduction of the normalised RMS", lambda r: percent(best(r).judgement.reduction)),
     ]
 
@@ -367,14 +373,16 @@ def _pulses(value: dict[str, float] | None) -> str:
     )
 
 
-def _run_columns(runs: list[HeldOutRun]) -> list[Column]:
-    """The columns of the held-out runs (one row per :class:`HeldOutRun`)."""
+def _run_columns(runs: list[HeldOutRun], compared: str) -> list[Column]:
+    """The columns of the held-out runs (one row per :class:`HeldOutRun`); ``compared``: the
+    signal compared beside the position."""
+    words, unit = compared_label(compared)
     columns: list[Column] = [
         ("held-out run", lambda r: _text(r.source)),
         ("position RMS before [um]", lambda r: number(r.position_rms_um_before)),
         ("after [um]", lambda r: number(r.position_rms_um_after)),
-        ("current RMS before [A]", lambda r: number(r.current_rms_before)),
-        ("after [A]", lambda r: number(r.current_rms_after)),
+        (f"{words} RMS before [{unit}]", lambda r: number(r.current_rms_before)),
+        (f"after [{unit}]", lambda r: number(r.current_rms_after)),
         ("relative errors before", lambda r: _errors(r.relative_errors_before)),
         ("after", lambda r: _errors(r.relative_errors_after)),
     ]
@@ -424,6 +432,7 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
     followed by the table that holds each of its numbers (:func:`gap_table`).
     """
     units = hypothesis_units(d.context.model)
+    compared_words, compared_unit = compared_label(d.context.compared)
     first = next((r for r in d.rounds if r.candidates), None)
     before, after = d.metrics_before[0], d.metrics_after[0]
     figures = d.validation
@@ -447,7 +456,8 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
         (
             "Noise floors",
             f"position {quantity(d.floors.sigma_position_m, 'm')} ({d.floors.position_source}); "
-            f"current {quantity(d.floors.sigma_current, 'A')} ({d.floors.current_source}).",
+            f"{compared_words} {quantity(d.floors.sigma_current, compared_unit)} "
+            f"({d.floors.current_source}).",
         ),
         (
             "Validation figures (training and held-out data before the accepted effects, as in "
@@ -461,7 +471,7 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
         ),
         (
             "Held-out runs, before and after the accepted effects",
-            _table(d.held_out_runs, _run_columns(d.held_out_runs)),
+            _table(d.held_out_runs, _run_columns(d.held_out_runs, d.context.compared)),
         ),
         (
             "Where the gap lies before the accepted effects (training and held-out data): "
@@ -469,7 +479,7 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
             _table(list(d.where.position.items()), SHARE_COLUMNS),
         ),
         (
-            "Before the accepted effects: current residual by regime",
+            f"Before the accepted effects: {compared_words} residual by regime",
             _table(list(d.where.current.items()), SHARE_COLUMNS),
         ),
         (
@@ -489,15 +499,16 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
             "constant-velocity stretches at one speed level, within 10 %; a peak at a fixed "
             "order across the groups, its frequency moving, is position-periodic)",
             "; ".join(
-                f"{k.replace('_', ' ')}: {v['verdict']} ({v['reason']})"
+                f"{k.replace('current_', compared_words + '_').replace('_', ' ')}: "
+                f"{v['verdict']} ({v['reason']})"
                 for k, v in d.where.periodicity.items()
             ),
         ),
         (
             "Which: hypotheses fitted on the training data, judged on the held-out data (first "
             f"round; held-out position RMS before {number(d.rounds[0].position_rms_um)} um, "
-            f"current {number(d.rounds[0].current_rms)} A)",
-            _table(first.candidates if first else [], _ranking_columns(units)),
+            f"{compared_words} {number(d.rounds[0].current_rms)} {compared_unit})",
+            _table(first.candidates if first else [], _ranking_columns(units, d.context.compared)),
         ),
         *(
             [("Look-alike groups (a name in braces)", lookalikes(d))]
@@ -506,7 +517,7 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
         ),
         (
             "How far: each accepted effect on the held-out data, as fitted in its round",
-            _table(d.steps, _step_columns(units))
+            _table(d.steps, _step_columns(units, d.context.compared))
             if d.steps
             else "No effect passed the held-out test.",
         ),

@@ -48,8 +48,8 @@ from twin_cosim.gap.floors.evidence import (
 from twin_cosim.gap.floors.noise import Floors, MetricComparison, compare_metrics, metrics_off
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.which.replay import FitResult, Replays
-from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.measured import MeasuredRun
+from twin_cosim.plant_model import Hypothesis
 from twin_cosim.reference import ReferenceGrid
 
 
@@ -199,8 +199,11 @@ class Judging:
     ) -> bool:
         """Whether what the best calibration correction leaves (normalised RMS ``left``) is a
         gap: beyond noise at the floors, or a figure of merit off."""
-        threshold = gap_threshold(self.duration_s, settings.significance_level)
-        return left >= threshold or metrics_off(metrics)
+        return left >= self.threshold(settings) or metrics_off(metrics)
+
+    def threshold(self, settings: DiagnosisSettings) -> float:
+        """Normalised RMS at which what is left on these runs is a gap (beyond noise)."""
+        return gap_threshold(self.duration_s, settings.significance_level)
 
     def acceptance(self, settings: DiagnosisSettings, tests: int, hypotheses: int) -> Acceptance:
         """The acceptance rule of ``tests`` changes judged together on these runs, for a

@@ -47,9 +47,8 @@ from scipy.optimize import differential_evolution, least_squares
 from twin_cosim.cosim import RunAborted, run_scenario
 from twin_cosim.gap.data.residuals import anchored
 from twin_cosim.gap.floors.evidence import EFFECTIVE_SAMPLE_SPACING_S
-from twin_cosim.hypotheses import Hypothesis
 from twin_cosim.plant import Plant, PlantError
-from twin_cosim.plant_model import plant_model
+from twin_cosim.plant_model import Hypothesis, plant_model
 from twin_cosim.reference import ReferenceGrid
 from twin_cosim.run_record import RunRecord
 from twin_cosim.scenario import Scenario

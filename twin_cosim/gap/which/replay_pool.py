@@ -3,7 +3,8 @@
 :class:`ReplayPool` runs tasks (:mod:`twin_cosim.gap.which.replay`) on the pool in task order,
 each batch timed under a phase of the selection; keeps the calibration directions around every
 parameter set it was asked for (the joint refits and the backward pass ask for the same sets
-again); and replays a model with its best calibration correction.
+again); fits the calibration correction of a model, replayed and re-linearised where the
+linear correction leaves a gap; and replays a model with its best calibration correction.
 
 Replays of the judging runs by parameter set (:class:`JudgingCache`): a replay is deterministic,
 so a parameter set asked for again (the sequential model a joint refit is judged against, the
@@ -20,6 +21,7 @@ iterations of its local fit, the replays of its start's search, its CPU and wall
 
 from __future__ import annotations
 
+import math
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Iterator
@@ -29,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from twin_cosim.gap.floors.evidence import CalibrationBasis, CalibrationFloor
+from twin_cosim.gap.floors.evidence import CalibrationBasis, CalibrationFloor, floor_of
 from twin_cosim.gap.which.acceptance import Judging
 from twin_cosim.gap.which.replay import (
     FitResult,
@@ -47,6 +49,9 @@ Progress = Callable[[int], None]
 # Bytes of judging replays the parent keeps (16 of the 12.4 s of scenarios/diagnosis.yaml, 3.6
 # MB each): the repeats of a diagnosis come within a few batches.
 JUDGING_CACHE_BYTES = 64 * 2**20
+
+REFINEMENTS = 2  # re-linearisations of a calibration correction, at most
+REFINEMENT_GAIN = 0.05  # the least relative cut of what is left that earns a further one
 
 
 def makespan(durations: list[float], workers: int) -> float:
@@ -324,11 +329,78 @@ class ReplayPool:
         vector = self.judging.vector(self.judging.residuals(replays))
         return self.basis(overrides).correction(vector)[1]
 
+    def calibration(
+        self, base: dict[str, float], replays: Replays, threshold: float
+    ) -> tuple[CalibrationFloor, Replays]:
+        """The calibration floor of the held-out residual of ``replays`` (the parameter set
+        ``nominal + base``) and the replays with its correction applied.
+
+        The correction is first the linear one of the calibration directions around ``base``
+        (:func:`~twin_cosim.gap.floors.evidence.floor_of`). The directions are centred
+        differences, one parameter at a time: a combined change of several calibrated
+        parameters is not the sum of their effects, and the linear correction can leave a gap
+        that calibration error explains. Where what it leaves is at or above ``threshold``
+        (normalised RMS: a gap), the correction is re-linearised around the corrected
+        parameters and replayed (Gauss-Newton steps within the tolerance, at most
+        :data:`REFINEMENTS`, a further one only after a step that cut what is left by
+        :data:`REFINEMENT_GAIN`). The floor keeps the replayed correction when its replay
+        leaves less than the linear correction is predicted to leave: calibration error gets
+        every benefit of the doubt.
+
+        Parameters
+        ----------
+        base : dict
+            FMU parameters of the model on top of the nominal twin.
+        replays : Replays
+            Its replays.
+        threshold : float
+            Normalised RMS at which what is left is a gap.
+        """
+        vector = self.judging.vector(self.judging.residuals(replays))
+        floor = floor_of(self.basis(base), vector)
+        calibrated = self.calibrated_replay(base, floor)
+        if floor.left < threshold or not self.calibrated:
+            return floor, calibrated
+        step = np.array([floor.coefficients[n] for n in self.calibrated])
+        step_left = float(np.linalg.norm(self.judging.vector(self.judging.residuals(calibrated))))
+        best, best_replays = floor, calibrated
+        for _ in range(REFINEMENTS):
+            scale = 1.0 + step * self.tolerance
+            corrected = self._corrected(base, dict(zip(self.calibrated, step, strict=True)))
+            delta, _ = self.basis(corrected).correction(
+                self.judging.vector(self.judging.residuals(calibrated)),
+                bounds=(
+                    ((1.0 - self.tolerance) / scale - 1.0) / self.tolerance,
+                    ((1.0 + self.tolerance) / scale - 1.0) / self.tolerance,
+                ),
+            )
+            step = (scale * (1.0 + delta * self.tolerance) - 1.0) / self.tolerance
+            trial = CalibrationFloor(
+                floor.before, 0.0, 0.0, dict(zip(self.calibrated, step.tolist(), strict=True))
+            )
+            calibrated = self.calibrated_replay(base, trial)
+            left = float(np.linalg.norm(self.judging.vector(self.judging.residuals(calibrated))))
+            if left < best.left:
+                explained = math.sqrt(max(floor.before**2 - left**2, 0.0))
+                best = CalibrationFloor(floor.before, left, explained, trial.coefficients)
+                best_replays = calibrated
+            if left >= threshold and left <= step_left * (1.0 - REFINEMENT_GAIN):
+                step_left = left
+                continue
+            break
+        return best, best_replays
+
+    def _corrected(
+        self, base: dict[str, float], coefficients: dict[str, float]
+    ) -> dict[str, float]:
+        """``base`` with the calibration correction ``coefficients`` (tolerances) applied."""
+        current = {**self.nominal, **base}
+        return {
+            **base,
+            **{n: current[n] * (1.0 + a * self.tolerance) for n, a in coefficients.items()},
+        }
+
     def calibrated_replay(self, base: dict[str, float], floor: CalibrationFloor) -> Replays:
         """Replays with the best calibration correction applied to the calibrated parameters."""
-        current = {**self.nominal, **base}
-        corrected = {
-            **base,
-            **{n: current[n] * (1.0 + a * self.tolerance) for n, a in floor.coefficients.items()},
-        }
+        corrected = self._corrected(base, floor.coefficients)
         return self.tasks("calibrated_replays", [SimulateTask(corrected)])[0]

@@ -83,7 +83,7 @@ import numpy as np
 
 from twin_cosim.gap.data.context import DEFAULT_CONTEXT, DiagnosisContext, training_residuals
 from twin_cosim.gap.data.residuals import Residuals
-from twin_cosim.gap.floors.evidence import EFFECTIVE_SAMPLE_SPACING_S, CalibrationFloor, floor_of
+from twin_cosim.gap.floors.evidence import EFFECTIVE_SAMPLE_SPACING_S, CalibrationFloor
 from twin_cosim.gap.floors.noise import MetricComparison
 from twin_cosim.gap.location import dominant_order
 from twin_cosim.gap.settings import DiagnosisSettings
@@ -109,7 +109,7 @@ from twin_cosim.gap.which.replay import (
     shape_index,
 )
 from twin_cosim.gap.which.replay_pool import ReplayPool
-from twin_cosim.hypotheses import Hypothesis
+from twin_cosim.plant_model import Hypothesis
 
 
 @dataclass(frozen=True)
@@ -396,9 +396,8 @@ class Selector:
                 break
             remaining = self._not_accepted(accepted)
         accepted, base, replays, marginal, dropped = self.backward(accepted, base, replays, start)
-        held = self.judging.held_out(replays, self.pool.basis(base))
-        floor = floor_of(held.basis, held.vector)
-        calibrated = self.pool.calibrated_replay(base, floor)
+        threshold = self.judging.threshold(settings)
+        floor, calibrated = self.pool.calibration(base, replays, threshold)
         (uncertainty,) = self.pool.tasks("uncertainty", [self.uncertainty_task(accepted, base)])
         return Selection(
             rounds,
@@ -471,8 +470,9 @@ class Selector:
         settings = self.settings
         while remaining and len(accepted) < settings.max_effects:
             held = self.judging.held_out(replays, self.pool.basis(base))
-            floor = floor_of(held.basis, held.vector)
-            calibrated = self.pool.calibrated_replay(base, floor)
+            floor, calibrated = self.pool.calibration(
+                base, replays, self.judging.threshold(settings)
+            )
             metrics = self.judging.metrics(calibrated, settings)
             assert self.context is not None, "the rounds read their orders off the runs"
             context = self._orders(training_residuals(self.context, replays.training))

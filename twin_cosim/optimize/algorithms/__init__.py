@@ -34,9 +34,9 @@ LABELS: dict[str, str] = {"ce": "CE", "ga": "GA", "sa": "SA", "cmaes": "CMA-ES",
 # Where each class lives: method name -> (module of this package, class name); each class's
 # ``name`` is its key (tested).
 _CLASSES = {
-    "ce": ("cross_entropy", "CrossEntropy"),
-    "ga": ("genetic", "GeneticAlgorithm"),
-    "sa": ("annealing", "SimulatedAnnealing"),
+    "ce": ("paper_methods", "CrossEntropy"),
+    "ga": ("paper_methods", "GeneticAlgorithm"),
+    "sa": ("paper_methods", "SimulatedAnnealing"),
     "cmaes": ("cmaes", "CMAES"),
     "de": ("differential_evolution", "DifferentialEvolution"),
 }

@@ -103,6 +103,43 @@ def best_decrease(old: float, new: float) -> float:
     return math.inf if math.isinf(old) else old - new
 
 
+def whole(default: int | None, minimum: int) -> Any:
+    """A setting that is a whole number ``>= minimum`` (:func:`check_int`); a default of None
+    lets None stand for "not set"."""
+    return dataclasses.field(default=default, metadata={"check": (check_int, (minimum,), {})})
+
+
+def real(
+    default: float | None,
+    low: float = -math.inf,
+    high: float = math.inf,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> Any:
+    """A setting that is a real number in an interval (:func:`check_real`); a default of None
+    lets None stand for "not set"."""
+    keywords = {"low_open": low_open, "high_open": high_open}
+    return dataclasses.field(
+        default=default, metadata={"check": (check_real, (low, high), keywords)}
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """An optimizer's settings: a frozen dataclass whose fields declared by :func:`whole` and
+    :func:`real` are checked when it is made (a subclass checks the rest in its own
+    ``__post_init__``, after this one's)."""
+
+    def __post_init__(self) -> None:
+        for setting in dataclasses.fields(self):
+            value = getattr(self, setting.name)
+            if "check" not in setting.metadata or (value is None and setting.default is None):
+                continue
+            check, limits, keywords = setting.metadata["check"]
+            check(setting.name, value, *limits, **keywords)
+
+
 class Optimizer(abc.ABC):
     """Batch ask/tell optimizer in the normalised unit box.
 

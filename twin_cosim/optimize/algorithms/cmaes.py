@@ -10,11 +10,11 @@ from typing import Any
 import cma
 import numpy as np
 
-from twin_cosim.optimize.algorithms.base import Optimizer, check_int, check_real
+from twin_cosim.optimize.algorithms.base import Optimizer, Settings, real, whole
 
 
 @dataclasses.dataclass(frozen=True)
-class CMAESSettings:
+class CMAESSettings(Settings):
     """Settings of :class:`CMAES`.
 
     Attributes
@@ -35,18 +35,11 @@ class CMAESSettings:
         than the start. Default False: the start is only the mean of the first samples.
     """
 
-    sigma0: float = 0.3
-    popsize: int | None = None
-    max_flat_generations: int = 10
-    budget: int = 2000
+    sigma0: float = real(0.3, 0.0, low_open=True)
+    popsize: int | None = whole(None, 2)
+    max_flat_generations: int = whole(10, 1)
+    budget: int = whole(2000, 1)
     inject_start: bool = False
-
-    def __post_init__(self) -> None:
-        check_real("sigma0", self.sigma0, 0.0, low_open=True)
-        if self.popsize is not None:
-            check_int("popsize", self.popsize, 2)
-        check_int("max_flat_generations", self.max_flat_generations, 1)
-        check_int("budget", self.budget, 1)
 
 
 def pycma_seed(seed: int) -> int:

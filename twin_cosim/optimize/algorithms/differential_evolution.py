@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import differential_evolution
 
-from twin_cosim.optimize.algorithms.base import Optimizer, check_int, check_real
+from twin_cosim.optimize.algorithms.base import Optimizer, Settings, check_real, real, whole
 
 #: SciPy renamed ``seed`` to ``rng`` in 1.15; use whichever this SciPy has.
 _RNG_KEYWORD = "rng" if "rng" in inspect.signature(differential_evolution).parameters else "seed"
@@ -47,7 +47,7 @@ class _Aborted(Exception):
 
 
 @dataclasses.dataclass(frozen=True)
-class DifferentialEvolutionSettings:
+class DifferentialEvolutionSettings(Settings):
     """Settings of :class:`DifferentialEvolution` (SciPy's defaults unless noted).
 
     Attributes
@@ -66,16 +66,16 @@ class DifferentialEvolutionSettings:
         Maximum evaluations (default 2,000, the evaluation count of the paper's CE and GA runs).
     """
 
-    popsize: int = 15
+    popsize: int = whole(15, 1)
     mutation: float | tuple[float, float] = (0.5, 1.0)
-    recombination: float = 0.7
+    recombination: float = real(0.7, 0.0, 1.0)
     strategy: str = "best1bin"
-    tol: float = 0.01
-    atol: float = 0.0
-    budget: int = 2000
+    tol: float = real(0.01, 0.0)
+    atol: float = real(0.0, 0.0)
+    budget: int = whole(2000, 1)
 
     def __post_init__(self) -> None:
-        check_int("popsize", self.popsize, 1)
+        super().__post_init__()  # popsize, recombination, tol, atol, budget
         if isinstance(self.mutation, tuple):
             if len(self.mutation) != 2 or not self.mutation[0] <= self.mutation[1]:
                 raise ValueError(
@@ -86,14 +86,10 @@ class DifferentialEvolutionSettings:
                 check_real("mutation", value, 0.0, 2.0)
         else:
             check_real("mutation", self.mutation, 0.0, 2.0)
-        check_real("recombination", self.recombination, 0.0, 1.0)
         if self.strategy not in STRATEGIES:
             raise ValueError(
                 f"setting 'strategy' must be one of {', '.join(STRATEGIES)}, got {self.strategy!r}"
             )
-        check_real("tol", self.tol, 0.0)
-        check_real("atol", self.atol, 0.0)
-        check_int("budget", self.budget, 1)
 
 
 def _run_scipy(kwargs: dict[str, Any], requests: queue.Queue, replies: queue.Queue) -> None:

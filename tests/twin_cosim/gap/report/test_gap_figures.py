@@ -34,8 +34,9 @@ def _residuals(seed: int) -> Residuals:
     )
 
 
-def _diagnosis():
-    """What the along-axis and spectra figures read of a diagnosis."""
+def _diagnosis(compared: str = "current"):
+    """What the along-axis and spectra figures read of a diagnosis (``compared``: the signal
+    compared beside the position)."""
     where = Location({}, {}, [AxisSpan(0.0, 1.0, 1, 0.6, 40.0, at_stroke_end=True)], {})
     after = Location({}, {}, [AxisSpan(22.0, 23.0, -1, 0.4, 12.0)], {})
     return types.SimpleNamespace(
@@ -45,7 +46,7 @@ def _diagnosis():
         holdout_after=_residuals(3),
         where=where,
         remaining_where=after,
-        context=types.SimpleNamespace(screw_angle=lambda angle: angle / 1.5),
+        context=types.SimpleNamespace(screw_angle=lambda angle: angle / 1.5, compared=compared),
     )
 
 
@@ -85,6 +86,14 @@ def test_spectra_say_which_residual_they_show(tmp_path, saved_figure):
         box = ax.title.get_window_extent(renderer)
         assert box.x0 >= 0 and box.x1 <= fig.bbox.width, ax.get_title()
     assert titles[0].startswith("position residual") and titles[1].startswith("current residual")
+
+
+def test_spectra_of_an_open_loop_run_name_the_motor_speed_and_its_unit(tmp_path, saved_figure):
+    figures.plot_spectra(_diagnosis("motor_speed"), tmp_path / "spectra.png")
+    axes = saved_figure["fig"].axes
+    assert axes[1].get_title().startswith("motor speed residual")
+    assert axes[1].get_ylabel() == "amplitude [rad/s]"
+    assert axes[0].get_ylabel() == "amplitude [um]"
 
 
 def _candidate(name: str, z: float, share: float, failed: list[str]):

@@ -1,14 +1,23 @@
-"""Where a diagnosis' time goes: phase totals, each fit's figures and the wall time of a batch on
-idle workers; the judging replays answered by the cache as a fresh replay."""
+"""Where a diagnosis' time goes (phase totals, each fit's figures and the wall time of a batch
+on idle workers); the judging replays answered by the cache as a fresh replay; and the
+calibration correction of a model, linear and then replayed, on a stand-in pool whose held-out
+residual is an analytic sine."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from twin_cosim.gap.data.context import DEFAULT_CONTEXT
-from twin_cosim.gap.which.replay import FitTask, SimulateTask
+from twin_cosim.gap.data.residuals import Residuals
+from twin_cosim.gap.floors.evidence import floor_of
+from twin_cosim.gap.floors.noise import Floors
+from twin_cosim.gap.settings import DiagnosisSettings
+from twin_cosim.gap.which.acceptance import Judging
+from twin_cosim.gap.which.replay import FitTask, Replays, SimulateTask, Timed
 from twin_cosim.gap.which.replay_pool import JudgingCache, PhaseTimes, ReplayPool, makespan
 from twin_cosim.workers import BoundPool, SerialPool
 
@@ -94,3 +103,101 @@ def test_each_fit_is_recorded_with_its_replays_and_times(small_spec):
         assert total["replays_run"] == record["replays_run"] + 1 and "fits" not in total
     finally:
         pool.pool.pool.close()
+
+
+# --- the calibration correction: linear, then replayed and re-linearised
+
+SPACING_S = 0.005
+TIME_S = np.arange(2000) * SPACING_S  # 10 s of held-out samples
+OMEGA_RAD_S = 7.5  # a sine whose frequency scales with the calibrated parameter "stiffness"
+AMPLITUDE = 20.0  # in noise floors
+
+
+def _output(stiffness: float) -> np.ndarray:
+    """The twin's output: a sine whose frequency goes with the square root of the stiffness (a
+    resonance); a few % of stiffness shift its phase by a radian over 10 s."""
+    return AMPLITUDE * np.sin(OMEGA_RAD_S * np.sqrt(stiffness) * TIME_S)
+
+
+@dataclass
+class _SinePool:
+    """Replays whose held-out residual is the measured output minus the twin's."""
+
+    measured: np.ndarray
+    workers: int = 1
+    asked: list = field(default_factory=list)
+
+    def imap(self, tasks: list):
+        for i, task in enumerate(tasks):
+            self.asked.append(task)
+            residual = self.measured - _output(task.overrides.get("stiffness", 1.0))
+            yield i, Timed(Replays(None, [residual]), 0.0)
+
+
+class _SineJudging(Judging):
+    """Held-out runs of 10 s whose position residual is the replay's own (floors of 1)."""
+
+    def __init__(self) -> None:
+        super().__init__([], [], [], Floors(1.0, 1.0, "given", "given"))
+
+    @property
+    def duration_s(self) -> float:
+        return float(TIME_S[-1])
+
+    def residuals(self, replays: Replays) -> Residuals:
+        zeros = np.zeros(len(TIME_S))
+        return Residuals(TIME_S, replays.judging[0], zeros, zeros, zeros, zeros, zeros)
+
+
+def _sine_pool(true_stiffness: float) -> ReplayPool:
+    pool = _SinePool(_output(true_stiffness))
+    return ReplayPool(pool, {"stiffness": 1.0}, ["stiffness"], _SineJudging(), tolerance=0.03)
+
+
+def test_a_calibration_error_the_linear_correction_underestimates_is_explained_by_its_replays():
+    replay_pool = _sine_pool(1.05)  # +5 % stiffness: +2.5 % in frequency, 0.9 rad over 10 s
+    judging = replay_pool.judging
+    threshold = judging.threshold(DiagnosisSettings())
+    nominal = replay_pool.tasks("replays", [SimulateTask({})])[0]
+    linear = floor_of(replay_pool.basis({}), judging.vector(judging.residuals(nominal)))
+    assert linear.left >= threshold  # the centred differences at nominal leave a gap
+
+    floor, calibrated = replay_pool.calibration({}, nominal, threshold)
+
+    # Gauss-Newton within the tolerance: the stiffness at +3 % (its bound), and what is left
+    # is what a +3 % stiffness cannot explain of a +5 % one, replayed
+    assert floor.coefficients["stiffness"] == pytest.approx(1.0, abs=1e-6)
+    left = np.linalg.norm(judging.vector(judging.residuals(calibrated)))
+    assert floor.left == pytest.approx(left)
+    expected = np.linalg.norm(_output(1.05) - _output(1.03)) / np.sqrt(2 * len(TIME_S))
+    assert floor.left == pytest.approx(expected, rel=1e-9)
+    assert floor.left < linear.left
+    assert floor.explained**2 + floor.left**2 == pytest.approx(floor.before**2)
+
+
+def test_a_calibration_error_within_tolerance_is_explained_to_the_noise():
+    replay_pool = _sine_pool(1.055**0.5)  # +2.7 % stiffness, within the 3 % tolerance
+    judging = replay_pool.judging
+    threshold = judging.threshold(DiagnosisSettings())
+    nominal = replay_pool.tasks("replays", [SimulateTask({})])[0]
+    linear = floor_of(replay_pool.basis({}), judging.vector(judging.residuals(nominal)))
+
+    floor, _ = replay_pool.calibration({}, nominal, threshold)
+
+    assert linear.left >= threshold  # linearised at nominal, a gap would be left ...
+    assert floor.left < threshold  # ... that the replayed correction explains
+    assert floor.coefficients["stiffness"] == pytest.approx((1.055**0.5 - 1.0) / 0.03, abs=0.02)
+
+
+def test_a_gap_the_linear_correction_already_explains_is_not_replayed_further():
+    replay_pool = _sine_pool(1.002)  # a tiny error: the linear correction is exact enough
+    judging = replay_pool.judging
+    threshold = judging.threshold(DiagnosisSettings())
+    nominal = replay_pool.tasks("replays", [SimulateTask({})])[0]
+    asked = len(replay_pool.pool.asked)
+
+    floor, _ = replay_pool.calibration({}, nominal, threshold)
+
+    assert floor.left < threshold
+    # the two calibration directions and the corrected replay, no re-linearisation
+    assert len(replay_pool.pool.asked) - asked == 3

@@ -1,4 +1,9 @@
-"""``twin build``: build a plant FMU from ``models/<MODEL>``, and the compiled loops ahead."""
+"""The FMU and its system: ``twin build`` and ``twin ssp``.
+
+- ``twin build``: build a plant FMU from ``models/<MODEL>``, and the compiled loops ahead;
+- ``twin ssp``: export a machine's plant (every axis' FMU and parameters) as an SSP package for
+  other FMI masters.
+"""
 
 from __future__ import annotations
 
@@ -14,16 +19,19 @@ from fmu_build.build import (
     available_models,
     build_fmu,
 )
-from twin_cosim.commands.options import command_parser
+from twin_cosim.commands.options import (
+    command_parser,
+    scenario_parser,
+)
 
 
-def add_arguments(subparsers) -> None:
+def add_build(subparsers) -> None:
     """The ``build`` command and its options."""
     parser = command_parser(
         subparsers,
         "build",
         "build a plant FMU from models/<MODEL> and compile the loops that step it ahead of time",
-        run,
+        run_build,
     )
     parser.add_argument(
         "model", nargs="?", default=DEFAULT_MODEL, help=f"one of {available_models()}"
@@ -44,7 +52,7 @@ def add_arguments(subparsers) -> None:
     parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
 
 
-def run(args: argparse.Namespace) -> int:
+def run_build(args: argparse.Namespace) -> int:
     """Build (or find up to date) the FMU and the compiled loops (in the per-user cache); print
     their paths. Loops that cannot be compiled ahead (no Python headers, say) are a warning:
     they compile just in time, with the same results."""
@@ -60,4 +68,30 @@ def run(args: argparse.Namespace) -> int:
             "with the same results and a slower start",
             file=sys.stderr,
         )
+    return 0
+
+
+def add_ssp(subparsers) -> None:
+    """The ``ssp`` command and its options."""
+    parser = scenario_parser(
+        subparsers,
+        "ssp",
+        "export a machine's plant (every axis' FMU and parameters) as SSP",
+        run_ssp,
+        "machine scenario (axes:), file or shipped name",
+    )
+    parser.add_argument("--out", metavar="FILE.ssp", help="package to write (default: <name>.ssp)")
+
+
+def run_ssp(args: argparse.Namespace) -> int:
+    """Write the package and say where."""
+    from twin_cosim.contour.ssp import export_ssp
+    from twin_cosim.scenario import load_machine
+
+    machine = load_machine(args.scenario)
+    out = Path(args.out) if args.out else Path(f"{machine.name}.ssp")
+    if out.is_dir():
+        raise ValueError(f"--out {out}: is a folder; give a .ssp file")
+    export_ssp(machine, out)
+    print(f"wrote {out}: axes {', '.join(machine.axis_names)} (SystemStructure.ssd, resources/)")
     return 0

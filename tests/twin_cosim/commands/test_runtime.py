@@ -19,7 +19,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
 from runtime_cases import ServerThread, cycle, cycle_file, free_port, machine  # noqa: E402
 
-from twin_cosim.runtime.security import SERVER_URI, Security, self_signed  # noqa: E402
+from twin_cosim.runtime.opcua import SERVER_URI, Security, self_signed  # noqa: E402
 from twin_cosim.runtime.virtual_machine import Drift  # noqa: E402
 from twin_cosim.runtime.watch_log import read_log  # noqa: E402
 

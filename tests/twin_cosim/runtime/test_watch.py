@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from runtime_cases import free_port
 
-from twin_cosim.runtime.dashboard import Dashboard
+from twin_cosim.runtime.watch import Dashboard
 
 CHROMIUM_FLAGS = [
     "--headless",

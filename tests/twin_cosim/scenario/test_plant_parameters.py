@@ -16,7 +16,7 @@ from twin_cosim.gap import diagnosis as diagnosis_module
 from twin_cosim.gap import settings as diagnosis_settings
 from twin_cosim.gap.synth import parse_effect, synthesize
 from twin_cosim.scenario import ScenarioError, load_scenario, with_plant_parameters
-from twin_cosim.scenario.plant_file import (
+from twin_cosim.scenario.plant_parameters import (
     PlantParameters,
     PlantParametersError,
     calibrated_scenario,
