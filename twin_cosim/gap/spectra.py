@@ -24,7 +24,10 @@ from dataclasses import dataclass
 from typing import TypedDict
 
 import numpy as np
-from scipy.signal import detrend, get_window
+
+# scipy.signal is imported where a spectrum is computed, not here: it pulls scipy.stats in (about
+# 0.4 s), which every replay worker importing the residuals would pay at its start for spectra
+# it never computes.
 
 PADDING = 4  # the FFT length is at least PADDING times the longest stretch
 MIN_REVOLUTIONS = 2.0  # shorter segments are left out of order spectra
@@ -88,6 +91,8 @@ def mean_amplitude_spectrum(
     tuple[np.ndarray, np.ndarray]
         Axis in cycles per unit of ``step`` (Hz or orders) and amplitude (unit of the pieces).
     """
+    from scipy.signal import get_window
+
     weights = np.ones(len(pieces)) if weights is None else np.asarray(weights, dtype=float)
     length = 1 << int(np.ceil(np.log2(PADDING * max(len(p) for p in pieces))))
     amplitude = np.zeros(length // 2 + 1)
@@ -141,6 +146,8 @@ def _resample_on_angle(
     residual: np.ndarray, angle: np.ndarray, samples_per_revolution: int
 ) -> np.ndarray:
     """Residual interpolated on a uniform grid of the angle (rad), linear trend removed."""
+    from scipy.signal import detrend
+
     if angle[-1] < angle[0]:  # negative speed: walk the segment backwards
         angle, residual = angle[::-1], residual[::-1]
     spacing = 2.0 * np.pi / samples_per_revolution
@@ -257,6 +264,8 @@ def _group_peaks(
     used = _usable_segments(angle, group)
     if not used:
         return {"order": None, "frequency_hz": None}
+    from scipy.signal import detrend
+
     pieces = [detrend(residual[a:b], type="linear") for a, b in used]
     frequency, spectrum = mean_amplitude_spectrum(pieces, dt, [b - a for a, b in used])
     return {

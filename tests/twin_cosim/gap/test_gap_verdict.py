@@ -108,18 +108,24 @@ def test_before_and_after_columns_of_the_regimes():
     assert next(r for r in table if r[0].startswith("gap energy above"))[1] == "100 %"
 
 
-def test_nothing_left_names_no_place():
-    remaining = remaining_of(
+def _nothing_left(compared_before: float, compared_after: float, compared: str):
+    """What is left when the gap is at the noise, the compared signal's RMS before and after
+    given (A, or rad/s of an open-loop run)."""
+    return remaining_of(
         _floor(41.8, 30.1),
         True,
         _floor(0.701, 0.700),
         False,
         AFTER,
-        (1.3, 0.28),
-        (0.02, 0.005),
+        (1.3, compared_before),
+        (0.02, compared_after),
         FLOORS,
-        "current",
+        compared,
     )
+
+
+def test_nothing_left_names_no_place():
+    remaining = _nothing_left(0.28, 0.005, "current")
     assert "located" not in remaining.text and "not significant" in remaining.text
     table = gap_table(remaining, _shares(0.52, 0.46), AFTER)
     assert not any(row[0].startswith(("standstill", "span")) for row in table)
@@ -222,17 +228,7 @@ def test_a_span_at_the_start_of_travel_reads_as_a_position():
 
 
 def test_an_open_loop_run_s_verdict_names_the_motor_speed_and_its_unit():
-    remaining = remaining_of(
-        _floor(41.8, 30.1),
-        True,
-        _floor(0.701, 0.700),
-        False,
-        AFTER,
-        (1.3, 12.5),
-        (0.02, 0.4),
-        FLOORS,
-        "motor_speed",
-    )
+    remaining = _nothing_left(12.5, 0.4, "motor_speed")
     assert "0.400 rad/s RMS in motor speed" in remaining.text
     assert " A " not in remaining.text and "current" not in remaining.text
     rows = {row[0]: row[1:] for row in gap_table(remaining, _shares(0.52, 0.46), AFTER)}
