@@ -50,23 +50,34 @@ def _saved(fig, path: Path) -> Path:
     return path
 
 
+def _apart(t: np.ndarray, *values: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Times (s) and values with a gap (NaN) where the time runs back: runs joined one after
+    the other are drawn apart, not tied by a line from one run's end to the next one's start."""
+    cut = np.flatnonzero(np.diff(t) < 0) + 1
+    return tuple(np.insert(np.asarray(v, dtype=float), cut, np.nan) for v in (t, *values))
+
+
 def plot_residuals(d: Diagnosis, path: Path) -> Path:
     """Position and current residuals over time, regimes shaded, before and after the effects."""
     fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
-    for res, label, style in (
+    sets = (
         (d.train_before, "before (training)", "-"),
         (d.holdout_before, "before (held out)", "-"),
         (d.holdout_after, "after the accepted effects (held out)", "-"),
-    ):
-        axes[0].plot(res.t, res.position * UM_PER_M, style, lw=0.7, label=label)
-        axes[1].plot(res.t, res.current, style, lw=0.7, label=label)
+    )
+    largest_m = max(float(np.max(np.abs(res.position), initial=0.0)) for res, _, _ in sets)
+    position_unit, per_m = ("mm", 1e3) if largest_m * UM_PER_M > 1e4 else ("um", UM_PER_M)
+    for res, label, style in sets:
+        t, position, compared = _apart(res.t, res.position * per_m, res.current)
+        axes[0].plot(t, position, style, lw=0.7, label=label)
+        axes[1].plot(t, compared, style, lw=0.7, label=label)
     for ax in axes:
         _shade_regimes(ax, d.train_before.t, d.train_before.regimes)
         _shade_regimes(ax, d.holdout_before.t, d.holdout_before.regimes)
         ax.axvline(d.context.train_end, color="k", ls="--", lw=1)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
-    axes[0].set_ylabel("position residual [um]")
+    axes[0].set_ylabel(f"position residual [{position_unit}]")
     words, unit = compared_label(d.context.compared)
     axes[1].set_ylabel(f"{words} residual [{unit}]")
     axes[1].set_xlabel(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import types
 
 import matplotlib
@@ -12,7 +13,7 @@ matplotlib.use("Agg")
 from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 
 from twin_cosim.gap.data.regimes import CONSTANT_VELOCITY  # noqa: E402
-from twin_cosim.gap.data.residuals import Residuals  # noqa: E402
+from twin_cosim.gap.data.residuals import Residuals, joined  # noqa: E402
 from twin_cosim.gap.floors.noise import Floors  # noqa: E402
 from twin_cosim.gap.location import AxisSpan, Location  # noqa: E402
 from twin_cosim.gap.report import figures  # noqa: E402
@@ -46,7 +47,9 @@ def _diagnosis(compared: str = "current"):
         holdout_after=_residuals(3),
         where=where,
         remaining_where=after,
-        context=types.SimpleNamespace(screw_angle=lambda angle: angle / 1.5, compared=compared),
+        context=types.SimpleNamespace(
+            screw_angle=lambda angle: angle / 1.5, compared=compared, train_end=1.0
+        ),
     )
 
 
@@ -128,3 +131,18 @@ def test_the_ranking_shows_both_tests_and_which_failed(tmp_path, saved_figure):
     assert labels[2] == "pitch error"
     lines = [line.get_xdata()[0] for line in share.get_lines() if line.get_linestyle() == "--"]
     assert lines == pytest.approx([100 / 12])
+
+
+def test_joined_runs_are_drawn_apart_and_a_rotor_s_large_gap_in_mm(tmp_path, saved_figure):
+    """Two runs one after the other (the time runs back between them) are not tied by a line;
+    a position gap of metres (a rotor's angle as load travel) is drawn in mm, not in 1e6 um."""
+    d = _diagnosis("motor_speed")
+    two = joined([_residuals(1), _residuals(2)])
+    d.train_before = dataclasses.replace(two, position=two.position * 1e8)  # about 2 m RMS
+    figures.plot_residuals(d, tmp_path / "residuals.png")
+    position_axis, compared_axis = saved_figure["fig"].axes
+    assert position_axis.get_ylabel() == "position residual [mm]"
+    assert compared_axis.get_ylabel() == "motor speed residual [rad/s]"
+    t = position_axis.get_lines()[0].get_xdata()
+    assert len(t) == len(two.t) + 1 and np.isnan(t[len(_residuals(1).t)])
+    assert np.all(np.diff(t[np.isfinite(t)][: len(_residuals(1).t)]) > 0)
