@@ -483,8 +483,9 @@ def fit_two_mass(
         found = least_squares(residual, start, bounds=(lower, upper), x_scale="jac")
         if best is None or found.cost < best.cost:
             best = found
-    plant, delay, lag = _plant(best.x, scale)
-    error = np.log(_model(best.x, scale, f) / h)
+    theta = np.where(best.active_mask < 0, lower, best.x)  # held at a lower bound: the bound
+    plant, delay, lag = _plant(theta, scale)
+    error = np.log(_model(theta, scale, f) / h)
     rms_deg = float(np.degrees(np.sqrt(np.average(error.imag**2, weights=weights))))
     return TwoMassFit(
         plant=plant,

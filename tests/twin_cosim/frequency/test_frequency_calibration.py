@@ -73,6 +73,16 @@ def test_a_delay_and_a_lag_the_data_do_not_hold_are_not_identified(seed):
     assert "not identified" in fit.drive_text()
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_viscous_friction_the_fit_holds_at_its_bound_is_zero(seed):
+    """A plant without viscous friction: the fit holds it at its lower bound, and reports the
+    bound (0 N.m.s/rad), not a number of the solver's tolerance (about 1e-35)."""
+    assert TABLE1.viscous_friction == 0.0
+    fit = fit_two_mass(F, noisy(TABLE1, 0.01, seed), np.full(len(F), 0.999))
+    assert fit.plant.viscous_friction == 0.0
+    assert fit.plant.motor_inertia == pytest.approx(TABLE1.motor_inertia, rel=0.03)
+
+
 def test_a_delay_and_a_lag_the_data_hold_are_identified():
     truth = TABLE1.with_values(dead_time=125e-6, current_lag=2e-4, torque_constant=1.0)
     h = truth.speed_per_torque(F) * truth.torque_per_current(F)
