@@ -1,8 +1,10 @@
 """Shared fixtures: the project's FMU (built once per session), open-loop stepping, the CLI, the
-last figure a test saved."""
+last figure a test saved; Ctrl-C as a terminal delivers it, also in a suite started in the
+background."""
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 from collections.abc import Callable, Mapping
@@ -15,6 +17,15 @@ from fmu_build.build import build_fmu
 from twin_cosim.plant import Plant
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """A shell starts a background job (``pytest ... &``) with SIGINT ignored, and its children
+    inherit that: the tests of what Ctrl-C does would then see nothing happen. Handle SIGINT as
+    an interactive Python does (KeyboardInterrupt), which the processes the tests start inherit
+    as the default action."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session")
