@@ -55,6 +55,10 @@ class DiagnosisSettings:
         Hypotheses screened in pairs when no single one passes a round: the leading ones by
         training BIC, each pair fitted with the second on top of the first (two effects that
         act in the same place can each make the fit worse alone and pass together).
+    joint_candidates : int
+        Hypotheses refitted together with the accepted effects when none passes a later round
+        on top of them: the leading ones by training BIC (an effect accepted alone can take up
+        part of one found later in the same place).
     noise_draws : int
         Draws of white noise at the noise floors used to find what noise alone does to each
         metric.
@@ -82,6 +86,7 @@ class DiagnosisSettings:
     max_effects: int = 3
     later_round_candidates: int = 12
     pair_candidates: int = 4
+    joint_candidates: int = 4
     noise_draws: int = 12
     outlier_share: float = 0.001
     axis_bin: float = 0.5e-3
@@ -90,7 +95,13 @@ class DiagnosisSettings:
     hypotheses: tuple[str, ...] | None = None  # None: the whole library of the plant model
 
 
-_INTEGER_FIELDS = {"max_effects", "later_round_candidates", "pair_candidates", "noise_draws"}
+_INTEGER_FIELDS = {
+    "max_effects",
+    "later_round_candidates",
+    "pair_candidates",
+    "joint_candidates",
+    "noise_draws",
+}
 
 
 def settings_from(

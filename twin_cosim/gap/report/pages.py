@@ -33,6 +33,7 @@ from twin_cosim.gap.verdict import (
     position_mm,
     quantity,
 )
+from twin_cosim.gap.which.acceptance import JointCandidate
 from twin_cosim.gap.which.selector import correlation
 from twin_cosim.measured import compared_label
 from twin_cosim.plant_model import plant_model
@@ -182,6 +183,7 @@ def _step(r: Round, dropped: list[str], swapped_out: list[str]) -> dict[str, Any
         "round": r.index,
         "effect": r.effect,
         "together": list(r.pair.members) if r.pair else [],
+        "refitted_with_the_accepted": isinstance(best, JointCandidate),
         "fitted": best.name,
         "params": best.fit.values,
         "plant_parameters": best.fit.overrides,
@@ -237,6 +239,7 @@ def _round(r: Round) -> dict[str, Any]:
         "metrics_after_calibration": [_metric_row(m) for m in r.metrics],
         "fitted": [c.name for c in r.candidates],
         "accepted": r.accepted,
+        "joint": [_row(c, r) for c in r.joint],
         "pairs": [_pair_row(p, r) for p in r.pairs],
     }
 

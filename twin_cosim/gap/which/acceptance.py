@@ -356,6 +356,21 @@ class Candidate:
 
 
 @dataclass(frozen=True)
+class JointCandidate(Candidate):
+    """A hypothesis refitted together with the accepted effects (and the calibrated parameters
+    under their prior), judged as one candidate against the model as it is.
+
+    Attributes
+    ----------
+    refit : FitResult
+        The joint refit: every effect's values by ``effect.parameter`` (physical units), the
+        calibrated parameters' by ``calibration.name``, and the FMU parameters of all of them.
+    """
+
+    refit: FitResult | None = field(default=None, repr=False)
+
+
+@dataclass(frozen=True)
 class Pair(Candidate):
     """Two hypotheses fitted together (the second on top of the first) and judged as one.
 

@@ -362,13 +362,14 @@ class ReplayPool:
         if floor.left < threshold or not self.calibrated:
             return floor, calibrated
         step = np.array([floor.coefficients[n] for n in self.calibrated])
-        step_left = float(np.linalg.norm(self.judging.vector(self.judging.residuals(calibrated))))
+        left_vector = self.judging.vector(self.judging.residuals(calibrated))
+        step_left = float(np.linalg.norm(left_vector))
         best, best_replays = floor, calibrated
         for _ in range(REFINEMENTS):
             scale = 1.0 + step * self.tolerance
             corrected = self._corrected(base, dict(zip(self.calibrated, step, strict=True)))
             delta, _ = self.basis(corrected).correction(
-                self.judging.vector(self.judging.residuals(calibrated)),
+                left_vector,
                 bounds=(
                     ((1.0 - self.tolerance) / scale - 1.0) / self.tolerance,
                     ((1.0 + self.tolerance) / scale - 1.0) / self.tolerance,
@@ -379,7 +380,8 @@ class ReplayPool:
                 floor.before, 0.0, 0.0, dict(zip(self.calibrated, step.tolist(), strict=True))
             )
             calibrated = self.calibrated_replay(base, trial)
-            left = float(np.linalg.norm(self.judging.vector(self.judging.residuals(calibrated))))
+            left_vector = self.judging.vector(self.judging.residuals(calibrated))
+            left = float(np.linalg.norm(left_vector))
             if left < best.left:
                 explained = math.sqrt(max(floor.before**2 - left**2, 0.0))
                 best = CalibrationFloor(floor.before, left, explained, trial.coefficients)
