@@ -375,7 +375,7 @@ class Selector:
         later = periodic + self.settings.later_round_candidates
         rounds = self.settings.max_effects
         pairs = 2 * math.comb(self.settings.pair_candidates, 2)
-        joint = 2 * self.settings.joint_candidates * (rounds - 1)
+        joint = 2 * (self.settings.joint_candidates + 1) * (rounds - 1)  # with the refit alone
         swaps = 2 * rounds  # one rival per accepted effect
         # after each accepted effect and a swap: each effect, a level-and-shape one twice
         shaped = sum(1 for h in self.library.values() if shape_index(h) is not None)
