@@ -367,7 +367,7 @@ class JointCandidate(Candidate):
         calibrated parameters' by ``calibration.name``, and the FMU parameters of all of them.
     """
 
-    refit: FitResult | None = field(default=None, repr=False)
+    refit: FitResult = field(repr=False)
 
 
 @dataclass(frozen=True)

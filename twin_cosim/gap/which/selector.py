@@ -538,7 +538,7 @@ class Selector:
                     opened, candidates=candidates, joint=joint, accepted=group
                 )
                 found = [(list(group), tuple(best.fit.values.values()))]
-                if isinstance(best, JointCandidate) and best.refit is not None:
+                if isinstance(best, JointCandidate):
                     accepted[:] = refitted(accepted, best.refit)
             elif len(accepted) + 2 <= settings.max_effects:
                 screened = dataclasses.replace(opened, candidates=candidates, joint=joint)
@@ -678,8 +678,8 @@ class Selector:
         held
             The held-out residual at the start of the round.
         """
-        leaders = [c for c in candidates if math.isfinite(c.bic) and c.fit.values]
-        leaders = leaders[: self.settings.joint_candidates]
+        fitted = [c for c in candidates if math.isfinite(c.bic) and c.fit.values]
+        leaders = fitted[: self.settings.joint_candidates]
         if not leaders:
             return []
         refits = self.pool.tasks(
