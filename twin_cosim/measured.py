@@ -190,6 +190,8 @@ UNIT_FACTORS = {1e3: "mm instead of m", 1e6: "um instead of m"}
 # The columns of an open-loop comparison: the position and the motor speed (a closed-loop
 # run's second signal is its command, ``current``).
 OPEN_LOOP_COMPARED = "motor_speed"
+# The commanded input of an open-loop run, when it has one: its levels are the experiment's.
+EXPERIMENT_INPUT = "input_torque"
 CLOSED_LOOP_COMPARED = "current"
 
 
@@ -277,6 +279,23 @@ class MeasuredRun:
     def motor_speed(self) -> np.ndarray | None:
         """Measured motor speed, rad/s (None when the file has none)."""
         return self.record.get("motor_speed")
+
+    @property
+    def experiment_signal(self) -> str | None:
+        """The name of an open-loop run's commanded input, whose levels make the experiment:
+        its ``input_torque`` when it has one, whatever signal drives the plant (a measured
+        torque is that command with the drive's error and the sensor's noise, a new value every
+        sample), else its drive signal; None for a run in closed loop."""
+        if self.drive is None:
+            return None
+        return EXPERIMENT_INPUT if EXPERIMENT_INPUT in self.record.columns else self.drive
+
+    @property
+    def experiment_input(self) -> np.ndarray | None:
+        """An open-loop run's commanded input (:attr:`experiment_signal`), in its unit; None
+        for a run in closed loop."""
+        name = self.experiment_signal
+        return None if name is None else self.record[name]
 
     @property
     def compared(self) -> str:

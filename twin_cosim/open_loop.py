@@ -1,5 +1,5 @@
 """An open-loop run of the twin against its measurement: the speeds side by side, the velocity
-gap, and the steady speed the twin predicts at each level of the drive signal.
+gap, and the steady speed the twin predicts at each level of the commanded input.
 
 An open-loop scenario (``reference.drive``, :mod:`twin_cosim.scenario.reference_section`) drives
 the plant with a measured run's signal (e.g. an input torque stepped from one level to another)
@@ -8,7 +8,9 @@ instead of the cascade. Its figures:
 - the **velocity gap**: the RMS of measured minus twin motor speed (rad/s) over the run, and the
   benchmark's relative error 100 ||w - w_sim|| / ||w|| (%); the position gap as the rotor angle
   (rad: the load position over the travel per radian);
-- the **steady speeds**: each stretch where the drive signal holds one value (a *level*) ends at
+- the **steady speeds**: each stretch where the commanded input holds one value (a *level*: of
+  the run's input torque, whichever signal drives the plant,
+  :attr:`~twin_cosim.measured.MeasuredRun.experiment_input`) ends at
   a steady speed; measured and twin speeds are averaged over the level's last
   :data:`STEADY_SHARE` and compared (relative error of the twin, %).
 """
@@ -28,14 +30,14 @@ MIN_LEVEL_SAMPLES = 20  # a level shorter than this is a transition, not a level
 
 @dataclass(frozen=True)
 class Level:
-    """One level of the drive signal and its steady speed.
+    """One level of the commanded input and its steady speed.
 
     Attributes
     ----------
     start_s, end_s : float
-        Where the drive holds the level, s.
-    drive : float
-        The level, in the drive signal's unit (N.m or A).
+        Where the commanded input holds the level, s.
+    commanded : float
+        The level, in the commanded input's unit (N.m or A).
     measured_rad_s, twin_rad_s : float
         Mean motor speed over the level's last :data:`STEADY_SHARE`, measured and the twin's,
         rad/s.
@@ -43,7 +45,7 @@ class Level:
 
     start_s: float
     end_s: float
-    drive: float
+    commanded: float
     measured_rad_s: float
     twin_rad_s: float
 
@@ -65,6 +67,8 @@ class OpenLoopComparison:
         The measured run.
     drive, drive_unit : str
         The signal that drove the plant and its unit.
+    commanded_unit : str
+        The unit of the commanded input, whose levels are the run's.
     speed_rms_gap_rad_s : float
         RMS of measured minus twin motor speed, rad/s.
     speed_relative_error_pct : float
@@ -72,12 +76,13 @@ class OpenLoopComparison:
     angle_rms_gap_rad : float
         RMS of measured minus twin rotor angle, rad.
     levels : list of Level
-        The drive's levels and their steady speeds, in time order.
+        The commanded input's levels and their steady speeds, in time order.
     """
 
     run: str
     drive: str
     drive_unit: str
+    commanded_unit: str
     speed_rms_gap_rad_s: float
     speed_relative_error_pct: float
     angle_rms_gap_rad: float
@@ -91,13 +96,13 @@ class OpenLoopComparison:
         return found
 
 
-def levels(t: np.ndarray, drive: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) index ranges where ``drive`` holds one value, at least
+def levels(t: np.ndarray, commanded: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges where ``commanded`` holds one value, at least
     :data:`MIN_LEVEL_SAMPLES` long (``t`` in s, for the samples' order only)."""
-    if len(t) != len(drive) or len(t) == 0:
-        raise ValueError("t and drive must be non-empty arrays of one length")
-    changes = np.flatnonzero(np.diff(drive) != 0.0) + 1
-    edges = np.concatenate(([0], changes, [len(drive)]))
+    if len(t) != len(commanded) or len(t) == 0:
+        raise ValueError("t and commanded must be non-empty arrays of one length")
+    changes = np.flatnonzero(np.diff(commanded) != 0.0) + 1
+    edges = np.concatenate(([0], changes, [len(commanded)]))
     return [
         (int(a), int(b))
         for a, b in zip(edges[:-1], edges[1:], strict=True)
@@ -138,15 +143,15 @@ def compare_open_loop(
     speed = run.record["motor_speed"]
     twin_speed = np.interp(run.t, record["t"], record["motor_speed"])
     twin_x = np.interp(run.t, record["t"], record["x"])
-    drive = run.record[run.drive]
+    commanded = run.experiment_input
     found = []
-    for start, stop in levels(run.t, drive):
+    for start, stop in levels(run.t, commanded):
         steady = slice(stop - max(int(STEADY_SHARE * (stop - start)), 1), stop)
         found.append(
             Level(
                 float(run.t[start]),
                 float(run.t[stop - 1]),
-                float(drive[start]),
+                float(commanded[start]),
                 float(np.mean(speed[steady])),
                 float(np.mean(twin_speed[steady])),
             )
@@ -157,6 +162,7 @@ def compare_open_loop(
         run.source,
         run.drive,
         run.record.units.get(run.drive, ""),
+        run.record.units.get(run.experiment_signal, ""),
         float(np.sqrt(np.mean(gap**2))),
         100.0 * float(np.linalg.norm(gap)) / norm if norm else 0.0,
         float(np.sqrt(np.mean((run.x - twin_x) ** 2))) / travel_per_rad,

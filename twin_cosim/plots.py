@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
 from matplotlib.figure import Figure
 
 from twin_cosim.metrics import UM_PER_M, Metrics
@@ -21,6 +22,9 @@ if TYPE_CHECKING:
 # The close-up on a peak: the event starts tens of ms before it and settles within 0.2 s after
 CLOSE_UP_BEFORE_S = 0.06
 CLOSE_UP_AFTER_S = 0.24
+# The running mean drawn over an open-loop run's drive (a measured torque is noisy sample to
+# sample), s
+DRIVE_MEAN_S = 0.1
 
 
 def stacked_axes(rows: int, size: tuple[float, float], height_ratios: list[float]):  # type: ignore[no-untyped-def]
@@ -115,11 +119,12 @@ def plot_open_loop(
     axes[0].plot(t, record["measured_motor_speed"], color="k", lw=0.6, label="measured")
     axes[0].plot(t, record["motor_speed"], color="tab:blue", lw=1.2, label="twin")
     steady = "\n".join(
-        f"at {level.drive:.3g} {c.drive_unit}: steady {level.measured_rad_s:.0f} rad/s measured, "
+        f"at {level.commanded:.3g} {c.commanded_unit}: "
+        f"steady {level.measured_rad_s:.0f} rad/s measured, "
         f"{level.twin_rad_s:.0f} twin ({level.relative_error_pct:+.1f} %)"
         for level in c.levels
     )
-    forwards = not c.levels or c.levels[0].drive >= 0
+    forwards = not c.levels or c.levels[0].commanded >= 0
     axes[0].text(
         0.01,
         0.96 if forwards else 0.04,
@@ -138,7 +143,21 @@ def plot_open_loop(
         f"velocity gap RMS {c.speed_rms_gap_rad_s:.3g} rad/s "
         f"({c.speed_relative_error_pct:.3g} % of the measured speed's norm)"
     )
-    axes[2].plot(t, record["current"], color="tab:green", lw=0.8)
+    current = record["current"]
+    axes[2].plot(t, current, color="tab:green", lw=0.8, label="each sample")
+    window = max(int(round(DRIVE_MEAN_S / float(np.median(np.diff(t))))), 1)
+    padded = np.pad(current, (window // 2, window - 1 - window // 2), mode="edge")
+    axes[2].plot(
+        t,
+        np.convolve(padded, np.full(window, 1.0 / window), mode="valid"),
+        color="k",
+        lw=1.0,
+        label=f"mean over {DRIVE_MEAN_S:g} s",
+    )
+    axes[2].legend(loc="lower right" if forwards else "upper right", fontsize=8)
+    low, high = np.percentile(current, [0.5, 99.5])  # a measured drive's rare spikes off scale
+    margin = 0.15 * max(high - low, abs(high), abs(low), 1e-9)
+    axes[2].set_ylim(min(low, 0.0) - margin, max(high, 0.0) + margin)
     axes[2].set_ylabel("current command [A]")
     axes[2].set_title(f"the drive: {c.drive} as the plant's current command")
     for ax in axes:

@@ -205,7 +205,8 @@ def _print_open_loop(name: str, comparison: OpenLoopComparison, wall_s: float) -
     )
     for level in c.levels:
         print(
-            f"  {level.start_s:.4g}-{level.end_s:.4g} s at {level.drive:.4g} {c.drive_unit}: "
+            f"  {level.start_s:.4g}-{level.end_s:.4g} s at {level.commanded:.4g} "
+            f"{c.commanded_unit}: "
             f"steady speed measured {level.measured_rad_s:.4g} rad/s, twin "
             f"{level.twin_rad_s:.4g} rad/s ({level.relative_error_pct:+.1f} %)"
         )

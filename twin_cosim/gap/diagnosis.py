@@ -429,7 +429,7 @@ def _replay_spec(
         context.train[0].compared,
         None
         if context.train[0].drive is None
-        else [drive_steps(r.record[r.drive]) for r in context.train],
+        else [drive_steps(r.experiment_input) for r in context.train],
     )
     return ReplaySpec(
         context.training_scenarios,

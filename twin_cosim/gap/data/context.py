@@ -314,17 +314,19 @@ def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
     return a.shape == b.shape and bool(np.array_equal(a, b))
 
 
-def same_input(a: Scenario, b: Scenario) -> bool:
-    """Whether two runs' scenarios give the twin the same input: the same reference (an
-    open-loop run: the same drive command; its reference is its own measured motion) and the
-    same disturbances."""
+def same_input(a: Scenario, b: Scenario, run_a: MeasuredRun, run_b: MeasuredRun) -> bool:
+    """Whether two runs, each with the scenario it follows, repeat one input: the same
+    reference (an open-loop run: the same commanded input,
+    :attr:`~twin_cosim.measured.MeasuredRun.experiment_input`, which a measured drive signal
+    repeats only up to its noise; its reference is its own measured motion) and the same
+    disturbances."""
     if a is b:
         return True
     inputs = _same(a.disturbance, b.disturbance) and _same(
         a.command_disturbance, b.command_disturbance
     )
-    if a.drive is not None or b.drive is not None:
-        return inputs and _same(a.open_loop, b.open_loop)
+    if run_a.drive is not None or run_b.drive is not None:
+        return inputs and _same(run_a.experiment_input, run_b.experiment_input)
     return inputs and _same(a.reference.position, b.reference.position)
 
 
@@ -339,7 +341,7 @@ def repeat_groups(
         for group in groups:
             first = group[0]
             if len(runs[first].t) == len(run.t) and same_input(
-                scenarios[scenario_of_run[first]], scenario
+                scenarios[scenario_of_run[first]], scenario, runs[first], run
             ):
                 group.append(i)
                 break

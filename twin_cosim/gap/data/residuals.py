@@ -119,9 +119,9 @@ def run_residuals(run: MeasuredRun, record: RunRecord, grid: ReferenceGrid) -> R
     if run.drive is None:
         regimes = regime_model.classify_regimes(run.t, v_ref, a_ref)
     else:
-        drive = run.record[run.drive]
-        regimes = regime_model.classify_open_loop(run.t, run.record["motor_speed"], drive)
-        position = anchored(position, regime_model.drive_steps(drive))
+        commanded = run.experiment_input
+        regimes = regime_model.classify_open_loop(run.t, run.record["motor_speed"], commanded)
+        position = anchored(position, regime_model.drive_steps(commanded))
     return Residuals(
         run.t,
         position,

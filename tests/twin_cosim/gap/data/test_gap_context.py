@@ -4,6 +4,7 @@ repaired and reported (or the run refused), the encoder's grid is read off a pos
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from twin_cosim.gap.data.context import (
     build_context,
     estimate_resolution,
     missing_regimes,
+    repeat_groups,
     screen_outliers,
 )
 from twin_cosim.gap.settings import DiagnosisSettings
@@ -107,3 +109,28 @@ def test_resolution_of_a_quantised_signal():
     x = np.round(np.cumsum(rng.normal(0, 3e-8, 5000)) / 1e-8) * 1e-8
     assert estimate_resolution(x) == pytest.approx(1e-8, rel=1e-6)
     assert estimate_resolution(np.cumsum(rng.normal(0, 3e-8, 5000))) == 0.0
+
+
+def _bench_run(name: str, commanded: float, seed: int) -> MeasuredRun:
+    """An open-loop run driven by its measured torque: the commanded step plus sensor noise."""
+    t = np.arange(400) * 1e-3
+    input_torque = np.where(t < 0.2, commanded, commanded + 0.01)  # N.m
+    noise = np.random.default_rng(seed).normal(0.0, 0.02, t.size)
+    signals = {
+        "t": t,
+        "motor_angle": 0.5 * t**2,
+        "motor_speed": t,
+        "input_torque": input_torque,
+        "measured_torque": input_torque + noise,
+    }
+    return MeasuredRun.from_signals(name, signals).open_loop("measured_torque", 1e-3)
+
+
+def test_runs_driven_by_their_measured_torque_repeat_their_commanded_input():
+    """The repeats of a torque step are grouped by the torque commanded, not by the measured
+    torque that drives the twin (a new value every sample, never the same twice)."""
+    no_disturbance = SimpleNamespace(disturbance=None, command_disturbance=None)
+    scenarios = [SimpleNamespace(**vars(no_disturbance)) for _ in range(4)]
+    runs = [_bench_run("a1", 0.05, 1), _bench_run("b", -0.03, 2), _bench_run("a2", 0.05, 3)]
+    runs.append(_bench_run("a3", 0.05, 4))
+    assert repeat_groups(runs, scenarios, [0, 1, 2, 3]) == [[0, 2, 3]]
