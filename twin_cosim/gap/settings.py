@@ -51,6 +51,11 @@ class DiagnosisSettings:
     later_round_candidates : int
         Hypotheses refitted in a later round besides the periodic ones (best of the previous
         round by held-out reduction).
+    searched_candidates : int
+        Hypotheses of the first round fitted from a global search: every hypothesis is fitted
+        locally from its start values first, and the leading ones by training BIC (of those
+        whose fit has a search) are fitted again from their search; the others keep their
+        local fit.
     pair_candidates : int
         Hypotheses screened in pairs when no single one passes a round: the leading ones by
         training BIC, each pair fitted with the second on top of the first (two effects that
@@ -85,6 +90,7 @@ class DiagnosisSettings:
     group_correlation: float = 0.9
     max_effects: int = 3
     later_round_candidates: int = 12
+    searched_candidates: int = 4
     pair_candidates: int = 4
     joint_candidates: int = 4
     noise_draws: int = 12
@@ -98,6 +104,7 @@ class DiagnosisSettings:
 _INTEGER_FIELDS = {
     "max_effects",
     "later_round_candidates",
+    "searched_candidates",
     "pair_candidates",
     "joint_candidates",
     "noise_draws",

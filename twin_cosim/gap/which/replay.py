@@ -229,6 +229,7 @@ class FitTask:
     context: dict[str, float]
     start: tuple[float, ...] | None = None  # the previous round's fit (physical units)
     profile: bool = False  # a level and a shape parameter: start from the shape's profile
+    search: bool = True  # False: the local fit alone, from the start (a round's screen)
 
 
 @dataclass(frozen=True)
@@ -644,7 +645,9 @@ class Replayer:
         def residual_of_unit(u: np.ndarray) -> np.ndarray:
             return self.training_residual(overrides_of(hypothesis.from_unit(u)))
 
-        if task.profile and shape_index(hypothesis) is not None:
+        if not task.search:
+            u0, grid_replays = start_unit(hypothesis, task.start)[0], 0
+        elif task.profile and shape_index(hypothesis) is not None:
             u0, grid_replays = profile_start(hypothesis, residual_of_unit)
         else:
             u0, grid_replays = self._coarse_start(hypothesis, residual_of_unit, task.start)
@@ -686,15 +689,9 @@ class Replayer:
         it. Three-parameter hypotheses (the nearly linear lead error) start from the previous
         fit or their start values.
         """
-        if previous is not None and len(previous) == len(hypothesis.parameters):
-            start = np.array(
-                [p.to_unit(v) for p, v in zip(hypothesis.parameters, previous, strict=True)]
-            )
-            generations = WARM_GENERATIONS
-        else:
-            start, generations = hypothesis.initial_unit(), GLOBAL_GENERATIONS
-        start = np.clip(start, 0.0, 1.0)
-        if len(start) > 2:
+        start, warm = start_unit(hypothesis, previous)
+        generations = WARM_GENERATIONS if warm else GLOBAL_GENERATIONS
+        if not searches(hypothesis):
             return start, 0
         count = 0
 
@@ -719,6 +716,24 @@ class Replayer:
     def close(self) -> None:
         """Free the plant."""
         self.plant.close()
+
+
+def start_unit(
+    hypothesis: Hypothesis, previous: tuple[float, ...] | None
+) -> tuple[np.ndarray, bool]:
+    """Where a fit starts on the unit scale: the previous round's fit (``previous``, physical
+    units) when there is one, else the hypothesis' start values; and whether it is the
+    previous fit."""
+    if previous is not None and len(previous) == len(hypothesis.parameters):
+        start = [p.to_unit(v) for p, v in zip(hypothesis.parameters, previous, strict=True)]
+        return np.clip(start, 0.0, 1.0), True
+    return np.clip(hypothesis.initial_unit(), 0.0, 1.0), False
+
+
+def searches(hypothesis: Hypothesis) -> bool:
+    """Whether the fit of a hypothesis starts from a global search: a continuous one of one or
+    two parameters (:meth:`Replayer._coarse_start`)."""
+    return hypothesis.kind != "scan" and len(hypothesis.parameters) <= 2
 
 
 def shape_index(hypothesis: Hypothesis) -> int | None:

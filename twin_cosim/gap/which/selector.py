@@ -129,6 +129,7 @@ from twin_cosim.gap.which.replay import (
     SimulateTask,
     Uncertainty,
     UncertaintyTask,
+    searches,
     shape_index,
 )
 from twin_cosim.gap.which.replay_pool import ReplayPool
@@ -373,6 +374,7 @@ class Selector:
         first = len(self.settings.hypotheses or self.library)
         periodic = sum(1 for h in self.library.values() if h.periodic_in)
         later = periodic + self.settings.later_round_candidates
+        searched = self.settings.searched_candidates  # first round: refitted from a search
         rounds = self.settings.max_effects
         pairs = 2 * math.comb(self.settings.pair_candidates, 2)
         joint = 2 * (self.settings.joint_candidates + 1) * (rounds - 1)  # with the refit alone
@@ -384,6 +386,7 @@ class Selector:
             1  # the final model's uncertainty
             + per_round * (rounds + 1)
             + 2 * first
+            + searched
             + 2 * later * (rounds - 1)
             + pairs
             + joint
@@ -519,7 +522,7 @@ class Selector:
                 rounds.append(opened)
                 break
             candidates = self._fit_and_judge(remaining, base, context, held, starts)
-            starts = {c.name: tuple(c.fit.values.values()) for c in candidates}
+            starts = {c.name: tuple(c.fit.values.values()) for c in candidates if self._found(c)}
             joint: list[JointCandidate] = []
             if accepted and not any(c.passes for c in candidates):
                 joint = self.screen_joint(candidates, accepted, context, base, held)
@@ -589,9 +592,23 @@ class Selector:
         starts: dict[str, tuple[float, ...]],
     ) -> list[Candidate]:
         """Fit every hypothesis (from its fit of the round before, in ``starts``, when there
-        is one), replay it on the held-out runs and judge it; best training BIC first."""
-        phase = "later_round_fits" if starts else "first_round_fits"
-        fits = self.pool.tasks(phase, [FitTask(n, base, context, starts.get(n)) for n in names])
+        is one), replay it on the held-out runs and judge it; best training BIC first.
+
+        The first round screens: every hypothesis is fitted locally from its start values;
+        the leading ones by training BIC (``searched_candidates`` of those whose fit has a
+        global search, :func:`~twin_cosim.gap.which.replay.searches`) are fitted again from
+        their global search, and that fit is theirs. The others keep their local fit: a
+        hypothesis the data do not call for leaves its local fit far behind the leaders', and
+        its search (most of a cold fit's replays) would not change its place. A later round
+        starts each fit from the round before's, where a search of one generation costs about
+        what a screen would.
+        """
+        if starts:
+            fits = self.pool.tasks(
+                "later_round_fits", [FitTask(n, base, context, starts.get(n)) for n in names]
+            )
+        else:
+            fits = self._screened(names, base, context)
         acceptance = self._acceptance(len(names))
         replays = self.pool.tasks("candidate_replays", [SimulateTask(f.overrides) for f in fits])
         candidates = []
@@ -604,6 +621,32 @@ class Selector:
             train_bic = bic(fit.train_cost, n_parameters, self.train_seconds)
             candidates.append(Candidate(fit, n_parameters, train_bic, replay, judgement))
         return sorted(candidates, key=lambda c: c.bic)
+
+    def _found(self, candidate: Candidate) -> bool:
+        """Whether a candidate's fit is a start for the next round: one from its global search
+        (or of a hypothesis without one). A local fit the first round's screen left alone
+        found no valley; the next round searches that hypothesis afresh."""
+        fit = candidate.fit
+        return fit.search_replays > 0 or not searches(self.library[fit.hypothesis])
+
+    def _screened(
+        self, names: list[str], base: dict[str, float], context: dict[str, float]
+    ) -> list[FitResult]:
+        """The first round's fits: every hypothesis fitted locally from its start values, the
+        leading ``searched_candidates`` by training BIC among those whose fit has a global
+        search fitted again from it (in the order of ``names``)."""
+        phase = "first_round_fits"
+        local = self.pool.tasks(phase, [FitTask(n, base, context, search=False) for n in names])
+        searchable = [f for f in local if searches(self.library[f.hypothesis])]
+        leaders = sorted(
+            searchable,
+            key=lambda f: bic(
+                f.train_cost, len(self.library[f.hypothesis].parameters), self.train_seconds
+            ),
+        )[: self.settings.searched_candidates]
+        searched = self.pool.tasks(phase, [FitTask(f.hypothesis, base, context) for f in leaders])
+        by_name = {f.hypothesis: f for f in searched}
+        return [by_name.get(f.hypothesis, f) for f in local]
 
     def _next_candidates(self, done: Round, fitted: set[str], remaining: list[str]) -> list[str]:
         """Periodic hypotheses and the best of the round by held-out reduction; a look-alike of

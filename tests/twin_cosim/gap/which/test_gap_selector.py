@@ -578,3 +578,61 @@ def test_a_single_effect_is_not_refitted():
     pool = RefitPool({}, {})
     assert _refitting(pool).refresh(_accepted()[:1], BASE, Replays([BASE], [BASE])) is None
     assert pool.asked == []
+
+
+@dataclass
+class ScreenPool:
+    """Fits whose training cost is ``local[name]`` from the start values and ``searched[name]``
+    from the global search."""
+
+    local: dict[str, float]
+    searched: dict[str, float]
+    batches: list = field(default_factory=list)
+
+    def tasks(self, phase: str, tasks: list) -> list:
+        assert phase == "first_round_fits"
+        self.batches.append(tasks)
+        costs = [self.searched if t.search else self.local for t in tasks]
+        return [
+            FitResult(t.hypothesis, {}, dict(t.base), cost[t.hypothesis], 1, "")
+            for t, cost in zip(tasks, costs, strict=True)
+        ]
+
+
+def test_the_first_round_searches_the_leaders_of_its_local_fits_only():
+    """Every hypothesis is fitted from its start values; the two leading ones by training BIC
+    of those with a search are fitted again from it. A scanned hypothesis and one of three
+    parameters have no search: however well they fit, they are not searched again."""
+    drive2mass = {h.name: h for h in plant_model("drive2mass").hypotheses}
+    names = ["stribeck", "coulomb_change", "pitch_error", "dead_time", "inertia_change"]
+    library = {name: drive2mass[name] for name in names}
+    local = {"stribeck": 5.0, "coulomb_change": 3.0, "pitch_error": 0.5, "dead_time": 0.4}
+    local["inertia_change"] = 4.0
+    searched = {"coulomb_change": 2.9, "inertia_change": 3.5}
+    pool = ScreenPool(local, searched)
+    settings = DiagnosisSettings(searched_candidates=2)
+    selector = Selector(pool, library, _HeldOut(10.0), settings, 10.0)
+    fits = selector._screened(names, {"motor_inertia": 3.3e-4}, {})
+    first, again = pool.batches
+    assert [(t.hypothesis, t.search) for t in first] == [(n, False) for n in names]
+    assert [(t.hypothesis, t.search, t.start) for t in again] == [
+        ("coulomb_change", True, None),  # BIC: 3.0 with one parameter leads 4.0 with one
+        ("inertia_change", True, None),
+    ]
+    # stribeck (two parameters, 5.0) trails: its local fit stays its fit
+    assert [f.train_cost for f in fits] == [5.0, 2.9, 0.5, 0.4, 3.5]
+
+
+def test_a_later_round_starts_only_from_fits_that_searched():
+    """A local fit the screen left alone found no valley: the next round searches that
+    hypothesis afresh; a searched fit, or one of a hypothesis without a search, is a start."""
+    drive2mass = {h.name: h for h in plant_model("drive2mass").hypotheses}
+    selector = Selector(ScreenPool({}, {}), drive2mass, _HeldOut(10.0), DiagnosisSettings(), 10.0)
+
+    def fitted(name: str, search_replays: int) -> Candidate:
+        fit = FitResult(name, {}, {}, 1.0, 1, "", search_replays=search_replays)
+        return Candidate(fit, 1, 0.0, NO_REPLAYS, _judged(False))
+
+    assert not selector._found(fitted("coulomb_change", 0))  # the screen's local fit
+    assert selector._found(fitted("coulomb_change", 32))  # its global search
+    assert selector._found(fitted("pitch_error", 0))  # three parameters: never searched
