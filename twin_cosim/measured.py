@@ -195,6 +195,42 @@ EXPERIMENT_INPUT = "input_torque"
 CLOSED_LOOP_COMPARED = "current"
 
 
+@dataclass(frozen=True)
+class PositionLabel:
+    """How a report names and shows the position it compares: a carriage position (in um in
+    its tables), or the angle of an open-loop rotor, its load position over the travel per
+    radian (in rad).
+
+    Attributes
+    ----------
+    words : str
+        ``position`` or ``angle``.
+    si_unit : str
+        ``m`` or ``rad``.
+    per_m : float
+        ``si_unit`` per m of load position (1, or 1 / travel_per_rad).
+    unit : str
+        The tables' unit: ``um`` or ``rad``.
+    per_um : float
+        ``unit`` per um of load position (1, or 1e-6 / travel_per_rad).
+    """
+
+    words: str
+    si_unit: str
+    per_m: float
+    unit: str
+    per_um: float
+
+
+def position_label(compared: str, travel_per_rad: float) -> PositionLabel:
+    """The position a run compares (:attr:`MeasuredRun.compared` names its other signal): the
+    rotor's angle for an open-loop run (``travel_per_rad`` m of load position per rad), the
+    carriage position otherwise."""
+    if compared == OPEN_LOOP_COMPARED:
+        return PositionLabel("angle", "rad", 1.0 / travel_per_rad, "rad", 1e-6 / travel_per_rad)
+    return PositionLabel("position", "m", 1.0, "um", 1.0)
+
+
 def compared_label(signal: str) -> tuple[str, str]:
     """Words and SI unit of a signal compared beside the position (:attr:`MeasuredRun.compared`):
     ``("current", "A")`` of a closed-loop run, ``("motor speed", "rad/s")`` of an open-loop one."""

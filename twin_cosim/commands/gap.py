@@ -542,14 +542,16 @@ def _print_text(result: Diagnosis) -> None:
 
     units = hypothesis_units(result.context.model)
     words, unit = compared_label(result.context.compared)
+    x = result.context.position_label
     print(result.verdict)
     for step in result.steps:
         best = step.best
         assert best is not None
         print(
-            f"  {names([step.effect])}: held-out position gap "
-            f"{number(step.position_rms_um)} -> {number(best.judgement.position_rms_um)} "
-            f"um, {words} {number(step.current_rms)} -> "
+            f"  {names([step.effect])}: held-out {x.words} gap "
+            f"{number(step.position_rms_um * x.per_um)} -> "
+            f"{number(best.judgement.position_rms_um * x.per_um)} "
+            f"{x.unit}, {words} {number(step.current_rms)} -> "
             f"{number(best.judgement.current_rms)} {unit}, as fitted in its round: "
             f"{parameters(best.fit.values, units.get(best.name, {}))}"
         )

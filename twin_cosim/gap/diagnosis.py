@@ -476,6 +476,7 @@ def _verdict_stage(
         (hold_final.position_rms_um(), hold_final.current_rms()),
         (floors.sigma_position_m, floors.sigma_current),
         context.compared,
+        context.position_label,
         by_metrics_only,
     )
     below = [

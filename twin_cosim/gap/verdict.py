@@ -32,12 +32,13 @@ from dataclasses import dataclass
 
 from twin_cosim.gap.floors.evidence import CalibrationFloor
 from twin_cosim.gap.location import AxisSpan, Location
-from twin_cosim.measured import compared_label
+from twin_cosim.measured import PositionLabel, compared_label
 
 DIGITS = 3
 # unit -> (scale, shown unit) from the largest to the smallest prefix
 PREFIXES = {
     "m": ((1.0, "m"), (1e3, "mm"), (1e6, "um"), (1e9, "nm")),
+    "rad": ((1.0, "rad"), (1e3, "mrad"), (1e6, "urad")),
     "s": ((1.0, "s"), (1e3, "ms"), (1e6, "us")),
 }
 DIMENSIONLESS = ("", "1")
@@ -126,6 +127,7 @@ class Remaining:
     floor_position_m: float
     floor_current: float
     compared: str
+    position: PositionLabel
 
 
 def named_regimes(where: Location) -> list[str]:
@@ -152,12 +154,12 @@ def span_label(span: AxisSpan) -> str:
     return f"{ends} along the axis, {DIRECTIONS[span.direction]}"
 
 
-def _located(where: Location) -> str:
+def _located(where: Location, position: PositionLabel) -> str:
     """The regimes and spans named, with the numbers of their rows in :func:`gap_table`."""
     named = [
         f"{name.replace('_', ' ')} ({percent(where.position[name]['energy_share'])} of the "
-        f"position gap energy, {number(where.position[name]['enrichment'])} x its share of the "
-        "time)"
+        f"{position.words} gap energy, {number(where.position[name]['enrichment'])} x its share "
+        "of the time)"
         for name in named_regimes(where)
     ]
     named += [
@@ -178,6 +180,7 @@ def remaining_of(
     rms_after: tuple[float, float],
     floors: tuple[float, float],
     compared: str,
+    position: PositionLabel,
     by_metrics_only: bool = False,
 ) -> Remaining:
     """What is left, from the calibration floors of the held-out gap before and after.
@@ -198,19 +201,24 @@ def remaining_of(
     compared
         The signal compared beside the position (``current``, or ``motor_speed`` of open-loop
         runs, rad/s): "current" above stands for it.
+    position
+        How the position is named and shown (a rotor's angle for open-loop runs): "position"
+        and "um" above stand for it.
     by_metrics_only
         Whether what is left is significant only because a figure of merit is off (the
         residual itself passes the test against noise).
     """
     excess_before = max(before.before**2 - 1.0, 0.0)
     share = max(after.before**2 - 1.0, 0.0) / excess_before if excess_before > 0 else 0.0
-    where = _located(location) if significant_left else ""
+    where = _located(location, position) if significant_left else ""
     words, unit = compared_label(compared)
+    floor_x = quantity(floors[0] * position.per_m, position.si_unit)
+    gap_x = f"{number(rms_after[0] * position.per_um)} {position.unit}"
     text = (
         f"Left after the accepted effects: {number(after.before)} times the noise floor (the "
-        f"floors: position {quantity(floors[0], 'm')}, {words} {quantity(floors[1], unit)} "
+        f"floors: {position.words} {floor_x}, {words} {quantity(floors[1], unit)} "
         f"RMS), {percent(share)} of the held-out gap energy above the noise; a held-out gap "
-        f"of {number(rms_after[0])} um RMS in position and {number(rms_after[1])} {unit} RMS "
+        f"of {gap_x} RMS in {position.words} and {number(rms_after[1])} {unit} RMS "
         f"in {words}. Of these {number(after.before)} times the noise floor, calibration error "
         f"within tolerance can explain {number(after.explained)} and leaves "
         f"{number(after.left)} (the two add in quadrature)"
@@ -240,6 +248,7 @@ def remaining_of(
         floors[0],
         floors[1],
         compared,
+        position,
     )
 
 
@@ -263,11 +272,17 @@ def gap_table(
     """
     r = remaining
     words, unit = compared_label(r.compared)
-    floor_x, floor_i = quantity(r.floor_position_m, "m"), quantity(r.floor_current, unit)
+    x = r.position
+    floor_x = quantity(r.floor_position_m * x.per_m, x.si_unit)
+    floor_i = quantity(r.floor_current, unit)
     rows = [
-        ["noise floor of the position (RMS)", floor_x, floor_x],
+        [f"noise floor of the {x.words} (RMS)", floor_x, floor_x],
         [f"noise floor of the {words} (RMS)", floor_i, floor_i],
-        ["position gap, RMS [um]", number(r.position_rms_um_before), number(r.position_rms_um)],
+        [
+            f"{x.words} gap, RMS [{x.unit}]",
+            number(r.position_rms_um_before * x.per_um),
+            number(r.position_rms_um * x.per_um),
+        ],
         [f"{words} gap, RMS [{unit}]", number(r.current_rms_before), number(r.current_rms)],
         [
             "normalised RMS of both [times the noise floor]",
@@ -297,7 +312,7 @@ def gap_table(
         label = name.replace("_", " ")
         rows.append(
             [
-                f"{label}: share of the position gap energy [%]",
+                f"{label}: share of the {x.words} gap energy [%]",
                 percent(before_shares[name]["energy_share"]),
                 percent(where.position[name]["energy_share"]),
             ]

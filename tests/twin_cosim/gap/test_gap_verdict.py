@@ -23,6 +23,7 @@ from twin_cosim.gap.verdict import (
     span_label,
     verdict_text,
 )
+from twin_cosim.measured import position_label
 
 NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e[-+]\d+)?")
 
@@ -54,6 +55,7 @@ SPANS = [
 ]
 AFTER = Location(_shares(0.7412, 0.2401), _shares(0.5, 0.4), SPANS, {})
 FLOORS = (2.6512e-08, 0.025712)  # m, A
+CARRIAGE = position_label("current", 1e-3)  # a closed-loop run's carriage position
 
 
 def _remaining():
@@ -67,6 +69,7 @@ def _remaining():
         (0.785712, 0.0854512),
         FLOORS,
         "current",
+        CARRIAGE,
     )
 
 
@@ -121,6 +124,7 @@ def _nothing_left(compared_before: float, compared_after: float, compared: str):
         (0.02, compared_after),
         FLOORS,
         compared,
+        position_label(compared, 1e-3),
     )
 
 
@@ -216,6 +220,7 @@ def test_a_gap_significant_only_by_a_figure_of_merit_says_so():
         (0.0216, 0.0881),
         FLOORS,
         "current",
+        CARRIAGE,
         by_metrics_only=True,
     )
     assert "0.839 times the noise floor" in remaining.text
@@ -234,3 +239,7 @@ def test_an_open_loop_run_s_verdict_names_the_motor_speed_and_its_unit():
     rows = {row[0]: row[1:] for row in gap_table(remaining, _shares(0.52, 0.46), AFTER)}
     assert rows["motor speed gap, RMS [rad/s]"] == ["12.5", "0.400"]
     assert "noise floor of the motor speed (RMS)" in rows
+    # the rotor's angle: the load position (1 mm per rad) over the travel per radian
+    assert " um " not in remaining.text and "2.00e-05 rad RMS in angle" in remaining.text
+    assert rows["angle gap, RMS [rad]"] == ["0.00130", "2.00e-05"]
+    assert rows["noise floor of the angle (RMS)"] == ["26.5 urad", "26.5 urad"]

@@ -41,8 +41,10 @@ from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.measured import (
     MeasuredDataError,
     MeasuredRun,
+    PositionLabel,
     check_against_reference,
     current_warnings,
+    position_label,
 )
 from twin_cosim.plant import Plant
 from twin_cosim.plant_model import Hypothesis, PlantModelError, plant_model
@@ -264,6 +266,12 @@ class DiagnosisContext:
         """The signal compared beside the position (``current``, or ``motor_speed`` of
         open-loop runs): the name the residuals' ``current`` field holds."""
         return self.train[0].compared
+
+    @property
+    def position_label(self) -> PositionLabel:
+        """How the reports name and show the compared position: a carriage position, or the
+        rotor's angle of open-loop runs."""
+        return position_label(self.compared, self.scenario.settings.travel_per_rad)
 
     def screw_angle(self, motor_angle: np.ndarray) -> np.ndarray:
         """The screw angle (rad) of motor angles (rad)."""

@@ -66,7 +66,11 @@ def plot_residuals(d: Diagnosis, path: Path) -> Path:
         (d.holdout_after, "after the accepted effects (held out)", "-"),
     )
     largest_m = max(float(np.max(np.abs(res.position), initial=0.0)) for res, _, _ in sets)
-    position_unit, per_m = ("mm", 1e3) if largest_m * UM_PER_M > 1e4 else ("um", UM_PER_M)
+    x = d.context.position_label
+    if x.si_unit == "rad":  # an open-loop rotor's angle
+        position_unit, per_m = "rad", x.per_m
+    else:
+        position_unit, per_m = ("mm", 1e3) if largest_m * UM_PER_M > 1e4 else ("um", UM_PER_M)
     for res, label, style in sets:
         t, position, compared = _apart(res.t, res.position * per_m, res.current)
         axes[0].plot(t, position, style, lw=0.7, label=label)
@@ -77,7 +81,7 @@ def plot_residuals(d: Diagnosis, path: Path) -> Path:
         ax.axvline(d.context.train_end, color="k", ls="--", lw=1)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
-    axes[0].set_ylabel(f"position residual [{position_unit}]")
+    axes[0].set_ylabel(f"{x.words} residual [{position_unit}]")
     words, unit = compared_label(d.context.compared)
     axes[1].set_ylabel(f"{words} residual [{unit}]")
     axes[1].set_xlabel(
@@ -91,7 +95,10 @@ def plot_regimes(d: Diagnosis, path: Path) -> Path:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     names = list(regime_model.REGIMES)
     x = np.arange(len(names))
-    titles = {"position": "position", "current": compared_label(d.context.compared)[0]}
+    titles = {
+        "position": d.context.position_label.words,
+        "current": compared_label(d.context.compared)[0],
+    }
     for ax, signal in zip(axes, ("position", "current"), strict=True):
         shares = getattr(d.where, signal)
         ax.bar(x - 0.2, [shares[n]["time_share"] for n in names], 0.4, label="time share")
@@ -114,8 +121,10 @@ def plot_spectra(d: Diagnosis, path: Path) -> Path:
     stretches = regime_model.segments(res.regimes, regime_model.REGIMES.index("constant_velocity"))
     fig, axes = plt.subplots(3, 2, figsize=(11, 9.5))
     compared, compared_unit = compared_label(d.context.compared)
+    x = d.context.position_label
+    position = (x.words, res.position * UM_PER_M * x.per_um, x.unit)
     for column, (signal, values, unit) in enumerate(
-        (("position", res.position * UM_PER_M, "um"), (compared, res.current, compared_unit))
+        (position, (compared, res.current, compared_unit))
     ):
         f, a = spectra.frequency_spectrum(values, dt)
         axes[0, column].loglog(f[1:], a[1:] + 1e-12, lw=0.7)
@@ -213,6 +222,9 @@ def plot_along_axis(d: Diagnosis, path: Path) -> Path:
     purple where the axis starts, stops or reverses)."""
     fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
     sigma_x, sigma_i = d.floors.sigma_position_m, d.floors.sigma_current
+    label = d.context.position_label
+    # the axis in mm of carriage position, or in rad of an open-loop rotor's angle
+    shown, per_m = ("rad", label.per_m) if label.si_unit == "rad" else ("mm", 1e3)
     panels = (
         (
             joined([d.train_before, d.holdout_before]),
@@ -230,7 +242,7 @@ def plot_along_axis(d: Diagnosis, path: Path) -> Path:
         for sign, colour in ((1, "tab:blue"), (-1, "tab:orange")):
             inside = res.direction == sign
             ax.plot(
-                res.x[inside] * 1e3,
+                res.x[inside] * per_m,
                 energy[inside],
                 ".",
                 ms=1.5,
@@ -238,7 +250,12 @@ def plot_along_axis(d: Diagnosis, path: Path) -> Path:
                 label=f"moving {'+' if sign > 0 else '-'}",
             )
         for span in spans:
-            ax.axvspan(span.from_mm, span.to_mm, color=SPAN_COLOURS[span.at_stroke_end], alpha=0.2)
+            ax.axvspan(
+                span.from_mm * 1e-3 * per_m,
+                span.to_mm * 1e-3 * per_m,
+                color=SPAN_COLOURS[span.at_stroke_end],
+                alpha=0.2,
+            )
         ax.axhline(1.0, color="k", lw=0.8, ls="--", label="noise at the floors")
         handles = ax.get_legend_handles_labels()[0] + [
             Patch(color=colour, alpha=0.2, label=f"span {SPAN_LABELS[at_end]}")
@@ -253,7 +270,7 @@ def plot_along_axis(d: Diagnosis, path: Path) -> Path:
         ax.legend(
             handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, markerscale=4
         )
-    axes[1].set_xlabel("carriage position [mm]")
+    axes[1].set_xlabel(f"{'rotor angle' if shown == 'rad' else 'carriage position'} [{shown}]")
     return _saved(fig, path)
 
 

@@ -35,7 +35,7 @@ from twin_cosim.gap.verdict import (
 )
 from twin_cosim.gap.which.acceptance import JointCandidate
 from twin_cosim.gap.which.selector import correlation
-from twin_cosim.measured import compared_label
+from twin_cosim.measured import PositionLabel, compared_label
 from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario.plant_parameters import calibrated_scenario, write_plant_parameters
 from twin_cosim.versions import versions
@@ -267,10 +267,13 @@ def _yes(value: Any) -> str:
     return "yes" if value else "no"
 
 
-def _ranking_columns(units: dict[str, dict[str, str]], compared: str) -> list[Column]:
+def _ranking_columns(
+    units: dict[str, dict[str, str]], compared: str, position: PositionLabel
+) -> list[Column]:
     """The columns of a round's ranking (one row per :class:`Candidate`); ``compared``: the
-    signal compared beside the position."""
+    signal compared beside the position, ``position``: how the position is shown."""
     words, unit = compared_label(compared)
+    x = position
 
     def fitted(c: Candidate) -> str:
         return parameters(c.fit.values, units.get(c.name, {}))
@@ -279,7 +282,10 @@ def _ranking_columns(units: dict[str, dict[str, str]], compared: str) -> list[Co
         ("hypothesis", lambda c: _text(c.name)),
         ("fitted parameters", fitted),
         ("training BIC", lambda c: number(c.bic)),
-        ("held-out position RMS with it [um]", lambda c: number(c.judgement.position_rms_um)),
+        (
+            f"held-out {x.words} RMS with it [{x.unit}]",
+            lambda c: number(c.judgement.position_rms_um * x.per_um),
+        ),
         (f"held-out {words} RMS with it [{unit}]", lambda c: number(c.judgement.current_rms)),
         ("reduction of the normalised RMS", lambda c: percent(c.judgement.reduction)),
         ("evidence z", lambda c: number(c.judgement.gain.evidence_z)),
@@ -290,10 +296,14 @@ def _ranking_columns(units: dict[str, dict[str, str]], compared: str) -> list[Co
     ]
 
 
-def _step_columns(units: dict[str, dict[str, str]], compared: str) -> list[Column]:
+def _step_columns(
+    units: dict[str, dict[str, str]], compared: str, position: PositionLabel
+) -> list[Column]:
     """The columns of the accepted effects (one row per :class:`Round` that accepted one);
-    ``compared``: the signal compared beside the position."""
+    ``compared``: the signal compared beside the position, ``position``: how the position is
+    shown."""
     words, unit = compared_label(compared)
+    x = position
 
     def best(r: Round) -> Candidate:
         assert r.best is not None
@@ -305,10 +315,13 @@ def _step_columns(units: dict[str, dict[str, str]], compared: str) -> list[Colum
     return [
         ("accepted", lambda r: names([r.effect])),
         ("fitted parameters (its round)", fitted),
-        ("held-out position RMS before it [um]", lambda r: number(r.position_rms_um)),
         (
-            "with it, as fitted in its round [um]",
-            lambda r: number(best(r).judgement.position_rms_um),
+            f"held-out {x.words} RMS before it [{x.unit}]",
+            lambda r: number(r.position_rms_um * x.per_um),
+        ),
+        (
+            f"with it, as fitted in its round [{x.unit}]",
+            lambda r: number(best(r).judgement.position_rms_um * x.per_um),
         ),
         (f"held-out {words} RMS before it [{unit}]", lambda r: number(r.current_rms)),
         (
@@ -376,14 +389,18 @@ def _pulses(value: dict[str, float] | None) -> str:
     )
 
 
-def _run_columns(runs: list[HeldOutRun], compared: str) -> list[Column]:
+def _run_columns(runs: list[HeldOutRun], compared: str, position: PositionLabel) -> list[Column]:
     """The columns of the held-out runs (one row per :class:`HeldOutRun`); ``compared``: the
-    signal compared beside the position."""
+    signal compared beside the position, ``position``: how the position is shown."""
     words, unit = compared_label(compared)
+    x = position
     columns: list[Column] = [
-        ("held-out run", lambda r: _text(r.source)),
-        ("position RMS before [um]", lambda r: number(r.position_rms_um_before)),
-        ("after [um]", lambda r: number(r.position_rms_um_after)),
+        ("held-out run", lambda r: r.source),
+        (
+            f"{x.words} RMS before [{x.unit}]",
+            lambda r: number(r.position_rms_um_before * x.per_um),
+        ),
+        (f"after [{x.unit}]", lambda r: number(r.position_rms_um_after * x.per_um)),
         (f"{words} RMS before [{unit}]", lambda r: number(r.current_rms_before)),
         (f"after [{unit}]", lambda r: number(r.current_rms_after)),
         ("relative errors before", lambda r: _errors(r.relative_errors_before)),
@@ -414,6 +431,27 @@ def _metrics(values: dict[str, float]) -> str:
     return " / ".join(percent(v) for v in values.values())
 
 
+def _validation(d: Diagnosis, position: PositionLabel) -> str:
+    """The paper's validation figures of the gap before the accepted effects, and the held-out
+    relative errors of E_pk / ITAE / IAU (a run in closed loop: an open-loop run follows no
+    reference and has none)."""
+    x, figures = position, d.validation
+    text = (
+        f"max |gap| {number(figures['max_um'] * x.per_um)} {x.unit}, mean |gap| "
+        f"{number(figures['mean_abs_um'] * x.per_um)} {x.unit}, RMS "
+        f"{number(figures['rms_um'] * x.per_um)} {x.unit}."
+    )
+    before, after = d.metrics_before[0], d.metrics_after[0]
+    if not before.relative_error:
+        return text + " No E_pk / ITAE / IAU: the runs are open loop (no reference they follow)."
+    return (
+        f"{text} Held-out relative errors of E_pk / ITAE / IAU before: "
+        f"{_metrics(before.relative_error)}; after: {_metrics(after.relative_error)} "
+        f"(significant above {_metrics(before.threshold)}: "
+        f"{percent(d.settings.significance_metric)} plus what noise alone makes)."
+    )
+
+
 def _setting(name: str, value: Any) -> str:
     """A setting as a person reads it: ``0.5``, ``500 um``, ``the whole library``."""
     if value is None:
@@ -436,9 +474,8 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
     """
     units = hypothesis_units(d.context.model)
     compared_words, compared_unit = compared_label(d.context.compared)
+    x = d.context.position_label
     first = next((r for r in d.rounds if r.candidates), None)
-    before, after = d.metrics_before[0], d.metrics_after[0]
-    figures = d.validation
     verdict = d.verdict
     if d.remaining.text not in verdict:
         verdict += f" {d.remaining.text}"
@@ -458,27 +495,23 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
         ),
         (
             "Noise floors",
-            f"position {quantity(d.floors.sigma_position_m, 'm')} ({d.floors.position_source}); "
+            f"{x.words} {quantity(d.floors.sigma_position_m * x.per_m, x.si_unit)} "
+            f"({d.floors.position_source}); "
             f"{compared_words} {quantity(d.floors.sigma_current, compared_unit)} "
             f"({d.floors.current_source}).",
         ),
         (
             "Validation figures (training and held-out data before the accepted effects, as in "
             "the paper)",
-            f"max |gap| {number(figures['max_um'])} um, mean |gap| "
-            f"{number(figures['mean_abs_um'])} um, RMS {number(figures['rms_um'])} um. Held-out "
-            f"relative errors of E_pk / ITAE / IAU before: {_metrics(before.relative_error)}; "
-            f"after: {_metrics(after.relative_error)} (significant above "
-            f"{_metrics(before.threshold)}: {percent(d.settings.significance_metric)} plus what "
-            "noise alone makes).",
+            _validation(d, x),
         ),
         (
             "Held-out runs, before and after the accepted effects",
-            _table(d.held_out_runs, _run_columns(d.held_out_runs, d.context.compared)),
+            _table(d.held_out_runs, _run_columns(d.held_out_runs, d.context.compared, x)),
         ),
         (
             "Where the gap lies before the accepted effects (training and held-out data): "
-            "position residual by regime",
+            f"{x.words} residual by regime",
             _table(list(d.where.position.items()), SHARE_COLUMNS),
         ),
         (
@@ -509,9 +542,13 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
         ),
         (
             "Which: hypotheses fitted on the training data, judged on the held-out data (first "
-            f"round; held-out position RMS before {number(d.rounds[0].position_rms_um)} um, "
+            f"round; held-out {x.words} RMS before "
+            f"{number(d.rounds[0].position_rms_um * x.per_um)} {x.unit}, "
             f"{compared_words} {number(d.rounds[0].current_rms)} {compared_unit})",
-            _table(first.candidates if first else [], _ranking_columns(units, d.context.compared)),
+            _table(
+                first.candidates if first else [],
+                _ranking_columns(units, d.context.compared, x),
+            ),
         ),
         *(
             [("Look-alike groups (a name in braces)", lookalikes(d))]
@@ -520,12 +557,13 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
         ),
         (
             "How far: each accepted effect on the held-out data, as fitted in its round",
-            _table(d.steps, _step_columns(units, d.context.compared))
+            _table(d.steps, _step_columns(units, d.context.compared, x))
             if d.steps
             else "No effect passed the held-out test.",
         ),
         (
-            "Share of the held-out position gap energy left after the accepted effects, by regime",
+            f"Share of the held-out {x.words} gap energy left after the accepted effects, by "
+            "regime",
             ", ".join(
                 f"{k.replace('_', ' ')} {percent(v)}" for k, v in d.unexplained_by_regime.items()
             ),

@@ -17,6 +17,7 @@ from twin_cosim.gap.data.residuals import Residuals, joined  # noqa: E402
 from twin_cosim.gap.floors.noise import Floors  # noqa: E402
 from twin_cosim.gap.location import AxisSpan, Location  # noqa: E402
 from twin_cosim.gap.report import figures  # noqa: E402
+from twin_cosim.measured import position_label  # noqa: E402
 
 
 def _residuals(seed: int) -> Residuals:
@@ -48,7 +49,10 @@ def _diagnosis(compared: str = "current"):
         where=where,
         remaining_where=after,
         context=types.SimpleNamespace(
-            screw_angle=lambda angle: angle / 1.5, compared=compared, train_end=1.0
+            screw_angle=lambda angle: angle / 1.5,
+            compared=compared,
+            train_end=1.0,
+            position_label=position_label(compared, 1e-3),  # 1 mm of load travel per rad
         ),
     )
 
@@ -91,12 +95,15 @@ def test_spectra_say_which_residual_they_show(tmp_path, saved_figure):
     assert titles[0].startswith("position residual") and titles[1].startswith("current residual")
 
 
-def test_spectra_of_an_open_loop_run_name_the_motor_speed_and_its_unit(tmp_path, saved_figure):
+def test_spectra_of_an_open_loop_run_name_the_motor_speed_the_angle_and_their_units(
+    tmp_path, saved_figure
+):
     figures.plot_spectra(_diagnosis("motor_speed"), tmp_path / "spectra.png")
     axes = saved_figure["fig"].axes
     assert axes[1].get_title().startswith("motor speed residual")
     assert axes[1].get_ylabel() == "amplitude [rad/s]"
-    assert axes[0].get_ylabel() == "amplitude [um]"
+    assert axes[0].get_title().startswith("angle residual")
+    assert axes[0].get_ylabel() == "amplitude [rad]"
 
 
 def _candidate(name: str, z: float, share: float, failed: list[str]):
@@ -133,16 +140,23 @@ def test_the_ranking_shows_both_tests_and_which_failed(tmp_path, saved_figure):
     assert lines == pytest.approx([100 / 12])
 
 
-def test_joined_runs_are_drawn_apart_and_a_rotor_s_large_gap_in_mm(tmp_path, saved_figure):
+def test_joined_runs_are_drawn_apart_and_a_rotor_s_gap_as_its_angle(tmp_path, saved_figure):
     """Two runs one after the other (the time runs back between them) are not tied by a line;
-    a position gap of metres (a rotor's angle as load travel) is drawn in mm, not in 1e6 um."""
+    an open-loop rotor's gap is its angle in rad (its load position over 1 mm per rad), not a
+    position of 1e6 um; a carriage's gap of metres is drawn in mm."""
     d = _diagnosis("motor_speed")
     two = joined([_residuals(1), _residuals(2)])
     d.train_before = dataclasses.replace(two, position=two.position * 1e8)  # about 2 m RMS
     figures.plot_residuals(d, tmp_path / "residuals.png")
     position_axis, compared_axis = saved_figure["fig"].axes
-    assert position_axis.get_ylabel() == "position residual [mm]"
+    assert position_axis.get_ylabel() == "angle residual [rad]"
     assert compared_axis.get_ylabel() == "motor speed residual [rad/s]"
+    angle = position_axis.get_lines()[0].get_ydata()
+    np.testing.assert_allclose(angle[np.isfinite(angle)], d.train_before.position / 1e-3)
     t = position_axis.get_lines()[0].get_xdata()
     assert len(t) == len(two.t) + 1 and np.isnan(t[len(_residuals(1).t)])
     assert np.all(np.diff(t[np.isfinite(t)][: len(_residuals(1).t)]) > 0)
+    carriage = _diagnosis("current")
+    carriage.train_before = d.train_before
+    figures.plot_residuals(carriage, tmp_path / "residuals.png")
+    assert saved_figure["fig"].axes[0].get_ylabel() == "position residual [mm]"
