@@ -634,7 +634,8 @@ class Selector:
     ) -> list[FitResult]:
         """The first round's fits: every hypothesis fitted locally from its start values, the
         leading ``searched_candidates`` by training BIC among those whose fit has a global
-        search fitted again from it (in the order of ``names``)."""
+        search fitted again from it (in the order of ``names``; a leader's replays count its
+        local fit's too)."""
         phase = "first_round_fits"
         local = self.pool.tasks(phase, [FitTask(n, base, context, search=False) for n in names])
         searchable = [f for f in local if searches(self.library[f.hypothesis])]
@@ -646,7 +647,14 @@ class Selector:
         )[: self.settings.searched_candidates]
         searched = self.pool.tasks(phase, [FitTask(f.hypothesis, base, context) for f in leaders])
         by_name = {f.hypothesis: f for f in searched}
-        return [by_name.get(f.hypothesis, f) for f in local]
+        return [
+            dataclasses.replace(
+                by_name[f.hypothesis], replays=by_name[f.hypothesis].replays + f.replays
+            )
+            if f.hypothesis in by_name
+            else f
+            for f in local
+        ]
 
     def _next_candidates(self, done: Round, fitted: set[str], remaining: list[str]) -> list[str]:
         """Periodic hypotheses and the best of the round by held-out reduction; a look-alike of

@@ -621,6 +621,7 @@ def test_the_first_round_searches_the_leaders_of_its_local_fits_only():
     ]
     # stribeck (two parameters, 5.0) trails: its local fit stays its fit
     assert [f.train_cost for f in fits] == [5.0, 2.9, 0.5, 0.4, 3.5]
+    assert [f.replays for f in fits] == [1, 2, 1, 1, 2]  # a leader's: its local fit's and its own
 
 
 def test_a_later_round_starts_only_from_fits_that_searched():
