@@ -37,6 +37,7 @@ import dataclasses
 import math
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -253,6 +254,14 @@ class JointFitTask:
 
 
 @dataclass(frozen=True)
+class ResidualTask:
+    """The normalised training residual of one parameter set (FMU parameters on top of the
+    nominal): a point of a Jacobian the parent assembles from several workers' replays."""
+
+    overrides: dict[str, float]
+
+
+@dataclass(frozen=True)
 class UncertaintyTask:
     """What the training data leave uncertain in a model: its accepted effects (``hypotheses``
     fitted at ``values``, physical units, with their ``contexts``) on top of the FMU parameters
@@ -269,7 +278,7 @@ class UncertaintyTask:
 
 @dataclass(frozen=True)
 class Uncertainty:
-    """The linearised uncertainty of a model's parameters (:meth:`Replayer.uncertainty`).
+    """The linearised uncertainty of a model's parameters (:func:`linearised_uncertainty`).
 
     Attributes
     ----------
@@ -416,7 +425,7 @@ class Replayer:
                 self.residuals.popitem(last=False)
         return residual
 
-    def __call__(self, task: SimulateTask | FitTask | JointFitTask | UncertaintyTask) -> Timed:
+    def __call__(self, task: SimulateTask | FitTask | JointFitTask | ResidualTask) -> Timed:
         """The task's result, the CPU and wall time it took, the replays it ran and those the
         cache answered."""
         start, wall = time.process_time(), time.perf_counter()
@@ -425,8 +434,8 @@ class Replayer:
             result = self.simulate(task)
         elif isinstance(task, JointFitTask):
             result = self.joint_fit(task)
-        elif isinstance(task, UncertaintyTask):
-            result = self.uncertainty(task)
+        elif isinstance(task, ResidualTask):
+            result = self.training_residual(task.overrides)
         else:
             result = self.fit(task)
         return Timed(
@@ -435,91 +444,6 @@ class Replayer:
             time.perf_counter() - wall,
             self.replays_run - run,
             self.cache_hits - hits,
-        )
-
-    def uncertainty(self, task: UncertaintyTask) -> Uncertainty:
-        """The linearised uncertainty of a model's parameters on the training data.
-
-        The training residual r is differentiated (central differences, one replay each way)
-        with respect to each continuous parameter of the accepted effects (steps of
-        :data:`FIT_STEP` on the fit's unit scale) and each calibrated parameter (a step of one
-        tolerance). Residual samples are correlated in time, so the information is that of
-        one independent sample per :data:`EFFECTIVE_SAMPLE_SPACING_S`: I = (n_eff / n) J^T J /
-        s^2 plus the calibrated parameters' prior (1 per tolerance^2), s^2 the mean squared
-        residual (at least 1, the noise at the floors: a model that leaves a structured gap
-        knows its parameters less well). The covariance is I's pseudo-inverse. Draws of the
-        parameters from that Gaussian (seeded, clipped into their bounds), each mapped to the
-        FMU parameters as the model maps its fit, give each FMU parameter's central 95 %.
-        """
-        hypotheses = [bounded(self.hypotheses[n], self.spec.ranges) for n in task.hypotheses]
-        sets = {name for h in hypotheses for name in h.sets}
-        plain = {k: v for k, v in task.base.items() if k not in sets}
-        nominal = {**self.spec.nominal, **plain}
-        starts = [np.array(v, dtype=float) for v in task.values]
-        free = [h.kind == "continuous" for h in hypotheses]
-        units = [
-            np.clip([p.to_unit(x) for p, x in zip(h.parameters, v, strict=True)], 0.0, 1.0)
-            for h, v in zip(hypotheses, starts, strict=True)
-        ]
-        columns = [
-            (j, k) for j, h in enumerate(hypotheses) if free[j] for k in range(len(h.parameters))
-        ]
-        count = len(columns) + len(task.calibrated)
-
-        def overrides_of(z: np.ndarray) -> dict[str, float]:
-            """FMU parameters of the coordinates z (effects' units, then tolerances)."""
-            moved = {
-                name: nominal[name] * (1.0 + a * task.tolerance)
-                for name, a in zip(task.calibrated, z[len(columns) :], strict=True)
-            }
-            overrides = {**plain, **moved}
-            at = 0
-            for j, (h, context) in enumerate(zip(hypotheses, task.contexts, strict=True)):
-                values = starts[j]
-                if free[j]:
-                    values = h.from_unit(z[at : at + len(values)])
-                    at += len(values)
-                overrides |= h.to_plant(values, {**self.spec.nominal, **overrides}, context)
-            return clipped(overrides, self.spec.ranges)
-
-        z0 = np.concatenate(
-            [units[j][k : k + 1] for j, k in columns] + [np.zeros(len(task.calibrated))]
-        )
-        residual = self.training_residual(overrides_of(z0))
-        steps = np.r_[np.full(len(columns), FIT_STEP), np.ones(len(task.calibrated))]
-        jacobian = np.empty((len(residual), count))
-        for i, step in enumerate(steps):
-            up, down = z0.copy(), z0.copy()
-            up[i] += step
-            down[i] -= step
-            if i < len(columns):
-                up[i], down[i] = min(up[i], 1.0), max(down[i], 0.0)
-            r_up = self.training_residual(overrides_of(up))
-            r_down = self.training_residual(overrides_of(down))
-            jacobian[:, i] = (r_up - r_down) / max(up[i] - down[i], 1e-12)
-        seconds = sum(float(t[-1] - t[0]) for t in self.spec.training.t)
-        n_eff = 2.0 * max(seconds / EFFECTIVE_SAMPLE_SPACING_S, 1.0)  # two signals
-        variance = max(float(np.mean(residual**2)), 1.0)
-        prior = np.r_[np.zeros(len(columns)), np.ones(len(task.calibrated))]
-        information = (n_eff / len(residual)) * (jacobian.T @ jacobian) / variance
-        covariance = np.linalg.pinv(information + np.diag(prior))
-        deviation = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
-        draws = np.random.default_rng(0).multivariate_normal(
-            z0, covariance, size=UNCERTAINTY_DRAWS, method="eigh"
-        )
-        draws[:, : len(columns)] = np.clip(draws[:, : len(columns)], 0.0, 1.0)
-        values = [overrides_of(z) for z in draws]
-        changed = sorted(sets | set(task.calibrated))
-        intervals = {
-            name: tuple(float(q) for q in np.quantile([v[name] for v in values], [0.025, 0.975]))
-            for name in changed
-            if name in values[0]
-        }
-        names = tuple(
-            f"{hypotheses[j].name}.{hypotheses[j].parameters[k].name}" for j, k in columns
-        ) + tuple(f"calibration.{n}" for n in task.calibrated)
-        return Uncertainty(
-            names, tuple(float(d) for d in deviation), variance, intervals, 1 + 2 * count
         )
 
     def joint_fit(self, task: JointFitTask) -> FitResult:
@@ -716,6 +640,117 @@ class Replayer:
     def close(self) -> None:
         """Free the plant."""
         self.plant.close()
+
+
+def linearised_uncertainty(
+    task: UncertaintyTask,
+    hypotheses: dict[str, Hypothesis],
+    spec: ReplaySpec,
+    residuals: Callable[[list[dict[str, float]]], list[np.ndarray]],
+) -> Uncertainty:
+    """The linearised uncertainty of a model's parameters on the training data.
+
+    The training residual r is differentiated (central differences, one replay each way)
+    with respect to each continuous parameter of the accepted effects (steps of
+    :data:`FIT_STEP` on the fit's unit scale) and each calibrated parameter (a step of one
+    tolerance). Residual samples are correlated in time, so the information is that of
+    one independent sample per :data:`EFFECTIVE_SAMPLE_SPACING_S`: I = (n_eff / n) J^T J /
+    s^2 plus the calibrated parameters' prior (1 per tolerance^2), s^2 the mean squared
+    residual (at least 1, the noise at the floors: a model that leaves a structured gap
+    knows its parameters less well). The covariance is I's pseudo-inverse. Draws of the
+    parameters from that Gaussian (seeded, clipped into their bounds), each mapped to the
+    FMU parameters as the model maps its fit, give each FMU parameter's central 95 %.
+
+    Parameters
+    ----------
+    task
+        The model and its calibrated parameters.
+    hypotheses
+        The effect library by name.
+    spec
+        The replays' recipe (nominal parameters, ranges, training data).
+    residuals
+        The normalised training residuals of parameter sets (FMU parameters on top of the
+        nominal), in their order: the model's and both sides of every column, asked at once
+        (the pool runs them side by side).
+    """
+    bounded_hypotheses = [bounded(hypotheses[n], spec.ranges) for n in task.hypotheses]
+    sets = {name for h in bounded_hypotheses for name in h.sets}
+    plain = {k: v for k, v in task.base.items() if k not in sets}
+    nominal = {**spec.nominal, **plain}
+    starts = [np.array(v, dtype=float) for v in task.values]
+    free = [h.kind == "continuous" for h in bounded_hypotheses]
+    units = [
+        np.clip([p.to_unit(x) for p, x in zip(h.parameters, v, strict=True)], 0.0, 1.0)
+        for h, v in zip(bounded_hypotheses, starts, strict=True)
+    ]
+    columns = [
+        (j, k)
+        for j, h in enumerate(bounded_hypotheses)
+        if free[j]
+        for k in range(len(h.parameters))
+    ]
+    count = len(columns) + len(task.calibrated)
+
+    def overrides_of(z: np.ndarray) -> dict[str, float]:
+        """FMU parameters of the coordinates z (effects' units, then tolerances)."""
+        moved = {
+            name: nominal[name] * (1.0 + a * task.tolerance)
+            for name, a in zip(task.calibrated, z[len(columns) :], strict=True)
+        }
+        overrides = {**plain, **moved}
+        at = 0
+        for j, (h, context) in enumerate(zip(bounded_hypotheses, task.contexts, strict=True)):
+            values = starts[j]
+            if free[j]:
+                values = h.from_unit(z[at : at + len(values)])
+                at += len(values)
+            overrides |= h.to_plant(values, {**spec.nominal, **overrides}, context)
+        return clipped(overrides, spec.ranges)
+
+    z0 = np.concatenate(
+        [units[j][k : k + 1] for j, k in columns] + [np.zeros(len(task.calibrated))]
+    )
+    steps = np.r_[np.full(len(columns), FIT_STEP), np.ones(len(task.calibrated))]
+    sides = []
+    for i, step in enumerate(steps):
+        up, down = z0.copy(), z0.copy()
+        up[i] += step
+        down[i] -= step
+        if i < len(columns):
+            up[i], down[i] = min(up[i], 1.0), max(down[i], 0.0)
+        sides.append((up, down))
+    found = residuals([overrides_of(z0)] + [overrides_of(z) for side in sides for z in side])
+    residual = found[0]
+    jacobian = np.empty((len(residual), count))
+    for i, (up, down) in enumerate(sides):
+        r_up, r_down = found[1 + 2 * i], found[2 + 2 * i]
+        jacobian[:, i] = (r_up - r_down) / max(up[i] - down[i], 1e-12)
+    seconds = sum(float(t[-1] - t[0]) for t in spec.training.t)
+    n_eff = 2.0 * max(seconds / EFFECTIVE_SAMPLE_SPACING_S, 1.0)  # two signals
+    variance = max(float(np.mean(residual**2)), 1.0)
+    prior = np.r_[np.zeros(len(columns)), np.ones(len(task.calibrated))]
+    information = (n_eff / len(residual)) * (jacobian.T @ jacobian) / variance
+    covariance = np.linalg.pinv(information + np.diag(prior))
+    deviation = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    draws = np.random.default_rng(0).multivariate_normal(
+        z0, covariance, size=UNCERTAINTY_DRAWS, method="eigh"
+    )
+    draws[:, : len(columns)] = np.clip(draws[:, : len(columns)], 0.0, 1.0)
+    values = [overrides_of(z) for z in draws]
+    changed = sorted(sets | set(task.calibrated))
+    intervals = {
+        name: tuple(float(q) for q in np.quantile([v[name] for v in values], [0.025, 0.975]))
+        for name in changed
+        if name in values[0]
+    }
+    names = tuple(
+        f"{bounded_hypotheses[j].name}.{bounded_hypotheses[j].parameters[k].name}"
+        for j, k in columns
+    ) + tuple(f"calibration.{n}" for n in task.calibrated)
+    return Uncertainty(
+        names, tuple(float(d) for d in deviation), variance, intervals, 1 + 2 * count
+    )
 
 
 def start_unit(

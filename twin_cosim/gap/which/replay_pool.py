@@ -37,12 +37,17 @@ from twin_cosim.gap.which.replay import (
     FitResult,
     ParameterKey,
     Replays,
+    ReplaySpec,
+    ResidualTask,
     SimulateTask,
     Timed,
     Uncertainty,
+    UncertaintyTask,
+    linearised_uncertainty,
 )
 
 if TYPE_CHECKING:
+    from twin_cosim.plant_model import Hypothesis
     from twin_cosim.workers import BoundPool
 
 Progress = Callable[[int], None]
@@ -202,8 +207,11 @@ class JudgingCache:
             self.entries.popitem(last=False)
 
 
-def _replays_of(result: FitResult | Replays | Uncertainty) -> int:
-    """Replays a task ran: a fit's (or an uncertainty's) count, or one per judging scenario."""
+def _replays_of(result: FitResult | Replays | np.ndarray) -> int:
+    """Replays a task ran: a fit's count, one per judging scenario, or one training residual's
+    parameter set."""
+    if isinstance(result, np.ndarray):
+        return 1
     return len(result.judging) if isinstance(result, Replays) else result.replays
 
 
@@ -298,6 +306,19 @@ class ReplayPool:
                 first[key] = i
                 sent.append(i)
         return sent, repeats
+
+    def uncertainty(self, task: UncertaintyTask, hypotheses: dict[str, Hypothesis]) -> Uncertainty:
+        """What the training data leave uncertain in a model
+        (:func:`~twin_cosim.gap.which.replay.linearised_uncertainty`): the residuals of its
+        Jacobian's columns run as one batch of pool tasks, side by side on the workers."""
+        spec = self.pool.factory  # the workers' recipe: nominal plant, ranges, training data
+        assert isinstance(spec, ReplaySpec)
+        return linearised_uncertainty(
+            task,
+            hypotheses,
+            spec,
+            lambda sets: self.tasks("uncertainty", [ResidualTask(o) for o in sets]),
+        )
 
     def basis(self, base: dict[str, float]) -> CalibrationBasis:
         """Calibration directions around the parameter set ``nominal + base`` (each set's

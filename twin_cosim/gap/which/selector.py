@@ -430,7 +430,7 @@ class Selector:
         accepted, base, replays, marginal, dropped = self.backward(accepted, base, replays, start)
         threshold = self.judging.threshold(settings)
         floor, calibrated = self.pool.calibration(base, replays, threshold)
-        (uncertainty,) = self.pool.tasks("uncertainty", [self.uncertainty_task(accepted, base)])
+        uncertainty = self.pool.uncertainty(self.uncertainty_task(accepted, base), self.library)
         return Selection(
             rounds,
             accepted,

@@ -5,6 +5,8 @@ cold refit (no plant: costs with a known narrow valley)."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -17,8 +19,10 @@ from twin_cosim.gap.which.replay import (
     WARM_GENERATIONS,
     FitTask,
     Replayer,
+    UncertaintyTask,
     bounded,
     clipped,
+    linearised_uncertainty,
     profile_start,
     shape_index,
 )
@@ -166,3 +170,34 @@ def test_a_fit_reports_its_iterations_and_search_and_its_cache_hits(small_spec):
         assert timed.wall_s > 0 and timed.cpu_s > 0
     finally:
         replayer.close()
+
+
+def test_the_linearised_uncertainty_of_a_level_is_one_over_its_sensitivity():
+    """A residual linear in the Coulomb level, r = g (F_c - F_0) + e with RMS(e) = 1: the
+    information of the level on the unit scale (width W of its bounds) is n_eff (g W)^2, so its
+    deviation is 1 / (g W sqrt(n_eff)), n_eff = 2 s / 10 ms for two signals over 1 s; its FMU
+    interval is the fitted value +- 1.96 of it. Every residual is asked for in one batch."""
+    hypothesis = BY_NAME["coulomb_change"]
+    nominal, fitted = {"coulomb_friction": 0.5}, 0.1  # N.m
+    t = np.linspace(0.0, 1.0, 4001)  # s
+    spec = SimpleNamespace(nominal=nominal, ranges={}, training=SimpleNamespace(t=[t]))
+    noise = np.random.default_rng(1).choice([-1.0, 1.0], 2 * t.size)  # RMS 1 exactly
+    g = 50.0  # residual per N.m
+    batches = []
+
+    def residuals(sets: list[dict[str, float]]) -> list[np.ndarray]:
+        batches.append(len(sets))
+        return [g * (s["coulomb_friction"] - 0.5 - fitted) + noise for s in sets]
+
+    task = UncertaintyTask({}, ("coulomb_change",), ((fitted,),), ({},), (), 0.03)
+    found = linearised_uncertainty(task, BY_NAME, spec, residuals)
+    width = hypothesis.parameters[0].upper - hypothesis.parameters[0].lower  # N.m
+    n_eff = 2.0 * 1.0 / 0.01
+    deviation = 1.0 / (g * width * np.sqrt(n_eff))
+    assert batches == [3]  # the model and both sides of its one column, at once
+    assert found.names == ("coulomb_change.delta_coulomb",)
+    assert found.deviation[0] == pytest.approx(deviation, rel=1e-9)
+    low, high = found.intervals["coulomb_friction"]
+    spread = deviation * width  # N.m
+    assert low == pytest.approx(0.6 - 1.96 * spread, abs=0.2 * spread)
+    assert high == pytest.approx(0.6 + 1.96 * spread, abs=0.2 * spread)
