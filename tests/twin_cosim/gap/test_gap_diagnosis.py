@@ -390,7 +390,7 @@ def test_the_intervals_move_with_the_calibration_correction():
     effects = [Accepted(["coulomb_change"], (-0.125,), {}, 1)]
     selection = _selection([first, _left({"motor_inertia": 1.0})], effects, coulomb)
     drawn = {"motor_inertia": (1.9e-4, 2.1e-4), "coulomb_friction": (0.49, 0.51)}
-    uncertainty = Uncertainty((), (), 1.0, drawn, 0)
+    uncertainty = Uncertainty((), (), 1.0, drawn)
     selection = dataclasses.replace(selection, uncertainty=uncertainty)
     nominal = {"motor_inertia": 2e-4}
     plant = calibrated_plant(selection, NoiseModel([], {}, []), "drive2mass", nominal, 0.03, {})

@@ -295,15 +295,12 @@ class Uncertainty:
         Per FMU parameter the model sets (the effects' and the calibrated ones), the central
         95 % of its values over draws of the parameters from their linearised distribution:
         (low, high) in the variable table's units.
-    replays : int
-        Training replays it took.
     """
 
     names: tuple[str, ...]
     deviation: tuple[float, ...]
     residual_variance: float
     intervals: dict[str, tuple[float, float]]
-    replays: int
 
 
 @dataclass(frozen=True)
@@ -748,9 +745,7 @@ def linearised_uncertainty(
         f"{bounded_hypotheses[j].name}.{bounded_hypotheses[j].parameters[k].name}"
         for j, k in columns
     ) + tuple(f"calibration.{n}" for n in task.calibrated)
-    return Uncertainty(
-        names, tuple(float(d) for d in deviation), variance, intervals, 1 + 2 * count
-    )
+    return Uncertainty(names, tuple(float(d) for d in deviation), variance, intervals)
 
 
 def start_unit(
