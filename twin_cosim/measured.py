@@ -213,6 +213,11 @@ class PositionLabel:
         The tables' unit: ``um`` or ``rad``.
     per_um : float
         ``unit`` per um of load position (1, or 1e-6 / travel_per_rad).
+    axis_words : str
+        What a figure's position axis shows: ``carriage position`` or ``rotor angle turned``.
+    travel : bool
+        Whether the position runs along an axis (a carriage), where spans of the travel mean
+        something; a rotor turns, and the angle it has turned is no place on an axis.
     """
 
     words: str
@@ -220,6 +225,16 @@ class PositionLabel:
     per_m: float
     unit: str
     per_um: float
+    axis_words: str
+    travel: bool
+
+    def figure_scale(self, largest_m: float) -> tuple[str, float]:
+        """The unit a figure shows positions in, and its factor per m of load position, for
+        positions up to ``largest_m`` (m): a carriage in um, or in mm beyond 10 mm; a rotor's
+        angle in rad."""
+        if not self.travel:
+            return self.si_unit, self.per_m
+        return ("mm", 1e3) if largest_m > 1e-2 else ("um", 1e6)
 
 
 def position_label(compared: str, travel_per_rad: float) -> PositionLabel:
@@ -227,8 +242,16 @@ def position_label(compared: str, travel_per_rad: float) -> PositionLabel:
     rotor's angle for an open-loop run (``travel_per_rad`` m of load position per rad), the
     carriage position otherwise."""
     if compared == OPEN_LOOP_COMPARED:
-        return PositionLabel("angle", "rad", 1.0 / travel_per_rad, "rad", 1e-6 / travel_per_rad)
-    return PositionLabel("position", "m", 1.0, "um", 1.0)
+        return PositionLabel(
+            "angle",
+            "rad",
+            1.0 / travel_per_rad,
+            "rad",
+            1e-6 / travel_per_rad,
+            "rotor angle turned",
+            travel=False,
+        )
+    return PositionLabel("position", "m", 1.0, "um", 1.0, "carriage position", travel=True)
 
 
 def compared_label(signal: str) -> tuple[str, str]:

@@ -13,6 +13,7 @@ from twin_cosim.measured import (
     check_against_reference,
     current_warnings,
     parse_columns,
+    position_label,
     read_emps_mat,
     read_measured,
     read_measured_csv,
@@ -270,3 +271,17 @@ def test_the_documented_twincat_example_reads():
     assert np.max(run.current) < 1.0  # written in mA, read in A
     with pytest.raises(MeasuredDataError, match=r"no channel named \['Pos'\]"):
         read_measured(TWINCAT_EXAMPLE, {"x": "Pos"})
+
+
+def test_a_carriage_travels_and_a_rotor_turns():
+    """A closed-loop run's carriage position runs along an axis (um in tables; figures in um,
+    in mm beyond 10 mm); an open-loop rotor's angle (2 mm of load travel per rad here) has no
+    travel and shows in rad: 1 m of load position is 500 rad."""
+    carriage = position_label("current", 2e-3)
+    assert carriage.travel and carriage.axis_words == "carriage position"
+    assert carriage.figure_scale(5e-3) == ("um", 1e6)
+    assert carriage.figure_scale(0.2) == ("mm", 1e3)
+    rotor = position_label("motor_speed", 2e-3)
+    assert not rotor.travel and rotor.axis_words == "rotor angle turned"
+    assert rotor.figure_scale(5e-3) == rotor.figure_scale(0.2) == ("rad", 500.0)
+    assert rotor.per_um == pytest.approx(5e-4)  # rad per um of load position

@@ -341,6 +341,7 @@ def _diagnose(
         context.screw_angle,
         context.dt,
         settings,
+        context.position_label.travel,
     )
     spec = _replay_spec(context, nominal, floors, replay_cache)
     selector = Selector(
@@ -465,6 +466,7 @@ def _verdict_stage(
         context.screw_angle,
         context.dt,
         settings,
+        context.position_label.travel,
     )
     remaining = remaining_of(
         first.calibration,

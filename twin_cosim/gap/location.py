@@ -275,8 +275,11 @@ def locate(
     screw_angle: Callable[[np.ndarray], np.ndarray],
     dt: float,
     settings: DiagnosisSettings,
+    travel: bool = True,
 ) -> Location:
-    """Regime shares, along-axis spans and periodicity of a residual."""
+    """Regime shares, along-axis spans and periodicity of a residual; no spans where the
+    position does not run along an axis (``travel`` False: a rotor's angle,
+    :attr:`~twin_cosim.measured.PositionLabel.travel`)."""
     levels = speed_groups(res, dt)
     groups, speeds = [members for _, members in levels], [speed for speed, _ in levels]
     periodicity = {}
@@ -290,6 +293,6 @@ def locate(
     return Location(
         regime_model.energy_shares(res.position, res.regimes),
         regime_model.energy_shares(res.current, res.regimes),
-        along_axis(res, sigma_x, sigma_i, settings),
+        along_axis(res, sigma_x, sigma_i, settings) if travel else [],
         periodicity,
     )

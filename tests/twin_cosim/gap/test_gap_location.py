@@ -9,7 +9,7 @@ import pytest
 
 from twin_cosim.gap.data.regimes import ACCELERATION, CONSTANT_VELOCITY, REVERSAL
 from twin_cosim.gap.data.residuals import Residuals
-from twin_cosim.gap.location import along_axis, stroke_ends
+from twin_cosim.gap.location import along_axis, locate, stroke_ends
 from twin_cosim.gap.settings import DiagnosisSettings
 
 SETTINGS = DiagnosisSettings()
@@ -45,6 +45,16 @@ def test_a_local_defect_is_located_within_its_span():
     assert first.from_mm == pytest.approx(21.0, abs=1.0)
     assert first.to_mm == pytest.approx(22.5, abs=1.0)
     assert first.energy_share > 0.8
+
+
+def test_a_rotor_turns_without_travel_and_names_no_span():
+    """The same concentrated residual: a carriage's span, none for a rotor's angle turned (its
+    regimes and orders are still read)."""
+    res = strokes((21.0, 22.5))
+    carriage = locate(res, 1e-8, 1e-3, lambda angle: angle, 250e-6, SETTINGS)
+    rotor = locate(res, 1e-8, 1e-3, lambda angle: angle, 250e-6, SETTINGS, travel=False)
+    assert carriage.along_axis and rotor.along_axis == []
+    assert rotor.position == carriage.position and rotor.current == carriage.current
 
 
 def test_a_defect_in_one_direction_is_named_with_it():

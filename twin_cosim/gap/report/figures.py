@@ -67,10 +67,7 @@ def plot_residuals(d: Diagnosis, path: Path) -> Path:
     )
     largest_m = max(float(np.max(np.abs(res.position), initial=0.0)) for res, _, _ in sets)
     x = d.context.position_label
-    if x.si_unit == "rad":  # an open-loop rotor's angle
-        position_unit, per_m = "rad", x.per_m
-    else:
-        position_unit, per_m = ("mm", 1e3) if largest_m * UM_PER_M > 1e4 else ("um", UM_PER_M)
+    position_unit, per_m = x.figure_scale(largest_m)
     for res, label, style in sets:
         t, position, compared = _apart(res.t, res.position * per_m, res.current)
         axes[0].plot(t, position, style, lw=0.7, label=label)
@@ -223,8 +220,12 @@ def plot_along_axis(d: Diagnosis, path: Path) -> Path:
     fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
     sigma_x, sigma_i = d.floors.sigma_position_m, d.floors.sigma_current
     label = d.context.position_label
-    # the axis in mm of carriage position, or in rad of an open-loop rotor's angle
-    shown, per_m = ("rad", label.per_m) if label.si_unit == "rad" else ("mm", 1e3)
+    shown, per_m = label.figure_scale(
+        max(
+            float(np.max(np.abs(r.x), initial=0.0))
+            for r in (d.train_before, d.holdout_before, d.holdout_after)
+        )
+    )
     panels = (
         (
             joined([d.train_before, d.holdout_before]),
@@ -270,7 +271,7 @@ def plot_along_axis(d: Diagnosis, path: Path) -> Path:
         ax.legend(
             handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, markerscale=4
         )
-    axes[1].set_xlabel(f"{'rotor angle' if shown == 'rad' else 'carriage position'} [{shown}]")
+    axes[1].set_xlabel(f"{label.axis_words} [{shown}]")
     return _saved(fig, path)
 
 

@@ -348,6 +348,34 @@ AXIS_COLUMNS: list[Column] = [  # rows: AxisSpan
 ]
 
 
+def _axis_sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
+    """The spans along the axis where the residual is concentrated, before and after the
+    accepted effects; for a rotor, which turns without travel, why there are none."""
+    if not d.context.position_label.travel:
+        return [
+            (
+                "Along the axis",
+                "An open-loop rotor turns without travel along an axis: no span of an axis is "
+                "named. Its residual is placed by regime (above) and by orders of its angle "
+                "(below).",
+            )
+        ]
+    return [
+        (
+            "Before the accepted effects: spans along the axis where the residual is concentrated",
+            _table(d.where.along_axis, AXIS_COLUMNS)
+            if d.where.along_axis
+            else "The residual is spread evenly along the axis: no span stands out.",
+        ),
+        (
+            "After the accepted effects (held-out data): spans along the axis",
+            _table(d.remaining_where.along_axis, AXIS_COLUMNS)
+            if d.remaining_where.along_axis
+            else "What is left is spread evenly along the axis: no span stands out.",
+        ),
+    ]
+
+
 def lookalikes(d: Diagnosis) -> str:
     """Each accepted look-alike group: why its members count as one (the round's figures) and
     which member's fit the calibrated plant holds."""
@@ -518,18 +546,7 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
             f"Before the accepted effects: {compared_words} residual by regime",
             _table(list(d.where.current.items()), SHARE_COLUMNS),
         ),
-        (
-            "Before the accepted effects: spans along the axis where the residual is concentrated",
-            _table(d.where.along_axis, AXIS_COLUMNS)
-            if d.where.along_axis
-            else "The residual is spread evenly along the axis: no span stands out.",
-        ),
-        (
-            "After the accepted effects (held-out data): spans along the axis",
-            _table(d.remaining_where.along_axis, AXIS_COLUMNS)
-            if d.remaining_where.along_axis
-            else "What is left is spread evenly along the axis: no span stands out.",
-        ),
+        *_axis_sections(d),
         (
             "Before the accepted effects: position-periodic or temporal (a speed group: the "
             "constant-velocity stretches at one speed level, within 10 %; a peak at a fixed "

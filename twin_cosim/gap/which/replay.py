@@ -256,9 +256,11 @@ class JointFitTask:
 @dataclass(frozen=True)
 class ResidualTask:
     """The normalised training residual of one parameter set (FMU parameters on top of the
-    nominal): a point of a Jacobian the parent assembles from several workers' replays."""
+    nominal): a point of a fit or a Jacobian the parent runs on several workers' replays.
+    ``failure``: what a failed replay scores per sample (the fit's :func:`failure_residual`)."""
 
     overrides: dict[str, float]
+    failure: float = FAILURE_FLOOR
 
 
 @dataclass(frozen=True)
@@ -371,6 +373,130 @@ class ReplaySpec:
         return Replayer(self)
 
 
+def failure_residual(start: np.ndarray) -> float:
+    """What a failed replay scores per sample in a fit whose start left the normalised training
+    residual ``start``: :data:`FAILURE_FACTOR` times its RMS, at least :data:`FAILURE_FLOOR`."""
+    return max(FAILURE_FLOOR, FAILURE_FACTOR * float(np.sqrt(np.mean(start**2))))
+
+
+class JointProblem:
+    """A :class:`JointFitTask` as a least-squares problem on the fits' unit scale: the
+    continuous effects' parameters (0-1 over their bounds) and the calibrated parameters' moves
+    (in tolerances, -1 to 1), the parameter sets they run with, the training residual with the
+    calibrated parameters' prior appended, and the solve (:meth:`solve`), run alike in a worker
+    and, its residuals on the workers side by side, in the parent
+    (:meth:`~twin_cosim.gap.which.replay_pool.ReplayPool.joint_fit`).
+    """
+
+    def __init__(
+        self, task: JointFitTask, spec: ReplaySpec, library: dict[str, Hypothesis]
+    ) -> None:
+        self.task = task
+        self.spec = spec
+        self.hypotheses = [bounded(library[n], spec.ranges) for n in task.hypotheses]
+        self.free = [h.kind == "continuous" for h in self.hypotheses]
+        self.starts = [np.array(v, dtype=float) for v in task.start]
+        self.effect_count = sum(
+            len(s) for s, fitted in zip(self.starts, self.free, strict=True) if fitted
+        )
+        self.samples = sum(2 * len(t) for t in spec.training.t)
+        seconds = sum(float(t[-1] - t[0]) for t in spec.training.t)
+        self.prior = math.sqrt(self.samples / max(seconds / EFFECTIVE_SAMPLE_SPACING_S, 1.0))
+        self.u0 = np.concatenate(
+            [
+                np.clip([p.to_unit(x) for p, x in zip(h.parameters, s, strict=True)], 0.0, 1.0)
+                for h, s, fitted in zip(self.hypotheses, self.starts, self.free, strict=True)
+                if fitted
+            ]
+            + [np.zeros(len(task.calibrated))]
+        )
+
+    def values_of(self, u: np.ndarray) -> list[np.ndarray]:
+        """Each hypothesis' values (physical units) at the point ``u``."""
+        values, at = [], 0
+        for h, start, fitted in zip(self.hypotheses, self.starts, self.free, strict=True):
+            if fitted:
+                values.append(h.from_unit(u[at : at + len(start)]))
+                at += len(start)
+            else:
+                values.append(start)
+        return values
+
+    def overrides_of(self, values: list[np.ndarray], a: np.ndarray) -> dict[str, float]:
+        """FMU parameters of the hypotheses at ``values`` with the calibrated parameters moved
+        by ``a`` tolerances."""
+        task = self.task
+        overrides = {
+            name: self.spec.nominal[name] * (1.0 + a_j * task.tolerance)
+            for name, a_j in zip(task.calibrated, a, strict=True)
+        }
+        for h, v, context in zip(self.hypotheses, values, task.contexts, strict=True):
+            overrides |= h.to_plant(v, {**self.spec.nominal, **overrides}, context)
+        return overrides
+
+    def start_overrides(self) -> dict[str, float]:
+        """FMU parameters of the start: the hypotheses' start values, nothing moved."""
+        return self.overrides_of(self.starts, np.zeros(len(self.task.calibrated)))
+
+    def overrides(self, u: np.ndarray) -> dict[str, float]:
+        """FMU parameters of the point ``u``."""
+        return self.overrides_of(self.values_of(u), u[self.effect_count :])
+
+    def residual(self, training: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The point's cost vector: its normalised training residual ``training``, then the
+        calibrated parameters' prior."""
+        return np.concatenate([training, self.prior * u[self.effect_count :]])
+
+    def solve(
+        self,
+        training_residual: Callable[[dict[str, float]], np.ndarray],
+        start: np.ndarray,
+        workers: Callable | None = None,
+    ) -> FitResult:
+        """The refit: scipy least squares from the start (its residual ``start``), each point's
+        training residual from ``training_residual`` (FMU parameters on top of the nominal),
+        the Jacobian's points through the map-like ``workers`` (scipy's; None: one by one);
+        the start kept when nothing beats it."""
+        task = self.task
+        best, cost, replays, message = self.u0, float(np.mean(start**2)), 1, "nothing to refit"
+        iterations = 0
+        if len(self.u0):
+            lower = np.r_[np.zeros(self.effect_count), -np.ones(len(task.calibrated))]
+            solution = least_squares(
+                lambda u: self.residual(training_residual(self.overrides(u)), u),
+                self.u0,
+                bounds=(lower, np.ones(len(self.u0))),
+                diff_step=FIT_STEP,
+                max_nfev=JOINT_EVALUATIONS,
+                x_scale=1.0,
+                workers=workers,
+            )
+            found = float(np.sum(solution.fun**2)) / self.samples
+            if found < cost:
+                best, cost = solution.x, found
+            replays += int(solution.nfev + (solution.njev or 0) * len(self.u0))
+            message = solution.message
+            iterations = int(solution.njev or 0)
+        values = self.values_of(best)
+        return FitResult(
+            "+".join(task.hypotheses),
+            {
+                f"{h.name}.{name}": value
+                for h, v in zip(self.hypotheses, values, strict=True)
+                for name, value in h.named(v).items()
+            }
+            | {
+                f"calibration.{n}": float(a)
+                for n, a in zip(task.calibrated, best[self.effect_count :], strict=True)
+            },
+            clipped(self.overrides_of(values, best[self.effect_count :]), self.spec.ranges),
+            cost,
+            replays,
+            message,
+            iterations=iterations,
+        )
+
+
 class Replayer:
     """Replays and fits on one plant instance."""
 
@@ -432,6 +558,7 @@ class Replayer:
         elif isinstance(task, JointFitTask):
             result = self.joint_fit(task)
         elif isinstance(task, ResidualTask):
+            self.failure_residual = task.failure
             result = self.training_residual(task.overrides)
         else:
             result = self.fit(task)
@@ -445,90 +572,10 @@ class Replayer:
 
     def joint_fit(self, task: JointFitTask) -> FitResult:
         """Refit several hypotheses together (values by ``hypothesis.parameter``)."""
-        hypotheses = [bounded(self.hypotheses[n], self.spec.ranges) for n in task.hypotheses]
-        free = [h.kind == "continuous" for h in hypotheses]
-        starts = [np.array(v, dtype=float) for v in task.start]
-
-        def values_of(u: np.ndarray) -> list[np.ndarray]:
-            values, at = [], 0
-            for h, start, fitted in zip(hypotheses, starts, free, strict=True):
-                if fitted:
-                    values.append(h.from_unit(u[at : at + len(start)]))
-                    at += len(start)
-                else:
-                    values.append(start)
-            return values
-
-        calibrated = task.calibrated
-        effect_count = sum(len(s) for s, fitted in zip(starts, free, strict=True) if fitted)
-
-        def overrides_of(values: list[np.ndarray], a: np.ndarray) -> dict[str, float]:
-            overrides = {
-                name: self.spec.nominal[name] * (1.0 + a_j * task.tolerance)
-                for name, a_j in zip(calibrated, a, strict=True)
-            }
-            for h, v, context in zip(hypotheses, values, task.contexts, strict=True):
-                overrides |= h.to_plant(v, {**self.spec.nominal, **overrides}, context)
-            return overrides
-
-        samples = sum(2 * len(t) for t in self.spec.training.t)
-        seconds = sum(float(t[-1] - t[0]) for t in self.spec.training.t)
-        prior = math.sqrt(samples / max(seconds / EFFECTIVE_SAMPLE_SPACING_S, 1.0))
-
-        def residual(u: np.ndarray) -> np.ndarray:
-            a = u[effect_count:]
-            training = self.training_residual(overrides_of(values_of(u), a))
-            return np.concatenate([training, prior * a])
-
-        u0 = np.concatenate(
-            [
-                np.clip([p.to_unit(x) for p, x in zip(h.parameters, s, strict=True)], 0.0, 1.0)
-                for h, s, fitted in zip(hypotheses, starts, free, strict=True)
-                if fitted
-            ]
-            + [np.zeros(len(calibrated))]
-        )
-        start = self.training_residual(overrides_of(starts, np.zeros(len(calibrated))))
-        self.failure_residual = max(
-            FAILURE_FLOOR, FAILURE_FACTOR * float(np.sqrt(np.mean(start**2)))
-        )
-        best, cost, replays, message = u0, float(np.mean(start**2)), 1, "nothing to refit"
-        iterations = 0
-        if len(u0):
-            lower = np.r_[np.zeros(effect_count), -np.ones(len(calibrated))]
-            upper = np.ones(len(u0))
-            solution = least_squares(
-                residual,
-                u0,
-                bounds=(lower, upper),
-                diff_step=FIT_STEP,
-                max_nfev=JOINT_EVALUATIONS,
-                x_scale=1.0,
-            )
-            found = float(np.sum(solution.fun**2)) / samples
-            if found < cost:
-                best, cost = solution.x, found
-            replays += int(solution.nfev + (solution.njev or 0) * len(u0))
-            message = solution.message
-            iterations = int(solution.njev or 0)
-        values = values_of(best)
-        return FitResult(
-            "+".join(task.hypotheses),
-            {
-                f"{h.name}.{name}": value
-                for h, v in zip(hypotheses, values, strict=True)
-                for name, value in h.named(v).items()
-            }
-            | {
-                f"calibration.{n}": float(a)
-                for n, a in zip(calibrated, best[effect_count:], strict=True)
-            },
-            clipped(overrides_of(values, best[effect_count:]), self.spec.ranges),
-            cost,
-            replays,
-            message,
-            iterations=iterations,
-        )
+        problem = JointProblem(task, self.spec, self.hypotheses)
+        start = self.training_residual(problem.start_overrides())
+        self.failure_residual = failure_residual(start)
+        return problem.solve(self.training_residual, start)
 
     def fit(self, task: FitTask) -> FitResult:
         """Fit a hypothesis by least squares on replays, or by scanning its discrete values."""
@@ -542,10 +589,7 @@ class Replayer:
             residual = self.training_residual(overrides_of(values))
             return float(np.mean(residual**2))
 
-        start = self.training_residual(dict(task.base))
-        self.failure_residual = max(
-            FAILURE_FLOOR, FAILURE_FACTOR * float(np.sqrt(np.mean(start**2)))
-        )
+        self.failure_residual = failure_residual(self.training_residual(dict(task.base)))
 
         if hypothesis.kind == "scan":
             candidates = hypothesis.scan_values(task.context)

@@ -35,6 +35,8 @@ from twin_cosim.gap.floors.evidence import CalibrationBasis, CalibrationFloor, f
 from twin_cosim.gap.which.acceptance import Judging
 from twin_cosim.gap.which.replay import (
     FitResult,
+    JointFitTask,
+    JointProblem,
     ParameterKey,
     Replays,
     ReplaySpec,
@@ -43,6 +45,7 @@ from twin_cosim.gap.which.replay import (
     Timed,
     Uncertainty,
     UncertaintyTask,
+    failure_residual,
     linearised_uncertainty,
 )
 
@@ -319,6 +322,57 @@ class ReplayPool:
             spec,
             lambda sets: self.tasks("uncertainty", [ResidualTask(o) for o in sets]),
         )
+
+    def joint_fit(
+        self,
+        phase: str,
+        task: JointFitTask,
+        hypotheses: dict[str, Hypothesis],
+        beside: list | None = None,
+    ) -> tuple[FitResult, list]:
+        """A joint refit run here, its training residuals on the workers: the start's in one
+        batch with the tasks ``beside`` (their results come back with the fit), each trial
+        point's on its own, and each Jacobian's points as one batch, side by side
+        (:class:`~twin_cosim.gap.which.replay.JointProblem`: the refit a worker makes, number
+        for number). The phase's fits record it with the totals of all its batches."""
+        spec = self.pool.factory  # the workers' recipe: nominal plant, ranges, training data
+        assert isinstance(spec, ReplaySpec)
+        problem = JointProblem(task, spec, hypotheses)
+        wall = time.perf_counter()
+        totals = self.times.phases.get(phase, Phase())
+        before = (totals.replays_run, totals.cache_hits, totals.cpu_s)
+        first = self.tasks(phase, [ResidualTask(problem.start_overrides()), *(beside or [])])
+        failure = failure_residual(first[0])
+        ahead: dict[ParameterKey, np.ndarray] = {}
+
+        def training(overrides: dict[str, float]) -> np.ndarray:
+            kept = ahead.get(spec.key(overrides))
+            if kept is not None:
+                return kept
+            return self.tasks(phase, [ResidualTask(overrides, failure)])[0]
+
+        def jacobian_points(function: Callable, points) -> list:
+            points = list(points)
+            sets = [problem.overrides(u) for u in points]
+            found = self.tasks(phase, [ResidualTask(o, failure) for o in sets])
+            ahead.update((spec.key(o), r) for o, r in zip(sets, found, strict=True))
+            return [function(u) for u in points]
+
+        fit = problem.solve(training, first[0], workers=jacobian_points)
+        totals = self.times.phases[phase]
+        totals.fits.append(
+            {
+                "fit": fit.hypothesis,
+                "replays": fit.replays,
+                "replays_run": totals.replays_run - before[0],
+                "cache_hits": totals.cache_hits - before[1],
+                "iterations": fit.iterations,
+                "search_replays": fit.search_replays,
+                "cpu_s": totals.cpu_s - before[2],
+                "wall_s": time.perf_counter() - wall,
+            }
+        )
+        return fit, first[1:]
 
     def basis(self, base: dict[str, float]) -> CalibrationBasis:
         """Calibration directions around the parameter set ``nominal + base`` (each set's

@@ -689,9 +689,11 @@ class Selector:
         """The accepted effects' parameters: refitted together when that judges better on the
         held-out data than the sequential fit, and their replays (the sequential replay runs
         beside the refit)."""
-        replays, refit = self.pool.tasks(
+        refit, (replays,) = self.pool.joint_fit(
             "joint_refits",
-            [SimulateTask(sequential, with_training=True), self.refit_task(accepted)],
+            self.refit_task(accepted),
+            self.library,
+            [SimulateTask(sequential, with_training=True)],
         )
         joint = refit.overrides
         joint_replays = self.pool.tasks("joint_refits", [SimulateTask(joint, with_training=True)])

@@ -12,13 +12,17 @@ import dataclasses
 import io
 import re
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from scenario_texts import scenario_text
 
 from twin_cosim import cli
 from twin_cosim.gap import settings as diagnosis_settings
+from twin_cosim.gap.location import Location
+from twin_cosim.gap.report.pages import _axis_sections
 from twin_cosim.gap.synth import parse_effect, synthesize
+from twin_cosim.measured import position_label
 from twin_cosim.scenario import load_scenario
 
 EXCITATION = scenario_text(
@@ -175,3 +179,22 @@ def test_a_look_alike_group_is_explained():
     assert "(54.1 % and 50.2 %) differ by less than 10 percentage points" in text
     assert "correlate with the first's at 0.999 (at least 0.9)" in text
     assert "holds the fit of its first, current_lag (current_time_constant 302 us)" in text
+
+
+def test_a_rotor_is_placed_by_regime_and_order_and_a_carriage_by_spans():
+    """An open-loop rotor turns without travel: one section says why no span of an axis is
+    named; a carriage with nothing concentrated gets both span sections, each saying so."""
+
+    def diagnosis(compared: str) -> SimpleNamespace:
+        empty = Location({}, {}, [], {})
+        return SimpleNamespace(
+            context=SimpleNamespace(position_label=position_label(compared, 1e-3)),
+            where=empty,
+            remaining_where=empty,
+        )
+
+    ((title, text),) = _axis_sections(diagnosis("motor_speed"))
+    assert title == "Along the axis" and "turns without travel" in text
+    before, after = _axis_sections(diagnosis("current"))
+    assert before[0].startswith("Before") and "no span stands out" in before[1]
+    assert after[0].startswith("After") and "no span stands out" in after[1]

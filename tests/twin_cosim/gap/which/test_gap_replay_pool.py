@@ -17,8 +17,16 @@ from twin_cosim.gap.floors.evidence import floor_of
 from twin_cosim.gap.floors.noise import Floors
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.which.acceptance import Judging
-from twin_cosim.gap.which.replay import FitTask, Replays, SimulateTask, Timed
+from twin_cosim.gap.which.replay import (
+    FitTask,
+    JointFitTask,
+    Replays,
+    ResidualTask,
+    SimulateTask,
+    Timed,
+)
 from twin_cosim.gap.which.replay_pool import JudgingCache, PhaseTimes, ReplayPool, makespan
+from twin_cosim.plant_model import plant_model
 from twin_cosim.workers import BoundPool, SerialPool
 
 
@@ -103,6 +111,47 @@ def test_each_fit_is_recorded_with_its_replays_and_times(small_spec):
         assert total["replays_run"] == record["replays_run"] + 1 and "fits" not in total
     finally:
         pool.pool.pool.close()
+
+
+def test_a_joint_refit_run_here_is_the_workers_refit_its_jacobian_one_batch(small_spec):
+    """The refit of a Stribeck curve started 25 % low with two calibrated parameters, run by
+    the pool (its residuals as pool tasks) and by a worker alone: the same numbers; each of its
+    Jacobians' four points went out as one batch, beside the sequential replay its start's."""
+    spec = small_spec()
+    task = JointFitTask(
+        ("stribeck",),
+        ((0.15, 0.4),),  # N.m, rad/s: the truth is 0.2 N.m at 0.4 rad/s
+        (dict(DEFAULT_CONTEXT),),
+        ("motor_inertia", "coulomb_friction"),
+        0.03,
+    )
+    library = {h.name: h for h in plant_model("drive2mass").hypotheses}
+    pool = _pool(spec, cache=True)
+    batches: list[list] = []
+    asked = pool.tasks
+
+    def recorded(phase: str, tasks: list) -> list:
+        batches.append(tasks)
+        return asked(phase, tasks)
+
+    pool.tasks = recorded  # type: ignore[method-assign]
+    worker = spec.build()
+    try:
+        fit, (beside,) = pool.joint_fit("joint_refits", task, library, [SimulateTask({})])
+        alone = worker.joint_fit(task)
+    finally:
+        pool.pool.pool.close()
+        worker.close()
+    assert fit == alone
+    assert fit.values["stribeck.stribeck_friction"] == pytest.approx(0.2, rel=0.05)
+    assert isinstance(beside, Replays) and isinstance(batches[0][1], SimulateTask)
+    sizes = [len(b) for b in batches]
+    assert sizes[0] == 2 and sizes.count(4) == fit.iterations >= 1  # 2 effect + 2 calibrated
+    assert all(isinstance(t, ResidualTask) for b in batches for t in b if b is not batches[0])
+    assert sum(sizes) - 1 == fit.replays  # the start, each point and each Jacobian's points
+    (record,) = pool.times.as_dict()["joint_refits"]["fits"]
+    assert record["fit"] == "stribeck" and record["replays"] == fit.replays
+    assert record["iterations"] == fit.iterations and record["wall_s"] > 0
 
 
 # --- the calibration correction: linear, then replayed and re-linearised
