@@ -587,7 +587,7 @@ class MachineLink:
         except ua.UaStatusCodeError:
             self._twin = {}
             return False
-        except (ConnectionError, OSError, asyncio.TimeoutError):
+        except (TimeoutError, ConnectionError, OSError):
             return False
         return True
 
@@ -613,7 +613,7 @@ class MachineLink:
                 )
             except LinkRefused:
                 raise
-            except (OSError, asyncio.TimeoutError, ua.UaError, ConnectionError) as exc:
+            except (TimeoutError, OSError, ua.UaError, ConnectionError) as exc:
                 refusal = _refusal(exc)
                 if refusal:
                     raise LinkRefused(self._refused_text(refusal)) from None
@@ -637,7 +637,7 @@ class MachineLink:
             try:
                 async for event in self._follow(client, sequence, arrays):
                     yield event
-            except (OSError, asyncio.TimeoutError, ua.UaError, ConnectionError) as exc:
+            except (TimeoutError, OSError, ua.UaError, ConnectionError) as exc:
                 yield Notice("lost", f"connection to {self.endpoint} lost ({type(exc).__name__})")
             finally:
                 self._client = None
@@ -664,7 +664,7 @@ class MachineLink:
         while True:
             try:
                 await asyncio.wait_for(self._wake.wait(), self.poll_s)
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 pass  # the poll: notifications may have stopped
             self._wake.clear()
             self.notifications = wake.notifications

@@ -548,7 +548,7 @@ class Watch:
         while True:
             try:
                 event = await asyncio.wait_for(queue.get(), 0.5)
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 self.diagnoses.poll()
                 if self._read_done and queue.empty():
                     event = None

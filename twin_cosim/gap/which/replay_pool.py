@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from twin_cosim.gap.floors.evidence import CalibrationBasis, CalibrationFloor, floor_of
 from twin_cosim.gap.which.acceptance import Judging
@@ -334,7 +335,8 @@ class ReplayPool:
         batch with the tasks ``beside`` (their results come back with the fit), each trial
         point's on its own, and each Jacobian's points as one batch, side by side
         (:class:`~twin_cosim.gap.which.replay.JointProblem`: the refit a worker makes, number
-        for number). The phase's fits record it with the totals of all its batches."""
+        for number, its linear algebra on one BLAS thread as a worker's). The phase's fits record
+        it with the totals of all its batches."""
         spec = self.pool.factory  # the workers' recipe: nominal plant, ranges, training data
         assert isinstance(spec, ReplaySpec)
         problem = JointProblem(task, spec, hypotheses)
@@ -358,7 +360,8 @@ class ReplayPool:
             ahead.update((spec.key(o), r) for o, r in zip(sets, found, strict=True))
             return [function(u) for u in points]
 
-        fit = problem.solve(training, first[0], workers=jacobian_points)
+        with threadpool_limits(limits=1, user_api="blas"):  # as in a worker (workers.py)
+            fit = problem.solve(training, first[0], workers=jacobian_points)
         totals = self.times.phases[phase]
         totals.fits.append(
             {
