@@ -979,12 +979,17 @@ class Selector:
             for (j, _), fit in zip(trials, fits, strict=True)
         ]
         count = len(trials)
-        first = self.pool.tasks(
-            "swap_fits",
-            [SimulateTask(f.overrides, with_training=True) for f in fits]
-            + [self.refit_task(m) for m in models],
-        )
-        sequential, refits = first[:count], first[count:]
+        replays_of_fits = [SimulateTask(f.overrides, with_training=True) for f in fits]
+        if count == 1:  # one refit: its Jacobians' points side by side on the workers
+            refit, sequential = self.pool.joint_fit(
+                "swap_fits", self.refit_task(models[0]), self.library, replays_of_fits
+            )
+            refits = [refit]
+        else:  # one refit a worker
+            first = self.pool.tasks(
+                "swap_fits", replays_of_fits + [self.refit_task(m) for m in models]
+            )
+            sequential, refits = first[:count], first[count:]
         joint = self.pool.tasks(
             "swap_fits", [SimulateTask(r.overrides, with_training=True) for r in refits]
         )

@@ -162,6 +162,11 @@ class SwapPool:
                 results.append(Replays([residual], [residual]))
         return results
 
+    def joint_fit(self, phase: str, task: JointFitTask, hypotheses: dict, beside=None):
+        """A joint refit as the pool runs it: the tasks beside it first, in one batch here."""
+        *replays, fit = self.tasks(phase, [*(beside or []), task])
+        return fit, replays
+
     def basis(self, base: dict[str, float]) -> CalibrationBasis:
         return CalibrationBasis([], np.zeros((2 * SAMPLES, 0)))
 
