@@ -299,7 +299,10 @@ def tracked_parameters(
             if hypothesis.relative_size is not None and nominal is not None:
                 moved = initial.copy()
                 moved[k] += step
-                per_unit = hypothesis.relative_size(moved, nominal) / abs(step)
+                per_unit = abs(
+                    hypothesis.relative_size(moved, nominal)
+                    - hypothesis.relative_size(initial, nominal)
+                ) / abs(step)
             found.append(TrackedParameter(effect, p.name, p.unit, step, per_unit))
     return found
 
