@@ -217,4 +217,12 @@ def test_calibration_sizes():
     assert BY_NAME["backlash_change"].relative_size(np.array([1.22e-6]), NOMINAL) == pytest.approx(
         0.1
     )
-    assert BY_NAME["stribeck"].relative_size is None
+    # a friction torque beside the Coulomb level: its largest torque over that level
+    coulomb = NOMINAL["coulomb_friction"]
+    stribeck = BY_NAME["stribeck"].relative_size(np.array([0.1 * coulomb, 0.5]), NOMINAL)
+    assert stribeck == pytest.approx(0.1)
+    asymmetry = BY_NAME["asymmetric_friction"].relative_size(np.array([-0.1 * coulomb]), NOMINAL)
+    assert asymmetry == pytest.approx(0.1)
+    modulation = BY_NAME["position_friction"].relative_size(np.array([0.06, 0.08]), NOMINAL)
+    assert modulation == pytest.approx(0.1)
+    assert BY_NAME["torque_ripple"].relative_size is None
