@@ -385,7 +385,7 @@ class JointProblem:
     (in tolerances, -1 to 1), the parameter sets they run with, the training residual with the
     calibrated parameters' prior appended, and the solve (:meth:`solve`), run alike in a worker
     and, its residuals on the workers side by side, in the parent
-    (:meth:`~twin_cosim.gap.which.replay_pool.ReplayPool.joint_fit`).
+    (:meth:`~twin_cosim.gap.which.replay_pool.ReplayPool.joint_fits`).
     """
 
     def __init__(

@@ -324,12 +324,28 @@ class ReplayPool:
             lambda sets: self.tasks("uncertainty", [ResidualTask(o) for o in sets]),
         )
 
-    def joint_fit(
+    def joint_fits(
+        self,
+        phase: str,
+        tasks: list[JointFitTask],
+        hypotheses: dict[str, Hypothesis],
+        beside: list | None = None,
+    ) -> tuple[list[FitResult], list]:
+        """Joint refits, and the results of the tasks ``beside`` them: several refits one a
+        worker, in one batch with those tasks; a lone refit run here (:meth:`_joint_fit_here`),
+        its Jacobians' points side by side on the workers."""
+        if len(tasks) == 1:
+            fit, found = self._joint_fit_here(phase, tasks[0], hypotheses, beside or [])
+            return [fit], found
+        found = self.tasks(phase, [*(beside or []), *tasks])
+        return found[len(found) - len(tasks) :], found[: len(found) - len(tasks)]
+
+    def _joint_fit_here(
         self,
         phase: str,
         task: JointFitTask,
         hypotheses: dict[str, Hypothesis],
-        beside: list | None = None,
+        beside: list,
     ) -> tuple[FitResult, list]:
         """A joint refit run here, its training residuals on the workers: the start's in one
         batch with the tasks ``beside`` (their results come back with the fit), each trial
@@ -343,7 +359,7 @@ class ReplayPool:
         wall = time.perf_counter()
         totals = self.times.phases.get(phase, Phase())
         before = (totals.replays_run, totals.cache_hits, totals.cpu_s)
-        first = self.tasks(phase, [ResidualTask(problem.start_overrides()), *(beside or [])])
+        first = self.tasks(phase, [ResidualTask(problem.start_overrides()), *beside])
         failure = failure_residual(first[0])
         ahead: dict[ParameterKey, np.ndarray] = {}
 
@@ -357,6 +373,7 @@ class ReplayPool:
             points = list(points)
             sets = [problem.overrides(u) for u in points]
             found = self.tasks(phase, [ResidualTask(o, failure) for o in sets])
+            ahead.clear()  # the points of the Jacobian before are asked no more
             ahead.update((spec.key(o), r) for o, r in zip(sets, found, strict=True))
             return [function(u) for u in points]
 

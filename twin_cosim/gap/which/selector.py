@@ -689,9 +689,9 @@ class Selector:
         """The accepted effects' parameters: refitted together when that judges better on the
         held-out data than the sequential fit, and their replays (the sequential replay runs
         beside the refit)."""
-        refit, (replays,) = self.pool.joint_fit(
+        (refit,), (replays,) = self.pool.joint_fits(
             "joint_refits",
-            self.refit_task(accepted),
+            [self.refit_task(accepted)],
             self.library,
             [SimulateTask(sequential, with_training=True)],
         )
@@ -735,7 +735,7 @@ class Selector:
         leaders = fitted[: self.settings.joint_candidates]
         if not leaders:
             return []
-        refits = self.pool.tasks(
+        refits, _ = self.pool.joint_fits(
             "joint_screen_fits",
             [self.refit_task(accepted)]
             + [
@@ -744,6 +744,7 @@ class Selector:
                 )
                 for c in leaders
             ],
+            self.library,
         )
         replays = self.pool.tasks(
             "joint_screen_replays", [SimulateTask(r.overrides) for r in refits]
@@ -979,17 +980,12 @@ class Selector:
             for (j, _), fit in zip(trials, fits, strict=True)
         ]
         count = len(trials)
-        replays_of_fits = [SimulateTask(f.overrides, with_training=True) for f in fits]
-        if count == 1:  # one refit: its Jacobians' points side by side on the workers
-            refit, sequential = self.pool.joint_fit(
-                "swap_fits", self.refit_task(models[0]), self.library, replays_of_fits
-            )
-            refits = [refit]
-        else:  # one refit a worker
-            first = self.pool.tasks(
-                "swap_fits", replays_of_fits + [self.refit_task(m) for m in models]
-            )
-            sequential, refits = first[:count], first[count:]
+        refits, sequential = self.pool.joint_fits(
+            "swap_fits",
+            [self.refit_task(m) for m in models],
+            self.library,
+            [SimulateTask(f.overrides, with_training=True) for f in fits],
+        )
         joint = self.pool.tasks(
             "swap_fits", [SimulateTask(r.overrides, with_training=True) for r in refits]
         )
@@ -1037,9 +1033,10 @@ class Selector:
         benefit of the doubt already."""
         if len(accepted) == 1:
             return [(None, start)]
-        refits = self.pool.tasks(
+        refits, _ = self.pool.joint_fits(
             "backward_pass",
             [self.refit_task(accepted[:j] + accepted[j + 1 :]) for j in range(len(accepted))],
+            self.library,
         )
         withouts = self.pool.tasks(
             "backward_pass", [SimulateTask(r.overrides, with_training=True) for r in refits]

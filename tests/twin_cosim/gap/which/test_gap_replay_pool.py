@@ -137,7 +137,7 @@ def test_a_joint_refit_run_here_is_the_workers_refit_its_jacobian_one_batch(smal
     pool.tasks = recorded  # type: ignore[method-assign]
     worker = spec.build()
     try:
-        fit, (beside,) = pool.joint_fit("joint_refits", task, library, [SimulateTask({})])
+        (fit,), (beside,) = pool.joint_fits("joint_refits", [task], library, [SimulateTask({})])
         alone = worker.joint_fit(task)
     finally:
         pool.pool.pool.close()

@@ -162,10 +162,10 @@ class SwapPool:
                 results.append(Replays([residual], [residual]))
         return results
 
-    def joint_fit(self, phase: str, task: JointFitTask, hypotheses: dict, beside=None):
-        """A joint refit as the pool runs it: the tasks beside it first, in one batch here."""
-        *replays, fit = self.tasks(phase, [*(beside or []), task])
-        return fit, replays
+    def joint_fits(self, phase: str, tasks: list, hypotheses: dict, beside=None):
+        """Joint refits as the pool runs them: the tasks beside them first, in one batch here."""
+        found = self.tasks(phase, [*(beside or []), *tasks])
+        return found[len(found) - len(tasks) :], found[: len(found) - len(tasks)]
 
     def basis(self, base: dict[str, float]) -> CalibrationBasis:
         return CalibrationBasis([], np.zeros((2 * SAMPLES, 0)))
