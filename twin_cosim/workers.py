@@ -28,7 +28,10 @@ co-simulation and readies the compiled loop) while the parent prepares its tasks
 several factories in turn (``imap(tasks, factory)``; :class:`BoundPool` is a pool seen as the
 evaluator of one factory): a process builds the new worker at its first task of that factory and
 closes the one before, so a command starts its processes once (``twin compare``: every method's
-campaign, the reference runs and the runs of the tables and figures on one pool).
+campaign, the reference runs and the runs of the tables and figures on one pool). A process pool
+can also give tasks out ahead (:meth:`LocalPool.start`), their results taken later
+(:class:`Started`), so that its workers run them while the parent does work of its own (a
+diagnosis: the nominal twin's calibration directions while it finds the noise).
 
 Nothing outlives a pool. Every pool has a private temp folder (``twin-pool-<parent pid>-*``) that
 holds its workers' temporary files and its stored factories, and that ``close()`` removes (FMUs
@@ -288,6 +291,12 @@ class LocalPool(abc.ABC):
             self._use(factory)
         return self._results(tasks, in_flight)
 
+    def start(self, tasks: list[Any], factory: WorkerFactory) -> Started | None:
+        """Give ``tasks`` out now on ``factory``'s workers, their results to be taken later
+        (:meth:`Started.results`), while this process does other work; None: this pool cannot
+        (a serial pool has no worker but this process)."""
+        return None
+
     @abc.abstractmethod
     def _use(self, factory: WorkerFactory) -> None:
         """Tasks from now on run on ``factory``'s workers."""
@@ -305,6 +314,33 @@ class LocalPool(abc.ABC):
 
     def __exit__(self, *exc_info: object) -> None:
         self.close()
+
+
+class Started:
+    """Tasks given out ahead (:meth:`LocalPool.start`): their results when the caller is ready
+    for them, or their cancellation when it finds it does not need them."""
+
+    def __init__(self, futures: list[Future]) -> None:
+        self.futures = futures
+
+    def results(self) -> Iterator[tuple[int, Any]]:
+        """Yield (task index, result) in order of completion, waiting as :meth:`LocalPool.imap`
+        does (a Ctrl-C or SIGTERM meanwhile is raised between two short waits)."""
+        pending = {future: index for index, future in enumerate(self.futures)}
+
+        def done_within(timeout_s: float) -> set[Future] | None:
+            done, _ = wait(pending, timeout=timeout_s, return_when=FIRST_COMPLETED)
+            return done or None
+
+        while pending:
+            for future in wait_interruptibly(done_within):
+                yield pending.pop(future), future.result()
+
+    def cancel(self) -> None:
+        """Cancel the tasks not begun (those running end, their results unread)."""
+        with deferred_signals():
+            for future in self.futures:
+                future.cancel()
 
 
 class SerialPool(LocalPool):
@@ -529,6 +565,7 @@ class ProcessPool(LocalPool):
         self._factories = 0  # factories stored so far
         self._used = False  # a task was given
         self._running: set[Future] = set()  # tasks given and not yet answered
+        self._started: list[Future] = []  # tasks given out ahead (:meth:`start`)
         self.executor = ProcessPoolExecutor(
             max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
@@ -555,6 +592,15 @@ class ProcessPool(LocalPool):
         path = Path(self.folder) / f"factory-{self._factories}.pickle"
         path.write_bytes(pickle.dumps(factory))
         self._factory, self._factory_file = factory, str(path)
+
+    def start(self, tasks: list[Any], factory: WorkerFactory) -> Started:
+        """Give ``tasks`` out now on ``factory``'s workers (:meth:`LocalPool.start`)."""
+        self._use(factory)
+        self._used = True
+        with deferred_signals():
+            futures = [self.executor.submit(_run_in_process, t, self._factory_file) for t in tasks]
+        self._started.extend(futures)
+        return Started(futures)
 
     def _results(self, tasks: Iterable[Any], in_flight: int | None) -> Iterator[tuple[int, Any]]:
         """The tasks' results in order of completion, on the last factory's workers."""
@@ -587,9 +633,10 @@ class ProcessPool(LocalPool):
 
         Processes that were given no task yet (an error or Ctrl-C while the parent prepared)
         are terminated rather than awaited: their preparation would delay the end for nothing.
-        Processes with tasks still running (Ctrl-C or an error while the parent waited) are
-        killed: their results are not wanted, and a long run would delay the end. A Ctrl-C or
-        SIGTERM during the shutdown is raised once it is complete.
+        Processes with tasks still running (Ctrl-C or an error while the parent waited, tasks
+        started ahead and not awaited) are killed: their results are not wanted, and a long run
+        would delay the end. A Ctrl-C or SIGTERM during the shutdown is raised once it is
+        complete.
         """
         with deferred_signals():
             try:
@@ -598,7 +645,7 @@ class ProcessPool(LocalPool):
                 if not self._used:
                     for process in processes:
                         process.terminate()  # SIGTERM: the worker removes its folder, exits
-                elif any(not future.done() for future in self._running):
+                elif any(not future.done() for future in [*self._running, *self._started]):
                     for process in processes:
                         process.kill()
                 self.executor.shutdown(cancel_futures=True)
@@ -671,7 +718,8 @@ def prepare_campaign_worker() -> None:
 
 
 def prepare_replay_worker() -> None:
-    """:func:`prepare_worker` of a diagnosis's pool: the replays and fits (SciPy's optimizers)."""
+    """:func:`prepare_worker` of a diagnosis's pool: the replays (SciPy's optimizers are
+    imported by the first fit: a worker that only replays never needs them)."""
     prepare_worker(("twin_cosim.gap.which.replay",))
 
 

@@ -185,6 +185,37 @@ def test_one_pool_serves_several_factories_in_turn(private_tmp, workers):
     assert list(private_tmp.iterdir()) == []
 
 
+def test_tasks_started_ahead_run_while_the_parent_works_then_the_pool_goes_on(private_tmp):
+    """A process pool gives started tasks out at once (on their factory's workers), their
+    results taken later; the next imap runs on its own factory; a serial pool starts nothing."""
+    with make_pool(None, 2) as pool:
+        started = pool.start([1, 2, 3], Tagged("ahead"))
+        later = sorted(result for _, result in pool.imap([4, 5], Tagged("b")))
+        ahead = sorted(result for _, result in started.results())
+        cancelled = pool.start(list(range(50)), Tagged("c"))
+        cancelled.cancel()
+    assert [(tag, task) for tag, task, _ in ahead] == [("ahead", 1), ("ahead", 2), ("ahead", 3)]
+    assert [(tag, task) for tag, task, _ in later] == [("b", 4), ("b", 5)]
+    assert sum(f.cancelled() for f in cancelled.futures) > 0  # not all had begun
+    assert list(private_tmp.iterdir()) == []
+    with make_pool(Tagged("a"), 1) as serial:
+        assert serial.start([1], Tagged("ahead")) is None
+
+
+def test_a_replay_worker_starts_without_scipy():
+    """SciPy is imported where a fit runs: a worker that only replays never loads it."""
+    code = (
+        "import sys\n"
+        "from twin_cosim.workers import prepare_replay_worker\n"
+        "prepare_replay_worker()\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] == 'scipy'))\n"
+    )
+    found = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    )
+    assert found.stdout.strip() == "[]"
+
+
 def test_tasks_are_given_until_in_flight_are_out():
     pending = enumerate("abcde")
     assert list(tasks_to_give(pending, 1, 3)) == [(0, "a"), (1, "b")]

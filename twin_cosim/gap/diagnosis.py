@@ -65,8 +65,14 @@ from twin_cosim.gap.location import Location, locate
 from twin_cosim.gap.settings import DiagnosisSettings
 from twin_cosim.gap.verdict import Remaining, remaining_of, verdict_text
 from twin_cosim.gap.which.acceptance import Judging
-from twin_cosim.gap.which.replay import TRAINING_CACHE_BYTES, Replays, ReplaySpec, TrainingData
-from twin_cosim.gap.which.replay_pool import JudgingCache, ReplayPool
+from twin_cosim.gap.which.replay import (
+    TRAINING_CACHE_BYTES,
+    JudgingSpec,
+    Replays,
+    ReplaySpec,
+    TrainingData,
+)
+from twin_cosim.gap.which.replay_pool import JudgingCache, ReplayPool, calibration_moves
 from twin_cosim.gap.which.selector import Round, Selection, Selector, Swap
 from twin_cosim.measured import MeasuredRun
 from twin_cosim.plant import Plant
@@ -321,7 +327,15 @@ def _diagnose(
     """:func:`diagnose` with its replays on ``pool``."""
     cpu_start = time.process_time()
     context = build_context(scenario, measured, holdout, fmu, settings)
+    calibrated = [n for n in plant_model(context.model).calibrated if n in context.nominal]
+    ahead = pool.start(  # the first calibration directions, while this process finds the noise
+        calibration_moves(context.nominal, {}, calibrated, settings.calibration_tolerance),
+        JudgingSpec(context.judging_scenarios, str(context.fmu), context.nominal, context.ranges),
+    )
     noise, nominal, start = _noise_stage(context)
+    if ahead is not None and nominal != context.nominal:  # the noise model moved the twin
+        ahead.cancel()
+        ahead = None
     resolution = estimate_resolution(np.concatenate([r.x for r in context.train]))
     train0 = training_residuals(context, start.training)
     floors = noise_floors(
@@ -351,7 +365,8 @@ def _diagnose(
             [n for n in plant_model(context.model).calibrated if n in nominal],
             judging,
             settings.calibration_tolerance,
-            cache=JudgingCache(spec.key, spec.training_in_judging()) if replay_cache else None,
+            cache=JudgingCache.of(spec) if replay_cache else None,
+            ahead=ahead,
         ),
         {
             h.name: h

@@ -48,7 +48,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 REGIMES = ("standstill", "breakaway", "acceleration", "constant_velocity", "reversal")
 STANDSTILL, BREAKAWAY, ACCELERATION, CONSTANT_VELOCITY, REVERSAL = range(len(REGIMES))
@@ -168,6 +167,8 @@ def classify_open_loop(t: np.ndarray, speed: np.ndarray, drive: np.ndarray) -> n
     ValueError
         When the arrays are not 1-D of one length, or hold fewer than two samples.
     """
+    from scipy.ndimage import uniform_filter1d  # here: the replay workers import this module
+
     t, speed, drive = (np.asarray(a, dtype=float) for a in (t, speed, drive))
     if t.ndim != 1 or speed.shape != t.shape or drive.shape != t.shape or len(t) < 2:
         raise ValueError("t, speed and drive must be 1-D arrays of one length, 2 or more")

@@ -51,7 +51,6 @@ from functools import cached_property
 from statistics import NormalDist
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from twin_cosim.gap.data.residuals import Residuals
 
@@ -148,6 +147,8 @@ class CalibrationBasis:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Coefficients a (tolerances, within ``bounds``: |a| <= 1 unless told) and what the
         best correction leaves of r."""
+        from scipy.optimize import lsq_linear  # here: the replay workers import this module
+
         if self.directions.shape[1] == 0:
             return np.zeros(0), residual
         q, r = self._factors

@@ -1,7 +1,9 @@
 """Replays of a scenario on the twin, and hypothesis fits on them, done by pool workers.
 
 A :class:`ReplaySpec` (the scenarios, numbers and the training data: it pickles) builds a
-:class:`Replayer` once per worker process: one plant instance, reset for every replay. Tasks:
+:class:`Replayer` once per worker process: one plant instance, reset for every replay. A
+:class:`JudgingSpec` (no training data) builds a :class:`JudgingReplayer`, which replays the
+judging scenarios alone: the replays started before the noise floors are known. Tasks:
 
 - :class:`SimulateTask`: replay the judging scenarios (the training scenario first when asked)
   with some FMU parameters; returns the records;
@@ -25,6 +27,9 @@ residual / sigma_i (sigma: the noise floors), over the training samples only; a 
 fit stops at the end of the training window. For an open-loop run the second signal is the motor
 speed (:attr:`TrainingData.compared`), whose floor sigma_i then is in rad/s.
 
+SciPy's optimizers are imported where a fit runs: a worker that only replays (a diagnosis whose
+gap is not significant asks for nothing else) starts without SciPy, half the CPU of its start.
+
 Every parameter set is clipped into the FMU's variable ranges before it reaches the FMU, so that
 nothing derived from data can be refused by the plant; a replay that fails anyway scores ten
 times the residual of the fit's starting point (at least 1e3 per sample), never better than a
@@ -43,7 +48,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import differential_evolution, least_squares
 
 from twin_cosim.cosim import RunAborted, run_scenario
 from twin_cosim.gap.data.residuals import anchored
@@ -320,6 +324,34 @@ class FitResult:
 
 
 @dataclass(frozen=True)
+class JudgingSpec:
+    """Recipe of a worker that replays the judging scenarios alone (:class:`SimulateTask`
+    without training): the replays a diagnosis starts before its noise floors, and so its
+    :class:`ReplaySpec`, are known.
+
+    Attributes
+    ----------
+    judging : list of Scenario
+        The distinct scenarios the held-out runs follow.
+    fmu : str
+        Plant FMU.
+    nominal : dict
+        Nominal FMU parameters of the twin.
+    ranges : dict
+        (min, max) of every FMU parameter, from the variable table.
+    """
+
+    judging: list[Scenario]
+    fmu: str
+    nominal: dict[str, float]
+    ranges: dict[str, tuple[float, float]]
+
+    def build(self) -> JudgingReplayer:
+        """The worker."""
+        return JudgingReplayer(self)
+
+
+@dataclass(frozen=True)
 class ReplaySpec:
     """Recipe of a replay worker.
 
@@ -457,6 +489,8 @@ class JointProblem:
         training residual from ``training_residual`` (FMU parameters on top of the nominal),
         the Jacobian's points through the map-like ``workers`` (scipy's; None: one by one);
         the start kept when nothing beats it."""
+        from scipy.optimize import least_squares  # where a fit runs (module docstring)
+
         task = self.task
         best, cost, replays, message = self.u0, float(np.mean(start**2)), 1, "nothing to refit"
         iterations = 0
@@ -497,16 +531,12 @@ class JointProblem:
         )
 
 
-class Replayer:
-    """Replays and fits on one plant instance."""
+class JudgingReplayer:
+    """Replays of the judging scenarios on one plant instance (:class:`JudgingSpec`)."""
 
-    def __init__(self, spec: ReplaySpec) -> None:
+    def __init__(self, spec: JudgingSpec | ReplaySpec) -> None:
         self.spec = spec
-        self.hypotheses = {h.name: h for h in plant_model(spec.model).hypotheses}
         self.plant = Plant(Path(spec.fmu))
-        self.failure_residual = FAILURE_FLOOR
-        self.training_cut = [cut(s, spec.training.end) for s in spec.training_scenarios]
-        self.residuals: OrderedDict[ParameterKey, np.ndarray] = OrderedDict()
         self.cache_hits = 0  # training replays answered by the cache, over the worker's life
         self.replays_run = 0  # replays run, over the worker's life
 
@@ -515,6 +545,49 @@ class Replayer:
         parameters = clipped({**self.spec.nominal, **overrides}, self.spec.ranges)
         self.replays_run += 1
         return run_scenario(self.plant, scenario, plant_overrides=parameters)
+
+    def simulate(self, task: SimulateTask) -> Replays:
+        """The judging scenarios' replays."""
+        if task.with_training:
+            raise ValueError("a replay of the training scenarios needs a ReplaySpec's worker")
+        return Replays(None, [self.replay(s, task.overrides) for s in self.spec.judging])
+
+    def answer(self, task: Any) -> Any:
+        """The task's result."""
+        if not isinstance(task, SimulateTask):
+            raise TypeError(f"a judging replayer runs SimulateTask only, not {type(task).__name__}")
+        return self.simulate(task)
+
+    def __call__(self, task: Any) -> Timed:
+        """The task's result, the CPU and wall time it took, the replays it ran and those the
+        cache answered."""
+        start, wall = time.process_time(), time.perf_counter()
+        run, hits = self.replays_run, self.cache_hits
+        result = self.answer(task)
+        return Timed(
+            result,
+            time.process_time() - start,
+            time.perf_counter() - wall,
+            self.replays_run - run,
+            self.cache_hits - hits,
+        )
+
+    def close(self) -> None:
+        """Free the plant."""
+        self.plant.close()
+
+
+class Replayer(JudgingReplayer):
+    """Replays and fits on one plant instance."""
+
+    spec: ReplaySpec
+
+    def __init__(self, spec: ReplaySpec) -> None:
+        super().__init__(spec)
+        self.hypotheses = {h.name: h for h in plant_model(spec.model).hypotheses}
+        self.failure_residual = FAILURE_FLOOR
+        self.training_cut = [cut(s, spec.training.end) for s in spec.training_scenarios]
+        self.residuals: OrderedDict[ParameterKey, np.ndarray] = OrderedDict()
 
     def simulate(self, task: SimulateTask) -> Replays:
         """The judging scenarios' replays (and the training scenario's when asked)."""
@@ -548,27 +621,16 @@ class Replayer:
                 self.residuals.popitem(last=False)
         return residual
 
-    def __call__(self, task: SimulateTask | FitTask | JointFitTask | ResidualTask) -> Timed:
-        """The task's result, the CPU and wall time it took, the replays it ran and those the
-        cache answered."""
-        start, wall = time.process_time(), time.perf_counter()
-        run, hits = self.replays_run, self.cache_hits
+    def answer(self, task: SimulateTask | FitTask | JointFitTask | ResidualTask) -> Any:
+        """The task's result."""
         if isinstance(task, SimulateTask):
-            result = self.simulate(task)
-        elif isinstance(task, JointFitTask):
-            result = self.joint_fit(task)
-        elif isinstance(task, ResidualTask):
+            return self.simulate(task)
+        if isinstance(task, JointFitTask):
+            return self.joint_fit(task)
+        if isinstance(task, ResidualTask):
             self.failure_residual = task.failure
-            result = self.training_residual(task.overrides)
-        else:
-            result = self.fit(task)
-        return Timed(
-            result,
-            time.process_time() - start,
-            time.perf_counter() - wall,
-            self.replays_run - run,
-            self.cache_hits - hits,
-        )
+            return self.training_residual(task.overrides)
+        return self.fit(task)
 
     def joint_fit(self, task: JointFitTask) -> FitResult:
         """Refit several hypotheses together (values by ``hypothesis.parameter``)."""
@@ -579,6 +641,8 @@ class Replayer:
 
     def fit(self, task: FitTask) -> FitResult:
         """Fit a hypothesis by least squares on replays, or by scanning its discrete values."""
+        from scipy.optimize import least_squares  # where a fit runs (module docstring)
+
         hypothesis = bounded(self.hypotheses[task.hypothesis], self.spec.ranges)
         nominal = {**self.spec.nominal, **task.base}
 
@@ -654,6 +718,8 @@ class Replayer:
         it. Three-parameter hypotheses (the nearly linear lead error) start from the previous
         fit or their start values.
         """
+        from scipy.optimize import differential_evolution  # where a fit runs (module docstring)
+
         start, warm = start_unit(hypothesis, previous)
         generations = WARM_GENERATIONS if warm else GLOBAL_GENERATIONS
         if not searches(hypothesis):
@@ -677,10 +743,6 @@ class Replayer:
             tol=1e-3,
         )
         return np.clip(search.x, 0.0, 1.0), count
-
-    def close(self) -> None:
-        """Free the plant."""
-        self.plant.close()
 
 
 def linearised_uncertainty(
@@ -721,10 +783,14 @@ def linearised_uncertainty(
     nominal = {**spec.nominal, **plain}
     starts = [np.array(v, dtype=float) for v in task.values]
     free = [h.kind == "continuous" for h in bounded_hypotheses]
-    units = [
-        np.clip([p.to_unit(x) for p, x in zip(h.parameters, v, strict=True)], 0.0, 1.0)
+    unclipped = [
+        np.array([p.to_unit(x) for p, x in zip(h.parameters, v, strict=True)])
         for h, v in zip(bounded_hypotheses, starts, strict=True)
     ]
+    units = [np.clip(u, 0.0, 1.0) for u in unclipped]
+    # An effect not moved keeps its fitted values (the parameter sets the model's replays ran
+    # with), not their round trip through the unit scale, where they lie within its bounds.
+    exact = [np.array_equal(u, c) for u, c in zip(unclipped, units, strict=True)]
     columns = [
         (j, k)
         for j, h in enumerate(bounded_hypotheses)
@@ -744,7 +810,9 @@ def linearised_uncertainty(
         for j, (h, context) in enumerate(zip(bounded_hypotheses, task.contexts, strict=True)):
             values = starts[j]
             if free[j]:
-                values = h.from_unit(z[at : at + len(values)])
+                part = z[at : at + len(values)]
+                if not (exact[j] and np.array_equal(part, units[j])):  # moved: on the unit scale
+                    values = h.from_unit(part)
                 at += len(values)
             overrides |= h.to_plant(values, {**spec.nominal, **overrides}, context)
         return clipped(overrides, spec.ranges)
@@ -841,6 +909,8 @@ def profile_start(hypothesis: Hypothesis, residual_of_unit) -> tuple[np.ndarray,
     numpy.ndarray, int
         The start on the unit scale and the replays the profile took.
     """
+    from scipy.optimize import least_squares  # where a fit runs (module docstring)
+
     shape = shape_index(hypothesis)
     level = 1 - shape
     initial = np.clip(hypothesis.initial_unit(), 0.0, 1.0)

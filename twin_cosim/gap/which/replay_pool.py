@@ -9,7 +9,9 @@ linear correction leaves a gap; and replays a model with its best calibration co
 Replays of the judging runs by parameter set (:class:`JudgingCache`): a replay is deterministic,
 so a parameter set asked for again (the sequential model a joint refit is judged against, the
 candidate replay of the accepted effect, a calibration direction of a model seen before) is
-answered with the records of its first replay instead of a pool task.
+answered with the records of its first replay instead of a pool task; so is the training
+residual of a parameter set whose training replays it keeps (a time split's judging replays hold
+them: the uncertainty's calibrated columns are the calibration directions' sets).
 
 Where the time goes: wall seconds, pool tasks, replays and CPU per phase. Wall time on shared
 cores says as much about the other load as about the diagnosis, so each pool task also reports
@@ -48,16 +50,21 @@ from twin_cosim.gap.which.replay import (
     UncertaintyTask,
     failure_residual,
     linearised_uncertainty,
+    normalised_residual,
 )
 
 if TYPE_CHECKING:
     from twin_cosim.plant_model import Hypothesis
-    from twin_cosim.workers import BoundPool
+    from twin_cosim.run_record import RunRecord
+    from twin_cosim.workers import BoundPool, Started
 
 Progress = Callable[[int], None]
 # Bytes of judging replays the parent keeps (16 of the 12.4 s of scenarios/diagnosis.yaml, 3.6
 # MB each): the repeats of a diagnosis come within a few batches.
 JUDGING_CACHE_BYTES = 64 * 2**20
+# Bytes of training residuals the parent keeps (0.4 MB each on scenarios/diagnosis.yaml): a
+# model's calibration directions (its uncertainty's columns) outlive the records of later models.
+RESIDUAL_CACHE_BYTES = 64 * 2**20
 
 REFINEMENTS = 2  # re-linearisations of a calibration correction, at most
 REFINEMENT_GAIN = 0.05  # the least relative cut of what is left that earns a further one
@@ -166,7 +173,8 @@ def _record_bytes(replays: Replays) -> int:
 @dataclass
 class JudgingCache:
     """Replays of :class:`~twin_cosim.gap.which.replay.SimulateTask` by the parameter set they
-    ran with, the latest kept up to :data:`JUDGING_CACHE_BYTES`.
+    ran with, the latest kept up to :data:`JUDGING_CACHE_BYTES`; and the training residuals of
+    those that hold the training replays, the latest kept up to :data:`RESIDUAL_CACHE_BYTES`.
 
     Parameters
     ----------
@@ -176,16 +184,31 @@ class JudgingCache:
     training_in_judging : list of int or None
         Per training scenario the index of the same judging scenario (a time split: the
         training replays are judging replays), or None.
+    training_residual : callable or None
+        The normalised training residual of the training replays (None: none kept).
     size_bytes : int
         Bytes of records kept.
     """
 
     key: Callable[[dict[str, float]], ParameterKey]
     training_in_judging: list[int] | None
+    training_residual: Callable[[list[RunRecord]], np.ndarray] | None = None
     size_bytes: int = JUDGING_CACHE_BYTES
     entries: OrderedDict[tuple[ParameterKey, bool], Replays] = field(
         default_factory=OrderedDict, repr=False
     )
+    residuals: OrderedDict[ParameterKey, np.ndarray] = field(
+        default_factory=OrderedDict, repr=False
+    )
+
+    @classmethod
+    def of(cls, spec: ReplaySpec) -> JudgingCache:
+        """The cache of the replays of ``spec``'s workers, with their training residuals."""
+        return cls(
+            spec.key,
+            spec.training_in_judging(),
+            lambda records: normalised_residual(records, spec.training),
+        )
 
     def get(self, task: SimulateTask) -> Replays | None:
         """The replays of the task's parameter set when kept (with the training replays when
@@ -198,17 +221,56 @@ class JudgingCache:
             self.entries.move_to_end((key, with_training))
             if not task.with_training:
                 return Replays(None, found.judging)
-            if found.training is not None:
-                return found
-            if self.training_in_judging is not None:
-                return Replays([found.judging[i] for i in self.training_in_judging], found.judging)
+            training = self._training(found)
+            if training is not None:
+                return Replays(training, found.judging)
         return None
 
+    def residual(self, overrides: dict[str, float]) -> np.ndarray | None:
+        """The normalised training residual of the parameter set ``nominal + overrides`` when
+        kept, else None."""
+        key = self.key(overrides)
+        found = self.residuals.get(key)
+        if found is None:
+            return None
+        self.residuals.move_to_end(key)
+        return found.copy()
+
     def put(self, task: SimulateTask, replays: Replays) -> None:
-        """Keep the replays of the task's parameter set."""
-        self.entries[(self.key(task.overrides), task.with_training)] = replays
+        """Keep the replays of the task's parameter set, and their training residual when they
+        hold the training replays."""
+        key = self.key(task.overrides)
+        self.entries[(key, task.with_training)] = replays
         while sum(map(_record_bytes, self.entries.values())) > self.size_bytes:
             self.entries.popitem(last=False)
+        training = self._training(replays)
+        if self.training_residual is None or training is None or key in self.residuals:
+            return
+        self.residuals[key] = self.training_residual(training)
+        while sum(r.nbytes for r in self.residuals.values()) > RESIDUAL_CACHE_BYTES:
+            self.residuals.popitem(last=False)
+
+    def _training(self, replays: Replays) -> list[RunRecord] | None:
+        """The training replays among ``replays`` (a time split's are judging replays), or
+        None."""
+        if replays.training is not None:
+            return replays.training
+        if self.training_in_judging is not None:
+            return [replays.judging[i] for i in self.training_in_judging]
+        return None
+
+
+def calibration_moves(
+    nominal: dict[str, float], base: dict[str, float], calibrated: list[str], tolerance: float
+) -> list[SimulateTask]:
+    """The replays of the calibration directions around the parameter set ``nominal + base``:
+    each calibrated parameter moved by one relative ``tolerance`` up, then down."""
+    current = {**nominal, **base}
+    return [
+        SimulateTask({**base, name: current[name] * (1.0 + sign * tolerance)})
+        for name in calibrated
+        for sign in (1.0, -1.0)
+    ]
 
 
 def _replays_of(result: FitResult | Replays | np.ndarray) -> int:
@@ -243,6 +305,9 @@ class ReplayPool:
         The calibration directions of each parameter set asked for.
     cache : JudgingCache or None
         The judging replays kept by parameter set (None: every replay task runs).
+    ahead : Started or None
+        The calibration directions around the nominal twin (:func:`calibration_moves` with
+        nothing on top), started on the pool before it was made (None: none were).
     """
 
     pool: BoundPool
@@ -254,18 +319,21 @@ class ReplayPool:
     times: PhaseTimes = field(default_factory=PhaseTimes)
     bases: dict[tuple, CalibrationBasis] = field(default_factory=dict, repr=False)
     cache: JudgingCache | None = None
+    ahead: Started | None = None
 
-    def tasks(self, phase: str, tasks: list) -> list:
+    def tasks(self, phase: str, tasks: list, started: Started | None = None) -> list:
         """Results of tasks on the pool, in task order, reporting each completion; the time
         they took and the replays they asked for go to ``phase``. A replay task whose
         parameter set was replayed before (or earlier in the batch) is answered from the
-        cache."""
+        cache, and so is a residual task whose training replays it keeps. ``started``: the
+        tasks were all given out already (:meth:`~twin_cosim.workers.LocalPool.start`)."""
         results: list = [None] * len(tasks)
         cpu = [0.0] * len(tasks)
-        sent, repeats = self._to_run(tasks, results)
+        sent, repeats = (list(range(len(tasks))), []) if started else self._to_run(tasks, results)
+        stream = started.results() if started else self.pool.imap([tasks[i] for i in sent])
         fits: dict[int, dict[str, Any]] = {}
         with self.times.timed(phase, len(tasks)) as totals:
-            for j, timed in self.pool.imap([tasks[i] for i in sent]):
+            for j, timed in stream:
                 i = sent[j]
                 results[i], cpu[i] = timed.result, timed.cpu_s
                 totals.replays_run += timed.replays_run
@@ -292,12 +360,15 @@ class ReplayPool:
 
     def _to_run(self, tasks: list, results: list) -> tuple[list[int], list[tuple[int, int]]]:
         """The indices of the tasks to send to the pool, and (index, index of the same task
-        sent) of replay tasks repeated within the batch; the replay tasks the cache answers get
-        their results in ``results`` now."""
+        sent) of replay tasks repeated within the batch; the replay and residual tasks the cache
+        answers get their results in ``results`` now."""
         sent: list[int] = []
         repeats: list[tuple[int, int]] = []
         first: dict[tuple[ParameterKey, bool], int] = {}
         for i, task in enumerate(tasks):
+            if isinstance(task, ResidualTask) and (kept := self._kept_residual(task)) is not None:
+                results[i] = kept
+                continue
             if self.cache is None or not isinstance(task, SimulateTask):
                 sent.append(i)
                 continue
@@ -310,6 +381,22 @@ class ReplayPool:
                 first[key] = i
                 sent.append(i)
         return sent, repeats
+
+    def keep(self, overrides: dict[str, float], replays: Replays) -> None:
+        """Keep ``replays``, made elsewhere, as those of the parameter set ``nominal +
+        overrides`` (the nominal twin's, replayed before the pool's work): asked for again,
+        they answer as the pool's own would."""
+        if self.cache is not None:
+            self.cache.put(
+                SimulateTask(overrides, with_training=replays.training is not None), replays
+            )
+
+    def _kept_residual(self, task: ResidualTask) -> np.ndarray | None:
+        """The training residual of a parameter set whose training replays were run as a replay
+        task (a time split's judging replays hold them: a calibration direction, a candidate),
+        or None. A replay is deterministic and the training scenario's replay the start of the
+        whole run's, so this is the residual a worker would return, number for number."""
+        return None if self.cache is None else self.cache.residual(task.overrides)
 
     def uncertainty(self, task: UncertaintyTask, hypotheses: dict[str, Hypothesis]) -> Uncertainty:
         """What the training data leave uncertain in a model
@@ -403,13 +490,9 @@ class ReplayPool:
         return self.bases[key]
 
     def _new_basis(self, base: dict[str, float]) -> CalibrationBasis:
-        current = {**self.nominal, **base}
-        moves = [
-            {**base, name: current[name] * (1.0 + sign * self.tolerance)}
-            for name in self.calibrated
-            for sign in (1.0, -1.0)
-        ]
-        replays = self.tasks("calibration_directions", [SimulateTask(m) for m in moves])
+        moves = calibration_moves(self.nominal, base, self.calibrated, self.tolerance)
+        started, self.ahead = (self.ahead, None) if not base else (None, self.ahead)
+        replays = self.tasks("calibration_directions", moves, started)
         columns = []
         for i in range(0, len(moves), 2):
             up = self.judging.vector(self.judging.residuals(replays[i]))

@@ -408,6 +408,7 @@ class Selector:
         remaining = list(settings.hypotheses or self.library)
         starts: dict[str, tuple[float, ...]] = {}
         fresh = False  # the model refitted cold since it last changed
+        self.pool.keep(base, start)
         while True:
             count = len(accepted)
             base, replays, starts = self.forward(accepted, rounds, base, replays, remaining, starts)

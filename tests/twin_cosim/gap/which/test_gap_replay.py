@@ -201,3 +201,34 @@ def test_the_linearised_uncertainty_of_a_level_is_one_over_its_sensitivity():
     spread = deviation * width  # N.m
     assert low == pytest.approx(0.6 - 1.96 * spread, abs=0.2 * spread)
     assert high == pytest.approx(0.6 + 1.96 * spread, abs=0.2 * spread)
+
+
+def test_the_uncertainty_asks_for_the_models_own_sets_where_nothing_of_it_moves():
+    """The model's residual and its calibrated columns run with the effect's fitted values
+    exactly (the sets of its replays and calibration directions, which a cache answers), not
+    their round trip through the log unit scale; only the effect's own columns move them."""
+    stribeck = BY_NAME["stribeck"]
+    fitted = (0.1994052256439948, 0.3995573699235268)  # N.m, rad/s
+    speed = stribeck.parameters[1]
+    assert speed.from_unit(speed.to_unit(fitted[1])) != fitted[1]  # not exact on the way back
+    nominal = {"coulomb_friction": 0.6, "motor_inertia": 3e-4}  # N.m, kg.m^2
+    t = np.linspace(0.0, 1.0, 101)  # s
+    spec = SimpleNamespace(nominal=nominal, ranges={}, training=SimpleNamespace(t=[t]))
+    asked: list[dict[str, float]] = []
+
+    def residuals(sets: list[dict[str, float]]) -> list[np.ndarray]:
+        asked.extend(sets)
+        return [np.ones(2 * t.size) for _ in sets]
+
+    model = stribeck.to_plant(np.array(fitted), nominal, dict(DEFAULT_CONTEXT))
+    task = UncertaintyTask(
+        model, ("stribeck",), (fitted,), (dict(DEFAULT_CONTEXT),), ("motor_inertia",), 0.03
+    )
+    linearised_uncertainty(task, BY_NAME, spec, residuals)
+    assert len(asked) == 1 + 2 * 3  # the model, both sides of two effect columns and one more
+    ran = [{**nominal, **s} for s in asked]  # the parameter sets the replays run with
+    assert ran[0] == {**nominal, **model}
+    assert ran[5:] == [
+        {**nominal, **model, "motor_inertia": 3e-4 * (1 + a * 0.03)} for a in (1, -1)
+    ]
+    assert all(s["stribeck_speed"] != fitted[1] for s in asked[3:5])  # the speed's column

@@ -1,10 +1,12 @@
 """Where a diagnosis' time goes (phase totals, each fit's figures and the wall time of a batch
-on idle workers); the judging replays answered by the cache as a fresh replay; and the
+on idle workers); the judging replays and training residuals answered by the cache as fresh
+ones; and the
 calibration correction of a model, linear and then replayed, on a stand-in pool whose held-out
 residual is an analytic sine."""
 
 from __future__ import annotations
 
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
@@ -25,9 +27,15 @@ from twin_cosim.gap.which.replay import (
     SimulateTask,
     Timed,
 )
-from twin_cosim.gap.which.replay_pool import JudgingCache, PhaseTimes, ReplayPool, makespan
+from twin_cosim.gap.which.replay_pool import (
+    JudgingCache,
+    PhaseTimes,
+    ReplayPool,
+    calibration_moves,
+    makespan,
+)
 from twin_cosim.plant_model import plant_model
-from twin_cosim.workers import BoundPool, SerialPool
+from twin_cosim.workers import BoundPool, SerialPool, Started
 
 
 def test_phase_times_add_up():
@@ -63,7 +71,7 @@ def _pool(spec, cache: bool) -> ReplayPool:
         [],
         judging,
         0.03,
-        cache=JudgingCache(spec.key, spec.training_in_judging()) if cache else None,
+        cache=JudgingCache.of(spec) if cache else None,
     )
 
 
@@ -91,6 +99,30 @@ def test_a_replay_asked_again_is_answered_by_the_cache_as_a_fresh_replay(small_s
         assert (phase["tasks"], phase["replays"]) == (5, 5)
         assert (phase["replays_run"], phase["cache_hits"]) == (2, 3)
         assert fresh.times.as_dict()["replays"]["replays_run"] == 5
+    finally:
+        cached.pool.pool.close()
+        fresh.pool.pool.close()
+
+
+def test_a_residual_of_a_replayed_set_is_answered_by_the_cache_as_the_workers(small_spec):
+    """A time split: the training residual of a parameter set whose judging replay the pool ran
+    (or was handed, as the nominal twin's) is the worker's own, number for number, without a
+    replay; a set not replayed runs."""
+    spec = small_spec()
+    cached, fresh = _pool(spec, cache=True), _pool(spec, cache=False)
+    try:
+        level = {"stribeck_friction": 0.15, "stribeck_speed": 0.5}
+        other = {**level, "stribeck_friction": 0.1}
+        (nominal,) = fresh.tasks("replays", [SimulateTask({}, with_training=True)])
+        cached.keep({}, nominal)
+        cached.tasks("replays", [SimulateTask(level)])
+        asked = [ResidualTask(level), ResidualTask({}), ResidualTask(other)]
+        answers = cached.tasks("residuals", asked)
+        reference = fresh.tasks("residuals", asked)
+        for got, expected in zip(answers, reference, strict=True):
+            assert np.array_equal(got, expected)
+        phase = cached.times.as_dict()["residuals"]
+        assert (phase["replays"], phase["replays_run"], phase["cache_hits"]) == (3, 1, 2)
     finally:
         cached.pool.pool.close()
         fresh.pool.pool.close()
@@ -250,3 +282,30 @@ def test_a_gap_the_linear_correction_already_explains_is_not_replayed_further():
     assert floor.left < threshold
     # the two calibration directions and the corrected replay, no re-linearisation
     assert len(replay_pool.pool.asked) - asked == 3
+
+
+def test_calibration_directions_started_ahead_make_the_nominal_basis_without_a_replay():
+    """The nominal twin's directions given out before the pool was made (while the parent found
+    the noise): the same basis as replayed by the pool, counted once, nothing asked again."""
+    measured = _output(1.02)
+    fresh = ReplayPool(_SinePool(measured), {"stiffness": 1.0}, ["stiffness"], _SineJudging(), 0.03)
+    futures = []
+    for task in calibration_moves({"stiffness": 1.0}, {}, ["stiffness"], 0.03):
+        future: Future = Future()
+        residual = measured - _output(task.overrides["stiffness"])
+        future.set_result(Timed(Replays(None, [residual]), 0.1, replays_run=1))
+        futures.append(future)
+    ahead = ReplayPool(
+        _SinePool(measured),
+        {"stiffness": 1.0},
+        ["stiffness"],
+        _SineJudging(),
+        0.03,
+        ahead=Started(futures),
+    )
+    assert np.array_equal(ahead.basis({}).directions, fresh.basis({}).directions)
+    assert ahead.pool.asked == [] and len(fresh.pool.asked) == 2
+    phase = ahead.times.as_dict()["calibration_directions"]
+    assert (phase["tasks"], phase["replays"], phase["replays_run"]) == (2, 2, 2)
+    ahead.basis({"stiffness": 1.01})  # another model's directions: replayed on the pool
+    assert len(ahead.pool.asked) == 2
