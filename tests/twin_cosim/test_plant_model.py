@@ -226,3 +226,14 @@ def test_calibration_sizes():
     modulation = BY_NAME["position_friction"].relative_size(np.array([0.06, 0.08]), NOMINAL)
     assert modulation == pytest.approx(0.1)
     assert BY_NAME["torque_ripple"].relative_size is None
+
+
+def test_the_emps_friction_effects_are_sized_against_its_calibrated_friction():
+    """The same rule on the EMPS axis: a Stribeck rise over its Coulomb level, the direction
+    asymmetry's two parts over the Coulomb and viscous levels they modulate."""
+    emps = {h.name: h for h in plant_model("emps").hypotheses}
+    nominal = {"coulomb_friction": 20.0, "viscous_friction": 200.0}  # N, N.s/m
+    stribeck = emps["stribeck"].relative_size(np.array([0.06, 2e-3]), nominal)
+    assert stribeck == pytest.approx(0.003)  # within a 3 % tolerance: no size
+    asymmetry = emps["asymmetric_friction"].relative_size(np.array([1.2, -32.0]), nominal)
+    assert asymmetry == pytest.approx(math.hypot(0.06, 0.16))
