@@ -294,7 +294,8 @@ class LocalPool(abc.ABC):
     def start(self, tasks: list[Any], factory: WorkerFactory) -> Started | None:
         """Give ``tasks`` out now on ``factory``'s workers, their results to be taken later
         (:meth:`Started.results`), while this process does other work; None: this pool cannot
-        (a serial pool has no worker but this process)."""
+        (a serial pool has no worker but this process). ``factory`` becomes the last factory
+        (:meth:`imap` without one runs on it)."""
         return None
 
     @abc.abstractmethod
@@ -320,7 +321,8 @@ class Started:
     """Tasks given out ahead (:meth:`LocalPool.start`): their results when the caller is ready
     for them, or their cancellation when it finds it does not need them."""
 
-    def __init__(self, futures: list[Future]) -> None:
+    def __init__(self, tasks: list[Any], futures: list[Future]) -> None:
+        self.tasks = tasks
         self.futures = futures
 
     def results(self) -> Iterator[tuple[int, Any]]:
@@ -565,7 +567,7 @@ class ProcessPool(LocalPool):
         self._factories = 0  # factories stored so far
         self._used = False  # a task was given
         self._running: set[Future] = set()  # tasks given and not yet answered
-        self._started: list[Future] = []  # tasks given out ahead (:meth:`start`)
+        self._given_ahead: list[Future] = []  # tasks given out ahead (:meth:`start`)
         self.executor = ProcessPoolExecutor(
             max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
@@ -597,10 +599,13 @@ class ProcessPool(LocalPool):
         """Give ``tasks`` out now on ``factory``'s workers (:meth:`LocalPool.start`)."""
         self._use(factory)
         self._used = True
+        self._given_ahead = [f for f in self._given_ahead if not f.done()]  # done: holds a result
         with deferred_signals():
-            futures = [self.executor.submit(_run_in_process, t, self._factory_file) for t in tasks]
-        self._started.extend(futures)
-        return Started(futures)
+            futures = []
+            for task in tasks:  # each recorded at once: close() kills what a Ctrl-C leaves running
+                futures.append(self.executor.submit(_run_in_process, task, self._factory_file))
+                self._given_ahead.append(futures[-1])
+        return Started(list(tasks), futures)
 
     def _results(self, tasks: Iterable[Any], in_flight: int | None) -> Iterator[tuple[int, Any]]:
         """The tasks' results in order of completion, on the last factory's workers."""
@@ -608,6 +613,7 @@ class ProcessPool(LocalPool):
         pending = enumerate(tasks)
         futures: dict[Future, int] = {}
         self._running = set()
+        self._given_ahead = [f for f in self._given_ahead if not f.done()]
 
         def give_out() -> None:
             with deferred_signals():
@@ -645,7 +651,7 @@ class ProcessPool(LocalPool):
                 if not self._used:
                     for process in processes:
                         process.terminate()  # SIGTERM: the worker removes its folder, exits
-                elif any(not future.done() for future in [*self._running, *self._started]):
+                elif any(not future.done() for future in [*self._running, *self._given_ahead]):
                     for process in processes:
                         process.kill()
                 self.executor.shutdown(cancel_futures=True)

@@ -360,6 +360,22 @@ def test_a_ctrl_c_while_tasks_run_ends_the_pool_without_awaiting_them(private_tm
     assert list(private_tmp.iterdir()) == []
 
 
+def test_closing_a_pool_kills_the_tasks_it_started_ahead_and_no_one_awaited(private_tmp):
+    """An error before the started tasks' results were wanted (an hour each here): closing the
+    pool kills them instead of awaiting their end."""
+    pool = ProcessPool(Sleepers(), 2)
+    started = pool.start([3600.0, 3600.0, 3600.0], Sleepers())
+    time.sleep(0.5)
+    closing = threading.Thread(target=pool.close)
+    closing.start()
+    closing.join(60.0)  # a guard against a hang, not a timing
+    assert not closing.is_alive()
+    assert not any(
+        f.done() and not f.cancelled() and f.exception() is None for f in started.futures
+    )
+    assert list(private_tmp.iterdir()) == []
+
+
 def test_stale_pool_folder_of_a_dead_process_is_removed(short_scenario, private_tmp):
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()

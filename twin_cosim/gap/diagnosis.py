@@ -328,14 +328,14 @@ def _diagnose(
     cpu_start = time.process_time()
     context = build_context(scenario, measured, holdout, fmu, settings)
     calibrated = [n for n in plant_model(context.model).calibrated if n in context.nominal]
-    ahead = pool.start(  # the first calibration directions, while this process finds the noise
+    directions = pool.start(  # the first calibration directions, while this process finds noise
         calibration_moves(context.nominal, {}, calibrated, settings.calibration_tolerance),
         JudgingSpec(context.judging_scenarios, str(context.fmu), context.nominal, context.ranges),
     )
     noise, nominal, start = _noise_stage(context)
-    if ahead is not None and nominal != context.nominal:  # the noise model moved the twin
-        ahead.cancel()
-        ahead = None
+    if directions is not None and nominal != context.nominal:  # the noise model moved the twin
+        directions.cancel()
+        directions = None
     resolution = estimate_resolution(np.concatenate([r.x for r in context.train]))
     train0 = training_residuals(context, start.training)
     floors = noise_floors(
@@ -362,11 +362,11 @@ def _diagnose(
         ReplayPool(
             BoundPool(pool, spec),
             nominal,
-            [n for n in plant_model(context.model).calibrated if n in nominal],
+            calibrated,  # the card's names among the start values: the noise adds none of them
             judging,
             settings.calibration_tolerance,
             cache=JudgingCache.of(spec) if replay_cache else None,
-            ahead=ahead,
+            nominal_directions=directions,
         ),
         {
             h.name: h

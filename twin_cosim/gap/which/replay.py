@@ -391,6 +391,17 @@ class ReplaySpec:
         """The parameter set a replay with ``overrides`` runs with (:func:`parameter_key`)."""
         return parameter_key(overrides, self.nominal, self.ranges)
 
+    def training_records(self, records: list[RunRecord]) -> list[RunRecord]:
+        """The training scenarios' replays ``records`` as a worker's training replays end: at
+        the last reference sample of the training window (:func:`cut`), a row a whole run's
+        replay goes on beyond (a residual interpolates there)."""
+        kept = []
+        for scenario, record in zip(self.training_scenarios, records, strict=True):
+            grid = cut(scenario, self.training.end).reference
+            end = float(grid.time[-1]) + 0.5 * grid.period  # s
+            kept.append(record.rows(slice(0, int(np.searchsorted(record["t"], end)))))
+        return kept
+
     def training_in_judging(self) -> list[int] | None:
         """Per training scenario the index of the same judging scenario (a time split), or None
         when a training scenario is replayed on its own."""

@@ -99,7 +99,8 @@ class Phase:
     replays_run : int
         Replays the workers ran (a fit's replay of its base model included).
     cache_hits : int
-        Replays answered by a cache (the workers' training residuals, the judging replays).
+        Replays answered by a cache (the workers' training residuals, the judging replays and
+        the training residuals the parent keeps of them).
     fits : list of dict
         Per fit task, in the order they were handed out: ``fit`` (the hypothesis, or the
         joint refit's ``a+b``), ``replays``, ``replays_run``, ``cache_hits``, ``iterations``
@@ -188,12 +189,19 @@ class JudgingCache:
         The normalised training residual of the training replays (None: none kept).
     size_bytes : int
         Bytes of records kept.
+    residual_bytes : int
+        Bytes of training residuals kept.
+    entries : OrderedDict
+        The replays by (parameter set, with training replays), the latest last.
+    residuals : OrderedDict
+        The normalised training residuals by parameter set, the latest last.
     """
 
     key: Callable[[dict[str, float]], ParameterKey]
     training_in_judging: list[int] | None
     training_residual: Callable[[list[RunRecord]], np.ndarray] | None = None
     size_bytes: int = JUDGING_CACHE_BYTES
+    residual_bytes: int = RESIDUAL_CACHE_BYTES
     entries: OrderedDict[tuple[ParameterKey, bool], Replays] = field(
         default_factory=OrderedDict, repr=False
     )
@@ -203,11 +211,12 @@ class JudgingCache:
 
     @classmethod
     def of(cls, spec: ReplaySpec) -> JudgingCache:
-        """The cache of the replays of ``spec``'s workers, with their training residuals."""
+        """The cache of the replays of ``spec``'s workers, with their training residuals (of
+        the training replays cut where a worker's end: the same numbers)."""
         return cls(
             spec.key,
             spec.training_in_judging(),
-            lambda records: normalised_residual(records, spec.training),
+            lambda records: normalised_residual(spec.training_records(records), spec.training),
         )
 
     def get(self, task: SimulateTask) -> Replays | None:
@@ -247,7 +256,7 @@ class JudgingCache:
         if self.training_residual is None or training is None or key in self.residuals:
             return
         self.residuals[key] = self.training_residual(training)
-        while sum(r.nbytes for r in self.residuals.values()) > RESIDUAL_CACHE_BYTES:
+        while sum(r.nbytes for r in self.residuals.values()) > self.residual_bytes:
             self.residuals.popitem(last=False)
 
     def _training(self, replays: Replays) -> list[RunRecord] | None:
@@ -304,10 +313,12 @@ class ReplayPool:
     bases : dict
         The calibration directions of each parameter set asked for.
     cache : JudgingCache or None
-        The judging replays kept by parameter set (None: every replay task runs).
-    ahead : Started or None
+        The judging replays and training residuals kept by parameter set (None: every replay
+        and residual task runs).
+    nominal_directions : Started or None
         The calibration directions around the nominal twin (:func:`calibration_moves` with
-        nothing on top), started on the pool before it was made (None: none were).
+        nothing on top), started on the pool before it was made (None: none were); taken by
+        the first basis of the nominal twin when they are its tasks, else cancelled.
     """
 
     pool: BoundPool
@@ -319,7 +330,7 @@ class ReplayPool:
     times: PhaseTimes = field(default_factory=PhaseTimes)
     bases: dict[tuple, CalibrationBasis] = field(default_factory=dict, repr=False)
     cache: JudgingCache | None = None
-    ahead: Started | None = None
+    nominal_directions: Started | None = None
 
     def tasks(self, phase: str, tasks: list, started: Started | None = None) -> list:
         """Results of tasks on the pool, in task order, reporting each completion; the time
@@ -385,8 +396,10 @@ class ReplayPool:
     def keep(self, overrides: dict[str, float], replays: Replays) -> None:
         """Keep ``replays``, made elsewhere, as those of the parameter set ``nominal +
         overrides`` (the nominal twin's, replayed before the pool's work): asked for again,
-        they answer as the pool's own would."""
-        if self.cache is not None:
+        they answer as the pool's own would. Kept only when that set lies within the FMU's
+        ranges, as the workers' sets are clipped."""
+        parameters = tuple(sorted({**self.nominal, **overrides}.items()))
+        if self.cache is not None and self.cache.key(overrides) == parameters:  # none clipped
             self.cache.put(
                 SimulateTask(overrides, with_training=replays.training is not None), replays
             )
@@ -491,7 +504,12 @@ class ReplayPool:
 
     def _new_basis(self, base: dict[str, float]) -> CalibrationBasis:
         moves = calibration_moves(self.nominal, base, self.calibrated, self.tolerance)
-        started, self.ahead = (self.ahead, None) if not base else (None, self.ahead)
+        started = None
+        if not base and self.nominal_directions is not None:
+            started, self.nominal_directions = self.nominal_directions, None
+            if started.tasks != moves:  # not this twin's: replayed here instead
+                started.cancel()
+                started = None
         replays = self.tasks("calibration_directions", moves, started)
         columns = []
         for i in range(0, len(moves), 2):

@@ -6,6 +6,7 @@ residual is an analytic sine."""
 
 from __future__ import annotations
 
+import dataclasses
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 from types import SimpleNamespace
@@ -123,6 +124,28 @@ def test_a_residual_of_a_replayed_set_is_answered_by_the_cache_as_the_workers(sm
             assert np.array_equal(got, expected)
         phase = cached.times.as_dict()["residuals"]
         assert (phase["replays"], phase["replays_run"], phase["cache_hits"]) == (3, 1, 2)
+    finally:
+        cached.pool.pool.close()
+        fresh.pool.pool.close()
+
+
+def test_a_residual_off_the_replays_time_grid_is_the_workers_too(small_spec):
+    """A training window that ends between two samples of the replay, its last measured
+    sample an ulp after the last one kept: the worker's cut replay holds its last value there,
+    the whole run's goes on to the next sample; cut alike, the two residuals are the same."""
+    spec = small_spec()
+    training = dataclasses.replace(
+        spec.training, t=[spec.training.t[0] * (1.0 + 2.3e-16)], end=0.50013
+    )
+    spec = dataclasses.replace(spec, training=training)
+    cached, fresh = _pool(spec, cache=True), _pool(spec, cache=False)
+    try:
+        level = {"stribeck_friction": 0.15, "stribeck_speed": 0.5}
+        cached.tasks("replays", [SimulateTask(level)])
+        (got,) = cached.tasks("residuals", [ResidualTask(level)])
+        (expected,) = fresh.tasks("residuals", [ResidualTask(level)])
+        assert cached.times.as_dict()["residuals"]["replays_run"] == 0
+        assert np.array_equal(got, expected)
     finally:
         cached.pool.pool.close()
         fresh.pool.pool.close()
@@ -295,13 +318,14 @@ def test_calibration_directions_started_ahead_make_the_nominal_basis_without_a_r
         residual = measured - _output(task.overrides["stiffness"])
         future.set_result(Timed(Replays(None, [residual]), 0.1, replays_run=1))
         futures.append(future)
+    tasks = calibration_moves({"stiffness": 1.0}, {}, ["stiffness"], 0.03)
     ahead = ReplayPool(
         _SinePool(measured),
         {"stiffness": 1.0},
         ["stiffness"],
         _SineJudging(),
         0.03,
-        ahead=Started(futures),
+        nominal_directions=Started(tasks, futures),
     )
     assert np.array_equal(ahead.basis({}).directions, fresh.basis({}).directions)
     assert ahead.pool.asked == [] and len(fresh.pool.asked) == 2
@@ -309,3 +333,16 @@ def test_calibration_directions_started_ahead_make_the_nominal_basis_without_a_r
     assert (phase["tasks"], phase["replays"], phase["replays_run"]) == (2, 2, 2)
     ahead.basis({"stiffness": 1.01})  # another model's directions: replayed on the pool
     assert len(ahead.pool.asked) == 2
+
+    other = calibration_moves({"stiffness": 1.0}, {}, ["stiffness"], 0.05)  # not this twin's
+    waiting: list[Future] = [Future(), Future()]
+    mismatched = ReplayPool(
+        _SinePool(measured),
+        {"stiffness": 1.0},
+        ["stiffness"],
+        _SineJudging(),
+        0.03,
+        nominal_directions=Started(other, waiting),
+    )
+    assert np.array_equal(mismatched.basis({}).directions, fresh.basis({}).directions)
+    assert len(mismatched.pool.asked) == 2 and all(f.cancelled() for f in waiting)
