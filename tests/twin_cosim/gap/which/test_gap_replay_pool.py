@@ -307,26 +307,33 @@ def test_a_gap_the_linear_correction_already_explains_is_not_replayed_further():
     assert len(replay_pool.pool.asked) - asked == 3
 
 
-def test_calibration_directions_started_ahead_make_the_nominal_basis_without_a_replay():
-    """The nominal twin's directions given out before the pool was made (while the parent found
-    the noise): the same basis as replayed by the pool, counted once, nothing asked again."""
-    measured = _output(1.02)
-    fresh = ReplayPool(_SinePool(measured), {"stiffness": 1.0}, ["stiffness"], _SineJudging(), 0.03)
-    futures = []
-    for task in calibration_moves({"stiffness": 1.0}, {}, ["stiffness"], 0.03):
-        future: Future = Future()
-        residual = measured - _output(task.overrides["stiffness"])
-        future.set_result(Timed(Replays(None, [residual]), 0.1, replays_run=1))
-        futures.append(future)
-    tasks = calibration_moves({"stiffness": 1.0}, {}, ["stiffness"], 0.03)
-    ahead = ReplayPool(
+def _stiffness_pool(measured: np.ndarray, started: Started | None = None) -> ReplayPool:
+    """A sine pool over the stiffness, 3 % tolerance, with calibration directions started
+    ahead (``started``) or none."""
+    return ReplayPool(
         _SinePool(measured),
         {"stiffness": 1.0},
         ["stiffness"],
         _SineJudging(),
         0.03,
-        nominal_directions=Started(tasks, futures),
+        nominal_directions=started,
     )
+
+
+def test_calibration_directions_started_ahead_make_the_nominal_basis_without_a_replay():
+    """The nominal twin's directions given out before the pool was made (while the parent found
+    the noise): the same basis as replayed by the pool, counted once, nothing asked again;
+    directions of another twin are cancelled and the pool replays the basis."""
+    measured = _output(1.02)
+    fresh = _stiffness_pool(measured)
+    tasks = calibration_moves({"stiffness": 1.0}, {}, ["stiffness"], 0.03)
+    futures = []
+    for task in tasks:
+        future: Future = Future()
+        residual = measured - _output(task.overrides["stiffness"])
+        future.set_result(Timed(Replays(None, [residual]), 0.1, replays_run=1))
+        futures.append(future)
+    ahead = _stiffness_pool(measured, Started(tasks, futures))
     assert np.array_equal(ahead.basis({}).directions, fresh.basis({}).directions)
     assert ahead.pool.asked == [] and len(fresh.pool.asked) == 2
     phase = ahead.times.as_dict()["calibration_directions"]
@@ -336,13 +343,6 @@ def test_calibration_directions_started_ahead_make_the_nominal_basis_without_a_r
 
     other = calibration_moves({"stiffness": 1.0}, {}, ["stiffness"], 0.05)  # not this twin's
     waiting: list[Future] = [Future(), Future()]
-    mismatched = ReplayPool(
-        _SinePool(measured),
-        {"stiffness": 1.0},
-        ["stiffness"],
-        _SineJudging(),
-        0.03,
-        nominal_directions=Started(other, waiting),
-    )
+    mismatched = _stiffness_pool(measured, Started(other, waiting))
     assert np.array_equal(mismatched.basis({}).directions, fresh.basis({}).directions)
     assert len(mismatched.pool.asked) == 2 and all(f.cancelled() for f in waiting)
