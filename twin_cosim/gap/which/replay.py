@@ -791,8 +791,12 @@ def linearised_uncertainty(
     bounded_hypotheses = [bounded(hypotheses[n], spec.ranges) for n in task.hypotheses]
     sets = {name for h in bounded_hypotheses for name in h.sets}
     plain = {k: v for k, v in task.base.items() if k not in sets}
-    nominal = {**spec.nominal, **plain}
     starts = [np.array(v, dtype=float) for v in task.values]
+    nominal = {
+        **spec.nominal,
+        **plain,
+        **_beneath_effects(task, bounded_hypotheses, starts, {**spec.nominal, **plain}, spec),
+    }
     free = [h.kind == "continuous" for h in bounded_hypotheses]
     unclipped = [
         np.array([p.to_unit(x) for p, x in zip(h.parameters, v, strict=True)])
@@ -869,6 +873,38 @@ def linearised_uncertainty(
         for j, k in columns
     ) + tuple(f"calibration.{n}" for n in task.calibrated)
     return Uncertainty(names, tuple(float(d) for d in deviation), variance, intervals)
+
+
+def _beneath_effects(
+    task: UncertaintyTask,
+    hypotheses: list[Hypothesis],
+    values: list[np.ndarray],
+    parameters: dict[str, float],
+    spec: ReplaySpec,
+) -> dict[str, float]:
+    """The calibrated parameters that the model's effects set, as they stand beneath the effects
+    (FMU values): those that, with the effects applied on top of ``parameters`` in their order,
+    give the model's own values (``task.base``). A joint refit moves a calibrated parameter and
+    an effect then sets it from the moved value (a Coulomb change adds to the Coulomb level), so
+    the nominal value is not the one beneath. Each effect's formula is affine in the value beneath
+    it; two evaluations invert it (a formula that does not read it keeps the nominal value)."""
+
+    def on_top(name: str, beneath: float) -> float:
+        overrides = {**parameters, name: beneath}
+        for h, v, context in zip(hypotheses, values, task.contexts, strict=True):
+            overrides |= h.to_plant(v, {**spec.nominal, **overrides}, context)
+        return overrides[name]
+
+    found = {}
+    for name in task.calibrated:
+        if name not in task.base or not any(name in h.sets for h in hypotheses):
+            continue
+        low = parameters[name]
+        high = low * (1.0 + task.tolerance) if low else task.tolerance
+        slope = (on_top(name, high) - on_top(name, low)) / (high - low)
+        if slope:
+            found[name] = low + (task.base[name] - on_top(name, low)) / slope
+    return found
 
 
 def start_unit(

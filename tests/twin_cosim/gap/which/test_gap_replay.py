@@ -232,3 +232,31 @@ def test_the_uncertainty_asks_for_the_models_own_sets_where_nothing_of_it_moves(
         {**nominal, **model, "motor_inertia": 3e-4 * (1 + a * 0.03)} for a in (1, -1)
     ]
     assert all(s["stribeck_speed"] != fitted[1] for s in asked[3:5])  # the speed's column
+
+
+def test_the_uncertainty_is_taken_at_the_model_a_joint_refit_left():
+    """A Coulomb change on top of a Coulomb level the joint refit moved by +2 %: the model's
+    residual is asked at the model's own level, and the level's calibration column moves the
+    level beneath the change, not the nominal one."""
+    nominal = {"coulomb_friction": 0.6}  # N.m
+    moved, delta = 0.6 * 1.02, 0.1  # N.m: the refit's level beneath, the fitted change
+    t = np.linspace(0.0, 1.0, 101)  # s
+    spec = SimpleNamespace(nominal=nominal, ranges={}, training=SimpleNamespace(t=[t]))
+    asked: list[dict[str, float]] = []
+
+    def residuals(sets: list[dict[str, float]]) -> list[np.ndarray]:
+        asked.extend(sets)
+        return [np.ones(2 * t.size) for _ in sets]
+
+    task = UncertaintyTask(
+        {"coulomb_friction": moved + delta},
+        ("coulomb_change",),
+        ((delta,),),
+        (dict(DEFAULT_CONTEXT),),
+        ("coulomb_friction",),
+        0.03,
+    )
+    linearised_uncertainty(task, BY_NAME, spec, residuals)
+    levels = [s["coulomb_friction"] for s in asked]
+    assert levels[0] == pytest.approx(moved + delta, rel=1e-14)  # the model, not 0.6 + 0.1
+    assert levels[3:] == pytest.approx([moved * 1.03 + delta, moved * 0.97 + delta], rel=1e-14)
