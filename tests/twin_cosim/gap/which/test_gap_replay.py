@@ -203,6 +203,21 @@ def test_the_linearised_uncertainty_of_a_level_is_one_over_its_sensitivity():
     assert high == pytest.approx(0.6 + 1.96 * spread, abs=0.2 * spread)
 
 
+def _asked_sets(task: UncertaintyTask, nominal: dict[str, float]) -> list[dict[str, float]]:
+    """The parameter sets the uncertainty of ``task`` asks residuals of (over 1 s of training,
+    every residual the same), in their order."""
+    t = np.linspace(0.0, 1.0, 101)  # s
+    spec = SimpleNamespace(nominal=nominal, ranges={}, training=SimpleNamespace(t=[t]))
+    asked: list[dict[str, float]] = []
+
+    def residuals(sets: list[dict[str, float]]) -> list[np.ndarray]:
+        asked.extend(sets)
+        return [np.ones(2 * t.size) for _ in sets]
+
+    linearised_uncertainty(task, BY_NAME, spec, residuals)
+    return asked
+
+
 def test_the_uncertainty_asks_for_the_models_own_sets_where_nothing_of_it_moves():
     """The model's residual and its calibrated columns run with the effect's fitted values
     exactly (the sets of its replays and calibration directions, which a cache answers), not
@@ -212,19 +227,11 @@ def test_the_uncertainty_asks_for_the_models_own_sets_where_nothing_of_it_moves(
     speed = stribeck.parameters[1]
     assert speed.from_unit(speed.to_unit(fitted[1])) != fitted[1]  # not exact on the way back
     nominal = {"coulomb_friction": 0.6, "motor_inertia": 3e-4}  # N.m, kg.m^2
-    t = np.linspace(0.0, 1.0, 101)  # s
-    spec = SimpleNamespace(nominal=nominal, ranges={}, training=SimpleNamespace(t=[t]))
-    asked: list[dict[str, float]] = []
-
-    def residuals(sets: list[dict[str, float]]) -> list[np.ndarray]:
-        asked.extend(sets)
-        return [np.ones(2 * t.size) for _ in sets]
-
     model = stribeck.to_plant(np.array(fitted), nominal, dict(DEFAULT_CONTEXT))
     task = UncertaintyTask(
         model, ("stribeck",), (fitted,), (dict(DEFAULT_CONTEXT),), ("motor_inertia",), 0.03
     )
-    linearised_uncertainty(task, BY_NAME, spec, residuals)
+    asked = _asked_sets(task, nominal)
     assert len(asked) == 1 + 2 * 3  # the model, both sides of two effect columns and one more
     ran = [{**nominal, **s} for s in asked]  # the parameter sets the replays run with
     assert ran[0] == {**nominal, **model}
@@ -238,16 +245,7 @@ def test_the_uncertainty_is_taken_at_the_model_a_joint_refit_left():
     """A Coulomb change on top of a Coulomb level the joint refit moved by +2 %: the model's
     residual is asked at the model's own level, and the level's calibration column moves the
     level beneath the change, not the nominal one."""
-    nominal = {"coulomb_friction": 0.6}  # N.m
     moved, delta = 0.6 * 1.02, 0.1  # N.m: the refit's level beneath, the fitted change
-    t = np.linspace(0.0, 1.0, 101)  # s
-    spec = SimpleNamespace(nominal=nominal, ranges={}, training=SimpleNamespace(t=[t]))
-    asked: list[dict[str, float]] = []
-
-    def residuals(sets: list[dict[str, float]]) -> list[np.ndarray]:
-        asked.extend(sets)
-        return [np.ones(2 * t.size) for _ in sets]
-
     task = UncertaintyTask(
         {"coulomb_friction": moved + delta},
         ("coulomb_change",),
@@ -256,7 +254,6 @@ def test_the_uncertainty_is_taken_at_the_model_a_joint_refit_left():
         ("coulomb_friction",),
         0.03,
     )
-    linearised_uncertainty(task, BY_NAME, spec, residuals)
-    levels = [s["coulomb_friction"] for s in asked]
+    levels = [s["coulomb_friction"] for s in _asked_sets(task, {"coulomb_friction": 0.6})]
     assert levels[0] == pytest.approx(moved + delta, rel=1e-14)  # the model, not 0.6 + 0.1
     assert levels[3:] == pytest.approx([moved * 1.03 + delta, moved * 0.97 + delta], rel=1e-14)
