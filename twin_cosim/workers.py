@@ -130,6 +130,12 @@ def deferred_signals() -> Iterator[Deferral]:
             signal.raise_signal(deferral.signum)  # its handler runs before the next bytecode
 
 
+def first_done(futures: Iterable[Future], timeout_s: float) -> set[Future] | None:
+    """The futures done within ``timeout_s`` (s), at least one; None: none yet."""
+    done, _ = wait(futures, timeout=timeout_s, return_when=FIRST_COMPLETED)
+    return done or None
+
+
 def wait_interruptibly(wait_some: Callable[[float], T | None]) -> T:
     """The first answer of ``wait_some(timeout_s)``, called until it answers (not None).
 
@@ -329,13 +335,8 @@ class Started:
         """Yield (task index, result) in order of completion, waiting as :meth:`LocalPool.imap`
         does (a Ctrl-C or SIGTERM meanwhile is raised between two short waits)."""
         pending = {future: index for index, future in enumerate(self.futures)}
-
-        def done_within(timeout_s: float) -> set[Future] | None:
-            done, _ = wait(pending, timeout=timeout_s, return_when=FIRST_COMPLETED)
-            return done or None
-
         while pending:
-            for future in wait_interruptibly(done_within):
+            for future in wait_interruptibly(lambda timeout_s: first_done(pending, timeout_s)):
                 yield pending.pop(future), future.result()
 
     def cancel(self) -> None:
@@ -599,7 +600,7 @@ class ProcessPool(LocalPool):
         """Give ``tasks`` out now on ``factory``'s workers (:meth:`LocalPool.start`)."""
         self._use(factory)
         self._used = True
-        self._given_ahead = [f for f in self._given_ahead if not f.done()]  # done: holds a result
+        self._forget_done_ahead()
         with deferred_signals():
             futures = []
             for task in tasks:  # each recorded at once: close() kills what a Ctrl-C leaves running
@@ -607,13 +608,18 @@ class ProcessPool(LocalPool):
                 self._given_ahead.append(futures[-1])
         return Started(list(tasks), futures)
 
+    def _forget_done_ahead(self) -> None:
+        """Drop the tasks given out ahead that are done (each holds its result) from those
+        :meth:`close` may have to kill."""
+        self._given_ahead = [f for f in self._given_ahead if not f.done()]
+
     def _results(self, tasks: Iterable[Any], in_flight: int | None) -> Iterator[tuple[int, Any]]:
         """The tasks' results in order of completion, on the last factory's workers."""
         self._used = True
         pending = enumerate(tasks)
         futures: dict[Future, int] = {}
         self._running = set()
-        self._given_ahead = [f for f in self._given_ahead if not f.done()]
+        self._forget_done_ahead()
 
         def give_out() -> None:
             with deferred_signals():
@@ -624,15 +630,12 @@ class ProcessPool(LocalPool):
 
         give_out()
         while self._running:
-            for future in wait_interruptibly(self._done_within):
+            for future in wait_interruptibly(
+                lambda timeout_s: first_done(self._running, timeout_s)
+            ):
                 self._running.discard(future)
                 yield futures.pop(future), future.result()
             give_out()
-
-    def _done_within(self, timeout_s: float) -> set[Future] | None:
-        """The running tasks answered within ``timeout_s`` (s); None: none yet."""
-        done, _ = wait(self._running, timeout=timeout_s, return_when=FIRST_COMPLETED)
-        return done or None
 
     def close(self) -> None:
         """Shut the pool down (workers free their plants) and remove its temp folder.

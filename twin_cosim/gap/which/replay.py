@@ -44,6 +44,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -395,12 +396,20 @@ class ReplaySpec:
         """The training scenarios' replays ``records`` as a worker's training replays end: at
         the last reference sample of the training window (:func:`cut`), a row a whole run's
         replay goes on beyond (a residual interpolates there)."""
-        kept = []
-        for scenario, record in zip(self.training_scenarios, records, strict=True):
+        return [
+            record.rows(slice(0, int(np.searchsorted(record["t"], end))))
+            for record, end in zip(records, self._training_ends, strict=True)
+        ]
+
+    @cached_property
+    def _training_ends(self) -> list[float]:
+        """Per training scenario, where its training replay's record ends, s: half a sample
+        past the last reference sample of the training window (:func:`cut`)."""
+        ends = []
+        for scenario in self.training_scenarios:
             grid = cut(scenario, self.training.end).reference
-            end = float(grid.time[-1]) + 0.5 * grid.period  # s
-            kept.append(record.rows(slice(0, int(np.searchsorted(record["t"], end)))))
-        return kept
+            ends.append(float(grid.time[-1]) + 0.5 * grid.period)
+        return ends
 
     def training_in_judging(self) -> list[int] | None:
         """Per training scenario the index of the same judging scenario (a time split), or None

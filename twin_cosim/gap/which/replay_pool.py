@@ -377,9 +377,11 @@ class ReplayPool:
         repeats: list[tuple[int, int]] = []
         first: dict[tuple[ParameterKey, bool], int] = {}
         for i, task in enumerate(tasks):
-            if isinstance(task, ResidualTask) and (kept := self._kept_residual(task)) is not None:
-                results[i] = kept
-                continue
+            if isinstance(task, ResidualTask) and self.cache is not None:
+                # the residual a worker would compute, number for number, from a replay kept here
+                if (residual := self.cache.residual(task.overrides)) is not None:
+                    results[i] = residual
+                    continue
             if self.cache is None or not isinstance(task, SimulateTask):
                 sent.append(i)
                 continue
@@ -403,13 +405,6 @@ class ReplayPool:
             self.cache.put(
                 SimulateTask(overrides, with_training=replays.training is not None), replays
             )
-
-    def _kept_residual(self, task: ResidualTask) -> np.ndarray | None:
-        """The training residual of a parameter set whose training replays were run as a replay
-        task (a time split's judging replays hold them: a calibration direction, a candidate),
-        or None. A replay is deterministic and the training scenario's replay the start of the
-        whole run's, so this is the residual a worker would return, number for number."""
-        return None if self.cache is None else self.cache.residual(task.overrides)
 
     def uncertainty(self, task: UncertaintyTask, hypotheses: dict[str, Hypothesis]) -> Uncertainty:
         """What the training data leave uncertain in a model
