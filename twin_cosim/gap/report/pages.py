@@ -142,6 +142,7 @@ def _acceptance_tests(j: Judgement) -> dict[str, Any]:
         **_picked(j, "holdout_reduction=reduction", "reduction_beyond_calibration"),
         **asdict(j.gain),  # evidence z, critical z, excess share, fair share
         "size_above_tolerance": j.size_above_tolerance,
+        "with_corrections_replayed": None if j.replayed is None else asdict(j.replayed),
     }
 
 
@@ -292,8 +293,16 @@ def _ranking_columns(
         ("needed z", lambda c: number(c.judgement.gain.critical_z)),
         ("share of the energy above the noise", lambda c: percent(c.judgement.gain.excess_share)),
         ("fair share", lambda c: percent(c.judgement.gain.fair_share)),
+        ("share with the corrections replayed", _replayed_share),
         ("passes", lambda c: "yes" if c.passes else f"no: {', '.join(c.judgement.failed)}"),
     ]
+
+
+def _replayed_share(c: Candidate) -> str:
+    """The share of the excess energy a candidate removes with the calibration corrections
+    replayed, where that was asked ("-" elsewhere)."""
+    replayed = c.judgement.replayed
+    return "-" if replayed is None else percent(replayed.excess_share)
 
 
 def _step_columns(

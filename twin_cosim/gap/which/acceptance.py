@@ -21,7 +21,16 @@ A fitted hypothesis *passes* (:func:`judge`) when, on the held-out data,
    backlash, inertia, stiffness) exceeds the tolerance (:func:`size_above_tolerance`);
 4. it is consistent: it makes neither the position nor the current held-out RMS worse than
    ``worsen_limit`` (1.1) times what it was, plus the noise floor (a wrong effect can trade one
-   signal for the other).
+   signal for the other);
+5. its gain holds with the calibration corrections replayed: the model with it and the model
+   without it, each replayed with the linear calibration correction of its own held-out
+   residual along its own calibration directions, pass the rule of test 3 against each other
+   (:meth:`Gain.of`). Tests 1-4 judge linear corrections along the directions of the model
+   without it, and on a trajectory whose response to the calibrated parameters is far from
+   linear (creeps that stick and slip) what calibration error leaves can look like an
+   effect's signature. Asked only of candidates that pass tests 1-4 and were judged after a
+   calibration correction (a single effect or a pair of a round; not a joint refit, which
+   moved the calibrated parameters itself): its calibration directions and one replay each.
 
 What a judgement measured is an immutable :class:`Judgement`; a :class:`Candidate` is a fit
 with its judgement, a :class:`Pair` two hypotheses fitted together and judged as one.
@@ -29,6 +38,7 @@ with its judgement, a :class:`Pair` two hypotheses fitted together and judged as
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -80,6 +90,16 @@ class Gain:
         tests = [("evidence", self.evidence_z >= self.critical_z)]
         tests.append(("fair share", self.excess_share >= self.fair_share))
         return [name for name, passed in tests if not passed]
+
+    def of(self, before: np.ndarray, after: np.ndarray, duration_s: float) -> Gain:
+        """The gain of another change from ``before`` to ``after`` (normalised residual vectors)
+        against the same rule (critical z and fair share), on ``duration_s`` held-out
+        seconds."""
+        return dataclasses.replace(
+            self,
+            evidence_z=improvement_z(before, after, duration_s),
+            excess_share=excess_share(before, after),
+        )
 
     @property
     def strength(self) -> float:
@@ -233,7 +253,8 @@ class Judgement:
     ``reduction`` and ``reduction_beyond_calibration`` are fractions; ``gain`` is its gain
     against the rule; ``position_rms_um`` is the held-out position gap in um and
     ``current_rms`` the held-out current gap in A (V for EMPS); ``change`` is the change of the
-    normalised held-out vector it predicts.
+    normalised held-out vector it predicts; ``replayed`` is its gain with the calibration
+    corrections replayed (test 5 of the module docstring; None where not asked).
     """
 
     holdout_rms: float
@@ -246,6 +267,7 @@ class Judgement:
     position_rms_um: float  # um
     current_rms: float  # A
     change: np.ndarray = field(repr=False)
+    replayed: Gain | None = None
 
     @property
     def passes(self) -> bool:
@@ -257,11 +279,14 @@ class Judgement:
         """The tests it fails, in the order of the module docstring: ``reduction`` (it does not
         cut the normalised RMS), ``evidence`` and ``fair share`` (its gain against the rule),
         ``tolerance`` (a calibrated parameter changed by less than the tolerance),
-        ``consistency`` (one signal's held-out RMS made worse)."""
+        ``consistency`` (one signal's held-out RMS made worse), ``replayed correction`` (its gain
+        does not hold with the calibration corrections replayed)."""
         failed = [] if self.reduction > 0.0 else ["reduction"]
         failed += self.gain.failed
         failed += [] if self.size_above_tolerance else ["tolerance"]
-        return failed + ([] if self.consistent else ["consistency"])
+        failed += [] if self.consistent else ["consistency"]
+        held = self.replayed is None or self.replayed.passes
+        return failed + ([] if held else ["replayed correction"])
 
 
 def judge(

@@ -558,7 +558,7 @@ class ReplayPool:
         best, best_replays = floor, calibrated
         for _ in range(REFINEMENTS):
             scale = 1.0 + step * self.tolerance
-            corrected = self._corrected(base, dict(zip(self.calibrated, step, strict=True)))
+            corrected = self.corrected(base, dict(zip(self.calibrated, step, strict=True)))
             delta, _ = self.basis(corrected).correction(
                 left_vector,
                 bounds=(
@@ -583,9 +583,7 @@ class ReplayPool:
             break
         return best, best_replays
 
-    def _corrected(
-        self, base: dict[str, float], coefficients: dict[str, float]
-    ) -> dict[str, float]:
+    def corrected(self, base: dict[str, float], coefficients: dict[str, float]) -> dict[str, float]:
         """``base`` with the calibration correction ``coefficients`` (tolerances) applied."""
         current = {**self.nominal, **base}
         return {
@@ -595,5 +593,5 @@ class ReplayPool:
 
     def calibrated_replay(self, base: dict[str, float], floor: CalibrationFloor) -> Replays:
         """Replays with the best calibration correction applied to the calibrated parameters."""
-        corrected = self._corrected(base, floor.coefficients)
+        corrected = self.corrected(base, floor.coefficients)
         return self.tasks("calibrated_replays", [SimulateTask(corrected)])[0]

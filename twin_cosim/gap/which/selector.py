@@ -13,7 +13,9 @@ the training residual and judged on the held-out runs
 (:func:`~twin_cosim.gap.which.acceptance.judge`).
 The first round fits the whole library; later rounds the periodic hypotheses (their orders may
 have changed) and the ``later_round_candidates`` best of the previous round by held-out
-reduction. The best passing effect by BIC is accepted; passing effects whose reductions differ
+reduction. The candidates that pass are judged once more with the calibration corrections
+replayed (:meth:`Selector.replay_corrections`; test 5 of the acceptance rule), as are the pairs
+below. The best passing effect by BIC is accepted; passing effects whose reductions differ
 by less than ``group_reduction_margin`` and whose predicted changes correlate at
 ``group_correlation`` or more form a *group* with it (look-alikes the data cannot tell apart).
 After each accepted effect all accepted effects are refitted together on the training data
@@ -96,6 +98,7 @@ import dataclasses
 import itertools
 import math
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
@@ -134,6 +137,8 @@ from twin_cosim.gap.which.replay import (
 )
 from twin_cosim.gap.which.replay_pool import ReplayPool
 from twin_cosim.plant_model import Hypothesis
+
+CandidateT = TypeVar("CandidateT", bound=Candidate)
 
 
 @dataclass(frozen=True)
@@ -522,7 +527,9 @@ class Selector:
             if not opened.significant:
                 rounds.append(opened)
                 break
-            candidates = self._fit_and_judge(remaining, base, context, held, starts)
+            candidates = self.replay_corrections(
+                self._fit_and_judge(remaining, base, context, held, starts), base, held
+            )
             starts = {c.name: tuple(c.fit.values.values()) for c in candidates if self._found(c)}
             joint: list[JointCandidate] = []
             if accepted and not any(c.passes for c in candidates):
@@ -546,7 +553,7 @@ class Selector:
                     accepted[:] = refitted(accepted, best.refit)
             elif len(accepted) + 2 <= settings.max_effects:
                 screened = dataclasses.replace(opened, candidates=candidates, joint=joint)
-                pairs = self.screen_pairs(screened, base, held)
+                pairs = self.replay_corrections(self.screen_pairs(screened, base, held), base, held)
                 pair = next((p for p in pairs if p.passes), None)
                 if pair is None:
                     rounds.append(dataclasses.replace(screened, pairs=pairs))
@@ -622,6 +629,48 @@ class Selector:
             train_bic = bic(fit.train_cost, n_parameters, self.train_seconds)
             candidates.append(Candidate(fit, n_parameters, train_bic, replay, judgement))
         return sorted(candidates, key=lambda c: c.bic)
+
+    def replay_corrections(
+        self, candidates: list[CandidateT], base: dict[str, float], held: HeldOut
+    ) -> list[CandidateT]:
+        """The candidates; each that passes every other test gets its gain with the calibration
+        corrections replayed, which it must pass too (test 5 of
+        :mod:`~twin_cosim.gap.which.acceptance`).
+
+        The model as it is (``base``, its held-out residual ``held``) and the model with the
+        candidate are each replayed with the linear calibration correction of its own held-out
+        residual along its own calibration directions (those of the model with the candidate
+        are replayed for it: a candidate that moves the twin far, an inertia change of 20 %,
+        would be corrected less well along the model's), and the gain is judged on these
+        replays."""
+        tested = [i for i, c in enumerate(candidates) if c.passes]
+        if not tested or not self.pool.calibrated:
+            return candidates
+        models = [(base, held.vector, held.basis)]
+        for i in tested:
+            overrides = candidates[i].fit.overrides
+            vector = self.judging.vector(self.judging.residuals(candidates[i].replays))
+            models.append((overrides, vector, self.pool.basis(overrides)))
+        tasks = []
+        for overrides, vector, basis in models:
+            coefficients = basis.correction(vector)[0].tolist()
+            tasks.append(
+                SimulateTask(
+                    self.pool.corrected(
+                        overrides, dict(zip(basis.names, coefficients, strict=True))
+                    )
+                )
+            )
+        replays = self.pool.tasks("replayed_corrections", tasks)
+        before, *afters = (self.judging.vector(self.judging.residuals(r)) for r in replays)
+        found = list(candidates)
+        for i, after in zip(tested, afters, strict=True):
+            judgement = candidates[i].judgement
+            replayed = judgement.gain.of(before, after, self.judging.duration_s)
+            found[i] = dataclasses.replace(
+                candidates[i], judgement=dataclasses.replace(judgement, replayed=replayed)
+            )
+        return found
 
     def _found(self, candidate: Candidate) -> bool:
         """Whether a candidate's fit is a start for the next round: one from its global search

@@ -71,6 +71,28 @@ def test_a_change_that_halves_the_gap_passes_and_its_judgement_is_a_record():
         judged.reduction = 1.0  # type: ignore[misc]
 
 
+def test_a_gain_judged_again_keeps_its_rule_and_a_failed_one_names_its_test():
+    rule = Acceptance(0.01, 12, 12, 5.0)
+    before, after = np.full(100, 0.3), np.full(100, 0.1)
+    gain = rule.gain(before, after, shares=2)
+    again = gain.of(before, before * 0.999, 5.0)  # with the corrections replayed: no gain
+    assert (again.critical_z, again.fair_share) == (gain.critical_z, gain.fair_share)
+    assert again.evidence_z == rule.gain(before, before * 0.999).evidence_z
+    assert not again.passes
+    judging = _Replayed()
+    held = judging.held_out(_replays(4.0, 4.0), NO_CALIBRATION)
+    judged = judge(
+        _replays(2.0, 2.0),
+        held,
+        judging,
+        judging.acceptance(DiagnosisSettings(), 12, 12),
+        1.1,
+        True,
+    )
+    assert dataclasses.replace(judged, replayed=gain).passes
+    assert dataclasses.replace(judged, replayed=again).failed == ["replayed correction"]
+
+
 def test_a_change_that_trades_one_signal_for_the_other_or_is_too_small_fails():
     judging = _Replayed()
     held = judging.held_out(_replays(4.0, 1.0), NO_CALIBRATION)

@@ -1,7 +1,8 @@
-"""The selector's records and its steps: the joint screen of a later round, swaps of an
-accepted effect for a rival of its round, and cold refits of the accepted effects, each on a
-stand-in replay pool whose held-out residual is a given pattern or vector per parameter set
-(noise at the floors is 1)."""
+"""The selector's records and its steps: a round's candidates judged with the calibration
+corrections replayed, the joint screen of a later round, swaps of an accepted effect for a
+rival of its round, and cold refits of the accepted effects, each on a stand-in replay pool
+whose held-out residual is a given pattern or vector per parameter set (noise at the floors is
+1)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ from twin_cosim.gap.which.acceptance import (
     Judgement,
     Judging,
     Pair,
+    judge,
 )
 from twin_cosim.gap.which.replay import FitResult, FitTask, JointFitTask, Replays, SimulateTask
 from twin_cosim.gap.which.selector import (
@@ -391,6 +393,93 @@ def test_a_joint_refit_that_explains_nothing_more_does_not_pass():
     assert len(joint) == 1 and not joint[0].passes
     single = _candidate("stiffness_change")
     assert _round([single], ["stiffness_change"], joint=joint).best is single
+
+
+# --- a round's passing candidates judged again with the calibration corrections replayed
+
+SHAPE = np.sin(np.linspace(0.0, 97.0, SAMPLES))  # a shape a calibrated parameter's move makes
+
+
+def _correcting(explained_by_calibration: bool):
+    """Held-out residuals of a world where calibration error either explains most of the
+    pattern once its correction is replayed (what the linear correction cannot see) or not."""
+
+    def gap(overrides: dict[str, float]) -> np.ndarray:
+        size = 3.0 if "resonance_frequency" in overrides else 4.0
+        if "motor_inertia" in overrides:  # a replayed correction
+            return 2.0 * (1.5 if explained_by_calibration else size) * PATTERN
+        return 2.0 * (size * PATTERN + SHAPE)
+
+    return gap
+
+
+@dataclass
+class CorrectingPool(JointPool):
+    """A pool with one calibrated parameter, the motor inertia, moved by 3 % a tolerance."""
+
+    calibrated: list = field(default_factory=lambda: ["motor_inertia"])
+    bases: list = field(default_factory=list)
+
+    def basis(self, base: dict[str, float]) -> CalibrationBasis:
+        self.bases.append(base)
+        return CalibrationBasis(
+            ["motor_inertia"], _HeldOut(10.0).vector(_residuals(2 * SHAPE))[:, None]
+        )
+
+    def corrected(self, base: dict[str, float], coefficients: dict[str, float]) -> dict[str, float]:
+        return {**base, "motor_inertia": 1.0 + 0.03 * coefficients["motor_inertia"]}
+
+
+def _replayed_round(explained_by_calibration: bool) -> tuple[CorrectingPool, list[Candidate]]:
+    """A round of two candidates on top of the nominal twin, a stiffness change that cuts the
+    pattern from 4 to 3 and a backlash change that changes nothing, judged with the corrections
+    replayed."""
+    gap = _correcting(explained_by_calibration)
+    pool = CorrectingPool(gap, {})
+    judging = _HeldOut(10.0)
+    held = judging.held_out(Replays(None, [gap({})]), pool.basis({}))
+    acceptance = judging.acceptance(DiagnosisSettings(), 2, 12)
+    candidates = []
+    for name, overrides in (
+        ("stiffness_change", {"resonance_frequency": 60.0}),
+        ("backlash_change", {"backlash": 8e-6}),
+    ):
+        replays = Replays(None, [gap(overrides)])
+        judgement = judge(replays, held, judging, acceptance, 1.1, True)
+        fit = FitResult(name, overrides, overrides, 1.0, 1, "")
+        candidates.append(Candidate(fit, 1, 0.0, replays, judgement))
+    return pool, _swapping(pool).replay_corrections(candidates, {}, held)
+
+
+def test_a_gain_that_a_replayed_calibration_correction_explains_does_not_pass():
+    pool, (stiffness, backlash) = _replayed_round(explained_by_calibration=True)
+    assert stiffness.judgement.gain.passes  # against the linear corrections
+    assert stiffness.judgement.replayed is not None
+    assert stiffness.judgement.replayed.excess_share == pytest.approx(0.0, abs=1e-9)
+    assert stiffness.judgement.failed == ["replayed correction"] and not stiffness.passes
+    assert backlash.judgement.replayed is None  # it failed already: not replayed
+    # the passing candidate's own calibration directions, beside the model's of the round
+    assert pool.bases == [{}, {"resonance_frequency": 60.0}]
+    # the model as it is and the one passing candidate, each with its own linear correction
+    assert [t.overrides for t in pool.asked] == [
+        {"motor_inertia": pytest.approx(1.03, rel=1e-3)},
+        {"resonance_frequency": 60.0, "motor_inertia": pytest.approx(1.03, rel=1e-3)},
+    ]
+
+
+def test_a_gain_that_holds_with_the_corrections_replayed_passes():
+    _, (stiffness, backlash) = _replayed_round(explained_by_calibration=False)
+    assert stiffness.passes and stiffness.judgement.replayed is not None
+    assert stiffness.judgement.replayed.excess_share == pytest.approx((16 - 9) / 15, rel=1e-3)
+    assert not backlash.passes
+
+
+def test_without_calibrated_parameters_nothing_is_replayed_again():
+    pool = CorrectingPool(_correcting(True), {}, calibrated=[])
+    candidate = _candidate("stiffness_change")
+    held = _HeldOut(10.0).held_out(Replays(None, [PATTERN]), pool.basis({}))
+    assert _swapping(pool).replay_corrections([candidate], {}, held) == [candidate]
+    assert pool.asked == []
 
 
 # --- cold refits of the accepted effects on top of the others
