@@ -496,13 +496,15 @@ def _verdict_stage(
         context.position_label,
         by_metrics_only,
     )
-    below = [
+    within_calibration = [
         c.name
         for c in (first.candidates if not first.accepted else [])
-        if c.judgement.reduction >= EXPLAINS_SHARE and c.judgement.consistent and not c.passes
+        if c.judgement.reduction >= EXPLAINS_SHARE
+        and c.judgement.consistent
+        and {"tolerance", "replayed correction"} & set(c.judgement.failed)
     ]
     groups = selection.accepted
-    return remaining, where, verdict_text(first.significant, groups, below, remaining)
+    return remaining, where, verdict_text(first.significant, groups, within_calibration, remaining)
 
 
 def _held_out_runs(

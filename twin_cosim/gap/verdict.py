@@ -338,11 +338,13 @@ def gap_table(
 def verdict_text(
     significant: bool,
     accepted: list[list[str]],
-    below_tolerance: list[str],
+    within_calibration: list[str],
     remaining: Remaining,
 ) -> str:
     """One paragraph: a short first sentence (significant or not, what explains it), then what
-    is left (:attr:`Remaining.text`)."""
+    is left (:attr:`Remaining.text`). ``within_calibration``: the first round's hypotheses that
+    explain much of a gap none passed, and failed a test against calibration error (the
+    tolerance, or the gain once the corrections are replayed)."""
     if not significant:
         return (
             "no significant gap. Beyond noise and calibration error within tolerance, the twin's "
@@ -353,10 +355,11 @@ def verdict_text(
         if remaining.at_floor:
             return f"significant gap, explained: {found}. {remaining.text}"
         return f"significant gap, explained in part: {found}. {remaining.text}"
-    if below_tolerance:
+    if within_calibration:
         return (
             "significant gap, not diagnosable beyond calibration error. The effects that explain "
-            f"it ({', '.join(below_tolerance)}) are smaller than the calibration tolerance. "
+            f"it ({', '.join(within_calibration)}) do not go beyond what calibration error within "
+            "the tolerance explains (the first round's ranking names the tests each failed). "
             f"{remaining.text}"
         )
     return (

@@ -151,10 +151,12 @@ RANKING_COLOURS = {"accepted": "tab:green", "passes": "#a1d99b", "fails": "#bbbb
 
 def plot_ranking(d: Diagnosis, path: Path) -> Path:
     """The first round's hypotheses (best training BIC first) against the two tests of the
-    acceptance rule: the evidence z beyond calibration and noise (left, the needed z dashed)
-    and the share of the excess energy above the noise each removes (right, the fair share
-    dashed); a bar's colour says whether it passed every test (and was accepted), each label
-    the tests it failed (:attr:`~twin_cosim.gap.which.acceptance.Judgement.failed`)."""
+    acceptance rule's gain: the evidence z beyond calibration and noise (left, the needed z
+    dashed) and the share of the excess energy above the noise each removes (right, the fair
+    share dashed), both against the linear calibration corrections; a bar's colour says whether
+    it passed every test (and was accepted), each label the tests it failed
+    (:attr:`~twin_cosim.gap.which.acceptance.Judgement.failed`: a bar past both lines can fail
+    another, such as the gain with the corrections replayed)."""
     first = d.rounds[0]
     rows = first.candidates
     fig, (evidence, share) = plt.subplots(

@@ -24,13 +24,15 @@ A fitted hypothesis *passes* (:func:`judge`) when, on the held-out data,
    signal for the other);
 5. its gain holds with the calibration corrections replayed: the model with it and the model
    without it, each replayed with the linear calibration correction of its own held-out
-   residual along its own calibration directions, pass the rule of test 3 against each other
+   residual along its own calibration directions, pass the rule (evidence and fair share) of
+   test 3 against each other
    (:meth:`Gain.of`). Tests 1-4 judge linear corrections along the directions of the model
    without it, and on a trajectory whose response to the calibrated parameters is far from
    linear (creeps that stick and slip) what calibration error leaves can look like an
    effect's signature. Asked only of candidates that pass tests 1-4 and were judged after a
    calibration correction (a single effect or a pair of a round; not a joint refit, which
-   moved the calibrated parameters itself): its calibration directions and one replay each.
+   moved the calibrated parameters itself, nor a swap): its calibration directions and one
+   replay each, beside one replay of the model without it.
 
 What a judgement measured is an immutable :class:`Judgement`; a :class:`Candidate` is a fit
 with its judgement, a :class:`Pair` two hypotheses fitted together and judged as one.

@@ -5,22 +5,23 @@
 on the :class:`~twin_cosim.gap.which.replay_pool.ReplayPool`.
 
 **Rounds** (:meth:`Selector.forward`). Every round looks again at the residual the accepted
-effects leave: its training residual gives the orders of the periodic hypotheses (dominant
-peaks of the order spectra of the motor and screw angle,
+effects leave: its training residual gives the orders of the periodic hypotheses (dominant peaks
+of the order spectra of the motor and screw angle,
 :data:`~twin_cosim.gap.data.context.DEFAULT_CONTEXT` when there is none), the hypotheses are
-fitted on top of the accepted effects (:mod:`twin_cosim.gap.which.replay`), ranked by BIC on
-the training residual and judged on the held-out runs
-(:func:`~twin_cosim.gap.which.acceptance.judge`).
-The first round fits the whole library; later rounds the periodic hypotheses (their orders may
-have changed) and the ``later_round_candidates`` best of the previous round by held-out
-reduction. The candidates that pass are judged once more with the calibration corrections
-replayed (:meth:`Selector.replay_corrections`; test 5 of the acceptance rule), as are the pairs
-below. The best passing effect by BIC is accepted; passing effects whose reductions differ
-by less than ``group_reduction_margin`` and whose predicted changes correlate at
-``group_correlation`` or more form a *group* with it (look-alikes the data cannot tell apart).
-After each accepted effect all accepted effects are refitted together on the training data
-(each on top of the FMU parameters of those before it), and the joint fit is kept when it
-judges better on the held-out data (:meth:`Selector.joint`).
+fitted on top of the accepted effects (:mod:`twin_cosim.gap.which.replay`), ranked by BIC on the
+training residual and judged on the held-out runs
+(:func:`~twin_cosim.gap.which.acceptance.judge`). The first round fits the whole library; later
+rounds the periodic hypotheses (their orders may have changed) and the
+``later_round_candidates`` best of the previous round by held-out reduction. The candidates that
+pass are judged once more with the calibration corrections replayed
+(:meth:`Selector.replay_corrections`; test 5 of the acceptance rule), as are the pairs below;
+one that fails it does not pass (a later round then goes on to the joint screen, whose refits
+are judged without a correction). The best passing effect by BIC is accepted; passing effects
+whose reductions differ by less than ``group_reduction_margin`` and whose predicted changes
+correlate at ``group_correlation`` or more form a *group* with it (look-alikes the data cannot
+tell apart). After each accepted effect all accepted effects are refitted together on the
+training data (each on top of the FMU parameters of those before it), and the joint fit is kept
+when it judges better on the held-out data (:meth:`Selector.joint`).
 
 **Pairs** (:meth:`Selector.screen_pairs`). Effects that act in the same place (backlash beside
 Stribeck friction, a Coulomb change beside a smaller backlash) can each make the held-out fit
@@ -74,16 +75,17 @@ and an effect in the wrong place can win it: a stiffness change shifts the reson
 backlash or an inertia change fitted alone takes that up first (on random tune machines: an
 inertia change of +21 % fitted for a stiffness change of -35 %, one of -23 % for +35 %). Once it
 is in, the right effect fitted on top of it is under the tolerance or its fair share, and the
-joint refits only move the accepted effects locally. So each accepted effect is replaced in
-turn by each *rival*: a hypothesis that passed every acceptance test in the round that accepted
-the effect, outside its look-alike group and not accepted itself. The rival is fitted on top of
-the other accepted effects (from its fit of that round), then all effects of the swapped model
-are refitted together, and the better of the two on the held-out data is judged against the
-model as it is with the tests of a round's candidates, the Bonferroni count being the swaps
-tried. The best passing swap by training BIC is made; an effect swapped out is never swapped
-back in. The swaps come after the cold refits: an effect accepted early and fitted while later
-ones were missing can make a wrong rival look better than the model. The model after a swap is
-refitted cold in turn, and the rounds resume while more effects are allowed.
+joint refits only move the accepted effects locally. So each accepted effect is replaced in turn
+by each *rival*: a hypothesis that passed every acceptance test in the round that accepted the
+effect, outside its look-alike group and not accepted itself. The rival is fitted on top of the
+other accepted effects (from its fit of that round), then all effects of the swapped model are
+refitted together, and the better of the two on the held-out data is judged against the model as
+it is with the tests of a round's candidates, the Bonferroni count being the swaps tried (tests
+1-4 of :func:`~twin_cosim.gap.which.acceptance.judge`: the swapped model's calibrated parameters
+were refitted). The best passing swap by training BIC is made; an effect swapped out is never
+swapped back in. The swaps come after the cold refits: an effect accepted early and fitted while
+later ones were missing can make a wrong rival look better than the model. The model after a
+swap is refitted cold in turn, and the rounds resume while more effects are allowed.
 
 **The backward pass** (:meth:`Selector.backward`) refits the model without each accepted effect
 in turn (the refits at once; without a single effect the model is the nominal twin) and drops,
@@ -384,6 +386,7 @@ class Selector:
         pairs = 2 * math.comb(self.settings.pair_candidates, 2)
         joint = 2 * (self.settings.joint_candidates + 1) * (rounds - 1)  # with the refit alone
         swaps = 2 * rounds  # one rival per accepted effect
+        replayed = rounds * per_round  # a passing candidate's directions, two corrected replays
         # after each accepted effect and a swap: each effect, a level-and-shape one twice
         shaped = sum(1 for h in self.library.values() if shape_index(h) is not None)
         refreshes = 2 * (rounds + min(shaped, rounds)) * (rounds + 1)
@@ -397,6 +400,7 @@ class Selector:
             + joint
             + refreshes
             + swaps
+            + replayed
         )
 
     def run(self, start: Replays) -> Selection:
