@@ -240,31 +240,44 @@ def _unexplained(before: Residuals, after: Residuals) -> dict[str, float]:
 
 
 def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float], Replays]:
-    """Stage 2a: the noise harmonics from the replay of the nominal twin, and the replays of
-    the twin with them (in this process: a few replays do not pay for a pool)."""
+    """Stage 2a: the noise harmonics from the replays of the nominal twin (identified on the
+    training data, confirmed on the held-out data), and the replays of the twin with them (in
+    this process: a few replays do not pay for a pool)."""
     with Plant(context.fmu) as plant:
 
-        def replay(scenarios: list[Scenario], parameters: dict[str, float]):
-            return [run_scenario(plant, s, plant_overrides=parameters) for s in scenarios]
+        def replay(parameters: dict[str, float]) -> Replays:
+            first = [
+                run_scenario(plant, s, plant_overrides=parameters)
+                for s in context.training_scenarios
+            ]
+            judging = [
+                next(
+                    (r for t, r in zip(context.training_scenarios, first, strict=True) if t is s),
+                    None,
+                )
+                for s in context.judging_scenarios
+            ]
+            judging = [
+                r if r is not None else run_scenario(plant, s, plant_overrides=parameters)
+                for r, s in zip(judging, context.judging_scenarios, strict=True)
+            ]
+            return Replays(first, judging)
 
-        first = replay(context.training_scenarios, context.nominal)
+        raw = replay(context.nominal)
+        held = residuals_of(
+            context.judged,
+            [raw.judging[k] for k in context.scenario_of_run],
+            [context.judging_scenarios[k].reference for k in context.scenario_of_run],
+        )
         noise = identify_noise(
-            training_residuals(context, first), context.dt, context.ranges, context.nominal
+            training_residuals(context, raw.training),
+            held,
+            context.dt,
+            context.ranges,
+            context.nominal,
         )
         nominal = {**context.nominal, **noise.plant_parameters}
-        if noise.plant_parameters:
-            first = replay(context.training_scenarios, nominal)
-        judging = [
-            next(
-                (r for t, r in zip(context.training_scenarios, first, strict=True) if t is s), None
-            )
-            for s in context.judging_scenarios
-        ]
-        judging = [
-            r if r is not None else run_scenario(plant, s, plant_overrides=nominal)
-            for r, s in zip(judging, context.judging_scenarios, strict=True)
-        ]
-    return noise, nominal, Replays(first, judging)
+        return noise, nominal, replay(nominal) if noise.plant_parameters else raw
 
 
 def diagnose(

@@ -112,9 +112,9 @@ def test_plant_parameters(plant):
         as_plant_parameters(harmonics * 3, start)
 
 
-def residuals(position, current, regime=STANDSTILL) -> Residuals:
+def residuals(position, current, regime=STANDSTILL, start=0.0) -> Residuals:
     n = len(position)
-    t = np.arange(n) * DT
+    t = start + np.arange(n) * DT
     return Residuals(
         t,
         np.asarray(position, float),
@@ -142,7 +142,9 @@ def test_a_harmonic_with_a_negative_frequency_is_dropped_and_reported(monkeypatc
     """The crash of issue 10: noise_frequency_1 = -2.8865 reached the FMU."""
     found = [Harmonic(3e-8, -2.8865, 0.1), Harmonic(2e-8, 120.0, 0.2)]
     monkeypatch.setattr(noise_module, "noise_harmonics", lambda *a, **k: found)
-    model = identify_noise(residuals(np.zeros(4000), np.zeros(4000)), DT, RANGES, START)
+    later = 1.0 + np.arange(4000) * DT  # s, the held-out data continue the 120 Hz harmonic
+    held = residuals(2e-8 * np.sin(2 * np.pi * 120.0 * later + 0.2), np.zeros(4000), start=1.0)
+    model = identify_noise(residuals(np.zeros(4000), np.zeros(4000)), held, DT, RANGES, START)
     assert [h.frequency_hz for h in model.harmonics] == [120.0]
     assert model.plant_parameters["noise_frequency_1"] == 120.0
     assert len(model.dropped) == 1 and "-2.886" in model.dropped[0]
@@ -156,9 +158,59 @@ def test_a_harmonic_outside_the_variable_range_is_dropped():
     t = np.arange(8000) * DT
     position = 1e-7 * np.sin(2 * np.pi * 60.0 * t) + rng.normal(0, 2e-9, t.size)
     narrow = {**RANGES, "noise_frequency_1": (0.0, 50.0)}
-    model = identify_noise(residuals(position, np.zeros_like(t)), DT, narrow, START)
+    training = residuals(position, np.zeros_like(t))
+    model = identify_noise(training, training, DT, narrow, START)
     assert model.harmonics == []
     assert "noise_frequency_1" in model.dropped[0]
+
+
+def identified_on(held_position: np.ndarray, start: float) -> object:
+    """The noise model of 2 s of standstill holding 0.1 um at 5.9 Hz (and 5 nm of white noise),
+    confirmed on held-out standstill positions (m) that start at ``start`` (s)."""
+    rng = np.random.default_rng(3)
+    t = np.arange(8000) * DT
+    position = 1e-7 * np.sin(2 * np.pi * 5.9 * t + 0.4) + rng.normal(0, 5e-9, t.size)
+    held = residuals(held_position, np.zeros(held_position.size), start=start)
+    return identify_noise(residuals(position, np.zeros_like(t)), held, DT, RANGES, START)
+
+
+def test_a_harmonic_the_held_out_standstill_continues_is_written_to_the_plant():
+    rng = np.random.default_rng(4)
+    later = 3.0 + np.arange(6000) * DT  # s
+    held = 1e-7 * np.sin(2 * np.pi * 5.9 * later + 0.4) + rng.normal(0, 5e-9, later.size)
+    model = identified_on(held, start=3.0)
+    assert [round(h.frequency_hz, 2) for h in model.harmonics] == [5.9]
+    assert model.plant_parameters["noise_amplitude_1"] == pytest.approx(1e-7, rel=0.05)
+    assert model.dropped == []
+
+
+@pytest.mark.parametrize("phase_shift", [None, np.pi, np.pi / 2])
+def test_a_sinusoid_the_held_out_standstill_does_not_continue_is_dropped(phase_shift):
+    """What an effect leaves at the training data's standstill (settling, creep) does not run on
+    in phase: white held-out noise, or the sinusoid out of phase by a half or a quarter cycle."""
+    rng = np.random.default_rng(5)
+    later = 3.0 + np.arange(6000) * DT  # s
+    held = rng.normal(0, 5e-9, later.size)
+    if phase_shift is not None:
+        held = held + 1e-7 * np.sin(2 * np.pi * 5.9 * later + 0.4 + phase_shift)
+    model = identified_on(held, start=3.0)
+    assert model.harmonics == [] and model.plant_parameters == {}
+    assert (
+        len(model.dropped) == 1 and "not confirmed at the held-out standstill" in model.dropped[0]
+    )
+
+
+def test_without_held_out_standstill_no_harmonic_is_confirmed():
+    later = 3.0 + np.arange(6000) * DT  # s
+    held = residuals(
+        1e-7 * np.sin(2 * np.pi * 5.9 * later + 0.4), np.zeros(6000), CONSTANT_VELOCITY, 3.0
+    )
+    rng = np.random.default_rng(3)
+    t = np.arange(8000) * DT
+    position = 1e-7 * np.sin(2 * np.pi * 5.9 * t + 0.4) + rng.normal(0, 5e-9, t.size)
+    model = identify_noise(residuals(position, np.zeros_like(t)), held, DT, RANGES, START)
+    assert model.harmonics == []
+    assert "no standstill stretch of 0.2 s" in model.dropped[0]
 
 
 def test_high_frequency_sigma_sees_white_noise_under_a_smooth_error():
@@ -311,5 +363,6 @@ def test_a_plant_without_a_noise_model_gets_no_noise_parameters():
     rng = np.random.default_rng(3)
     t = np.arange(8000) * DT
     position = 1e-7 * np.sin(2 * np.pi * 60.0 * t) + rng.normal(0, 2e-9, t.size)
-    model = identify_noise(residuals(position, np.zeros_like(t)), DT, {"mass": (0, 1)}, {"mass": 1})
+    training = residuals(position, np.zeros_like(t))
+    model = identify_noise(training, training, DT, {"mass": (0, 1)}, {"mass": 1})
     assert model.plant_parameters == {} and model.harmonics == []
