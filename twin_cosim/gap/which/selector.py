@@ -390,12 +390,14 @@ class Selector:
         # after each accepted effect and a swap: each effect, a level-and-shape one twice
         shaped = sum(1 for h in self.library.values() if shape_index(h) is not None)
         refreshes = 2 * (rounds + min(shaped, rounds)) * (rounds + 1)
+        profiles = shaped * (rounds - 1)  # a later round's level-and-shape fits from a profile
         return (
             1  # the final model's uncertainty
             + per_round * (rounds + 1)
             + 2 * first
             + searched
             + 2 * later * (rounds - 1)
+            + profiles
             + pairs
             + joint
             + refreshes
@@ -616,9 +618,7 @@ class Selector:
         what a screen would.
         """
         if starts:
-            fits = self.pool.tasks(
-                "later_round_fits", [FitTask(n, base, context, starts.get(n)) for n in names]
-            )
+            fits = self._continued(names, base, context, starts)
         else:
             fits = self._screened(names, base, context)
         acceptance = self._acceptance(len(names))
@@ -691,7 +691,16 @@ class Selector:
         search fitted again from it (in the order of ``names``; a leader's replays count its
         local fit's too)."""
         phase = "first_round_fits"
-        local = self.pool.tasks(phase, [FitTask(n, base, context, search=False) for n in names])
+        shaped = {n for n in names if shape_index(self.library[n]) is not None}
+        local = self.pool.tasks(
+            phase,
+            [
+                FitTask(n, base, context, profile=True)
+                if n in shaped
+                else FitTask(n, base, context, search=False)
+                for n in names
+            ],
+        )
         searchable = [f for f in local if searches(self.library[f.hypothesis])]
         leaders = sorted(
             searchable,
@@ -700,15 +709,25 @@ class Selector:
             ),
         )[: self.settings.searched_candidates]
         searched = self.pool.tasks(phase, [FitTask(f.hypothesis, base, context) for f in leaders])
-        by_name = {f.hypothesis: f for f in searched}
-        return [
-            dataclasses.replace(
-                by_name[f.hypothesis], replays=by_name[f.hypothesis].replays + f.replays
-            )
-            if f.hypothesis in by_name
-            else f
-            for f in local
-        ]
+        return _better_of(local, searched)
+
+    def _continued(
+        self,
+        names: list[str],
+        base: dict[str, float],
+        context: dict[str, float],
+        starts: dict[str, tuple[float, ...]],
+    ) -> list[FitResult]:
+        """A later round's fits: each hypothesis from its fit of the round before (a search of
+        one generation around it), a level and a shape also from its profile (the accepted
+        effects can move its valley out of that generation's reach), the better kept."""
+        shaped = [n for n in names if shape_index(self.library[n]) is not None]
+        fits = self.pool.tasks(
+            "later_round_fits",
+            [FitTask(n, base, context, starts.get(n)) for n in names]
+            + [FitTask(n, base, context, profile=True) for n in shaped],
+        )
+        return _better_of(fits[: len(names)], fits[len(names) :])
 
     def _next_candidates(self, done: Round, fitted: set[str], remaining: list[str]) -> list[str]:
         """Periodic hypotheses and the best of the round by held-out reduction; a look-alike of
@@ -1147,3 +1166,24 @@ class Selector:
             assert refit is not None, "a single effect is kept"
             accepted, base = refitted(accepted[:j] + accepted[j + 1 :], refit), refit.overrides
         return accepted, base, replays, [], dropped
+
+
+def _better_of(fits: list[FitResult], others: list[FitResult]) -> list[FitResult]:
+    """``fits``, each replaced by the fit of the same hypothesis in ``others`` when that one
+    comes from a search and ``fits``'s from none (a local fit), or when both come from
+    searches and the other fits the training data at least as well; each keeps the replays of
+    both."""
+    by_name = {f.hypothesis: f for f in others}
+    found = []
+    for fit in fits:
+        other = by_name.get(fit.hypothesis)
+        if other is not None:
+            searched = fit.search_replays > 0
+            best = other if not searched or other.train_cost <= fit.train_cost else fit
+            fit = dataclasses.replace(
+                best,
+                replays=fit.replays + other.replays,
+                search_replays=fit.search_replays + other.search_replays,
+            )
+        found.append(fit)
+    return found

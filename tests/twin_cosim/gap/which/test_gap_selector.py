@@ -676,46 +676,92 @@ def test_a_single_effect_is_not_refitted():
 
 @dataclass
 class ScreenPool:
-    """Fits whose training cost is ``local[name]`` from the start values and ``searched[name]``
-    from the global search."""
+    """Fits whose training cost is ``local[name]`` from the start values, ``searched[name]``
+    from the global search and ``profiled[name]`` from the profile over a shape parameter."""
 
     local: dict[str, float]
     searched: dict[str, float]
+    profiled: dict[str, float] = field(default_factory=dict)
     batches: list = field(default_factory=list)
 
     def tasks(self, phase: str, tasks: list) -> list:
-        assert phase == "first_round_fits"
+        assert phase in ("first_round_fits", "later_round_fits")
         self.batches.append(tasks)
-        costs = [self.searched if t.search else self.local for t in tasks]
+        costs = [
+            self.profiled if t.profile else self.searched if t.search else self.local for t in tasks
+        ]
         return [
-            FitResult(t.hypothesis, {}, dict(t.base), cost[t.hypothesis], 1, "")
+            FitResult(
+                t.hypothesis, {}, dict(t.base), cost[t.hypothesis], 1, "", search_replays=t.search
+            )
             for t, cost in zip(tasks, costs, strict=True)
         ]
 
 
-def test_the_first_round_searches_the_leaders_of_its_local_fits_only():
-    """Every hypothesis is fitted from its start values; the two leading ones by training BIC
-    of those with a search are fitted again from it. A scanned hypothesis and one of three
-    parameters have no search: however well they fit, they are not searched again."""
+SCREENED = ["stribeck", "coulomb_change", "pitch_error", "dead_time", "inertia_change"]
+
+
+def _screen(pool: ScreenPool) -> list[FitResult]:
     drive2mass = {h.name: h for h in plant_model("drive2mass").hypotheses}
-    names = ["stribeck", "coulomb_change", "pitch_error", "dead_time", "inertia_change"]
-    library = {name: drive2mass[name] for name in names}
-    local = {"stribeck": 5.0, "coulomb_change": 3.0, "pitch_error": 0.5, "dead_time": 0.4}
-    local["inertia_change"] = 4.0
-    searched = {"coulomb_change": 2.9, "inertia_change": 3.5}
-    pool = ScreenPool(local, searched)
+    library = {name: drive2mass[name] for name in SCREENED}
     settings = DiagnosisSettings(searched_candidates=2)
     selector = Selector(pool, library, _HeldOut(10.0), settings, 10.0)
-    fits = selector._screened(names, {"motor_inertia": 3.3e-4}, {})
+    return selector._screened(SCREENED, {"motor_inertia": 3.3e-4}, {})
+
+
+def test_the_first_round_searches_the_leaders_of_its_local_fits_only():
+    """Every hypothesis is fitted from its start values, but for a level and a shape (the
+    Stribeck curve), whose rough cost no local fit screens: it is fitted from its profile. The
+    two leading ones by training BIC of those with a search are fitted again from it. A scanned
+    hypothesis and one of three parameters have no search: however well they fit, they are not
+    searched again."""
+    local = {"coulomb_change": 3.0, "pitch_error": 0.5, "dead_time": 0.4, "inertia_change": 4.0}
+    pool = ScreenPool(local, {"coulomb_change": 2.9, "inertia_change": 3.5}, {"stribeck": 5.0})
+    fits = _screen(pool)
     first, again = pool.batches
-    assert [(t.hypothesis, t.search) for t in first] == [(n, False) for n in names]
+    assert [(t.hypothesis, t.search, t.profile) for t in first] == [
+        ("stribeck", True, True),
+        *((n, False, False) for n in SCREENED[1:]),
+    ]
     assert [(t.hypothesis, t.search, t.start) for t in again] == [
         ("coulomb_change", True, None),  # BIC: 3.0 with one parameter leads 4.0 with one
         ("inertia_change", True, None),
     ]
-    # stribeck (two parameters, 5.0) trails: its local fit stays its fit
+    # stribeck (two parameters, 5.0) trails: its profile fit stays its fit
     assert [f.train_cost for f in fits] == [5.0, 2.9, 0.5, 0.4, 3.5]
     assert [f.replays for f in fits] == [1, 2, 1, 1, 2]  # a leader's: its local fit's and its own
+
+
+@pytest.mark.parametrize(("searched", "kept"), [(1.2, 1.0), (0.8, 0.8)])
+def test_a_leading_profile_fit_is_searched_too_and_the_better_kept(searched, kept):
+    """Both are searches that stop in different valleys of a rough cost: the one that fits the
+    training data better is the hypothesis' fit, with the replays of both."""
+    local = {"coulomb_change": 3.0, "pitch_error": 0.5, "dead_time": 0.4, "inertia_change": 4.0}
+    pool = ScreenPool(local, {"stribeck": searched, "coulomb_change": 2.9}, {"stribeck": 1.0})
+    fits = _screen(pool)
+    assert [t.hypothesis for t in pool.batches[1]] == ["stribeck", "coulomb_change"]
+    assert fits[0].train_cost == kept
+    assert (fits[0].replays, fits[0].search_replays) == (2, 2)
+
+
+def test_a_later_round_fits_a_level_and_shape_from_its_start_and_its_profile():
+    """A later round starts each fit from the round before's; a level and a shape is also fitted
+    from its profile (the accepted effects can move its valley), the better of the two kept."""
+    drive2mass = {h.name: h for h in plant_model("drive2mass").hypotheses}
+    library = {name: drive2mass[name] for name in ("stribeck", "coulomb_change")}
+    starts = {"stribeck": (0.1, 0.5), "coulomb_change": (0.02,)}
+    for warm, kept in ((2.0, 1.5), (1.0, 1.0)):
+        pool = ScreenPool({}, {"stribeck": warm, "coulomb_change": 1.0}, {"stribeck": 1.5})
+        selector = Selector(pool, library, _HeldOut(10.0), DiagnosisSettings(), 10.0)
+        fits = selector._continued(list(starts), {}, {}, starts)
+        (asked,) = pool.batches
+        assert [(t.hypothesis, t.start, t.profile) for t in asked] == [
+            ("stribeck", (0.1, 0.5), False),
+            ("coulomb_change", (0.02,), False),
+            ("stribeck", None, True),
+        ]
+        assert [f.train_cost for f in fits] == [kept, 1.0]
+        assert [f.replays for f in fits] == [2, 1]
 
 
 def test_a_later_round_starts_only_from_fits_that_searched():
