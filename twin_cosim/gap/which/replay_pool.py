@@ -195,6 +195,11 @@ class JudgingCache:
         The replays by (parameter set, with training replays), the latest last.
     residuals : OrderedDict
         The normalised training residuals by parameter set, the latest last.
+    entry_bytes : dict
+        Bytes of the records of each entry.
+    kept_bytes, kept_residual_bytes : int
+        Bytes of the records and of the training residuals kept (running sums: a put costs
+        the bytes of its own replays, not of all kept).
     """
 
     key: Callable[[dict[str, float]], ParameterKey]
@@ -208,6 +213,9 @@ class JudgingCache:
     residuals: OrderedDict[ParameterKey, np.ndarray] = field(
         default_factory=OrderedDict, repr=False
     )
+    entry_bytes: dict[tuple[ParameterKey, bool], int] = field(default_factory=dict, repr=False)
+    kept_bytes: int = 0
+    kept_residual_bytes: int = 0
 
     @classmethod
     def of(cls, spec: ReplaySpec) -> JudgingCache:
@@ -249,15 +257,22 @@ class JudgingCache:
         """Keep the replays of the task's parameter set, and their training residual when they
         hold the training replays."""
         key = self.key(task.overrides)
-        self.entries[(key, task.with_training)] = replays
-        while sum(map(_record_bytes, self.entries.values())) > self.size_bytes:
-            self.entries.popitem(last=False)
+        entry = (key, task.with_training)
+        size = _record_bytes(replays)
+        self.kept_bytes += size - self.entry_bytes.get(entry, 0)
+        self.entries[entry] = replays
+        self.entry_bytes[entry] = size
+        while self.kept_bytes > self.size_bytes:
+            oldest, _ = self.entries.popitem(last=False)
+            self.kept_bytes -= self.entry_bytes.pop(oldest)
         training = self._training(replays)
         if self.training_residual is None or training is None or key in self.residuals:
             return
         self.residuals[key] = self.training_residual(training)
-        while sum(r.nbytes for r in self.residuals.values()) > self.residual_bytes:
-            self.residuals.popitem(last=False)
+        self.kept_residual_bytes += self.residuals[key].nbytes
+        while self.kept_residual_bytes > self.residual_bytes:
+            _, dropped = self.residuals.popitem(last=False)
+            self.kept_residual_bytes -= dropped.nbytes
 
     def _training(self, replays: Replays) -> list[RunRecord] | None:
         """The training replays among ``replays`` (a time split's are judging replays), or

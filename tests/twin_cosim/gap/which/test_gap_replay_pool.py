@@ -36,6 +36,7 @@ from twin_cosim.gap.which.replay_pool import (
     makespan,
 )
 from twin_cosim.plant_model import plant_model
+from twin_cosim.run_record import RunRecord
 from twin_cosim.workers import BoundPool, SerialPool, Started
 
 
@@ -346,3 +347,21 @@ def test_calibration_directions_started_ahead_make_the_nominal_basis_without_a_r
     mismatched = _stiffness_pool(measured, Started(other, waiting))
     assert np.array_equal(mismatched.basis({}).directions, fresh.basis({}).directions)
     assert len(mismatched.pool.asked) == 2 and all(f.cancelled() for f in waiting)
+
+
+def test_the_judging_cache_keeps_the_latest_replays_within_its_bytes():
+    """Each record of 100 samples of two columns holds 1600 bytes: a cache of 4000 bytes keeps
+    the two latest parameter sets; asking one again (as a put of the same set) counts it once."""
+    cache = JudgingCache(lambda overrides: tuple(sorted(overrides.items())), None, size_bytes=4000)
+
+    def replays(value: float) -> Replays:
+        return Replays(None, [RunRecord(np.full((100, 2), value), ["t", "x"])])
+
+    for k in range(4):
+        cache.put(SimulateTask({"backlash": float(k)}), replays(k))
+    cache.put(SimulateTask({"backlash": 3.0}), replays(3))
+    kept = [key[0] for key in cache.entries]
+    assert kept == [(("backlash", 2.0),), (("backlash", 3.0),)]
+    assert cache.kept_bytes == 3200
+    assert cache.get(SimulateTask({"backlash": 0.0})) is None
+    assert cache.get(SimulateTask({"backlash": 2.0})).judging[0]["x"][0] == 2.0
