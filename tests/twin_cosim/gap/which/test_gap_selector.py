@@ -112,6 +112,39 @@ def test_a_round_names_its_accepted_single_or_pair():
     assert chosen.best.name == "backlash_change+stribeck"
 
 
+def test_two_effects_that_each_fail_alone_pass_as_a_pair():
+    """Backlash and current lag each leave 3.9 of a gap of 4 (times the noise floor) alone, and
+    0.5 together: the pair screen fits the second on top of the first, the pair passes, and each
+    member earns its place beside the other."""
+
+    def gap(overrides: dict[str, float]) -> np.ndarray:
+        both = {"backlash", "current_time_constant"} <= set(overrides)
+        alone = {"backlash", "current_time_constant"} & set(overrides)
+        return 2.0 * (0.5 if both else 3.9 if alone else 4.0) * PATTERN
+
+    pool = JointPool(
+        gap, {"backlash_change": {"backlash": 8e-6}, "current_lag": {"current_time_constant": 2e-4}}
+    )
+    held = _HeldOut(10.0).held_out(Replays([gap({})], [gap({})]), pool.basis({}))
+    alone = []
+    for name, values in pool.fitted.items():
+        replays = Replays([gap(values)], [gap(values)])
+        fit = FitResult(name, values, values, 1.0, 1, "")
+        alone.append(Candidate(fit, 1, 0.0, replays, _judged(False)))
+    opened = _round(alone, [])
+    (pair,) = _swapping(pool).screen_pairs(opened, {}, held)
+    fit = next(t for t in pool.asked if isinstance(t, FitTask))
+    assert (fit.hypothesis, fit.base) == ("current_lag", {"backlash": 8e-6})
+    assert pair.members == ("backlash_change", "current_lag") and pair.passes
+    assert pair.judgement.reduction == pytest.approx(1 - 0.5 / 4.0, rel=0.01)
+    assert pair.members_earn_place
+    assert [m.effect for m in pair.within] == ["backlash_change", "current_lag"]
+    # normalised RMS: the sizes above to 1 % (PATTERN is not a whole number of periods)
+    assert all(m.left_with == pytest.approx(0.5, rel=0.01) for m in pair.within)
+    assert all(m.left_without == pytest.approx(3.9, rel=0.01) for m in pair.within)
+    assert _round(alone, list(pair.members), pair).best is pair
+
+
 # --- swaps of an accepted effect for a rival of its round
 
 SAMPLES = 2000
