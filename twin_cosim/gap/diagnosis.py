@@ -9,9 +9,11 @@ and the printed verdict are written from its fields):
    model and its variable ranges, the measured runs checked (outliers repaired and reported)
    and the split: ``--holdout`` runs judge (each following its own reference and disturbance
    when the scenario's reference comes from a measured file, e.g. the EMPS validation run), or
-   every measured run is split in time at ``split``. The fit never sees a held-out sample.
+   every measured run is split in time at ``split``. The fit never sees a held-out sample
+   (the held-out standstill only confirms the noise harmonics, stage 2).
 2. **Replay and noise** (:mod:`twin_cosim.gap.floors.noise`): the twin replays the scenario;
-   the measured noise at standstill becomes plant parameters; the noise floors (from repeats of
+   the measured noise at standstill becomes plant parameters where the held-out standstill
+   confirms it; the noise floors (from repeats of
    one input, else from the residual's high-frequency part) normalise all residuals, with their
    source.
 3. **Where** (:mod:`twin_cosim.gap.location`): regimes, along the axis, orders and

@@ -28,10 +28,13 @@ held-out data confirm them (:func:`confirmed_harmonics`): at the held-out stands
 the harmonic as identified (amplitude, frequency and phase in absolute time) must leave less of
 the residual than it finds there. A harmonic of the machine's noise runs on in phase and passes;
 what an unmodelled effect leaves at standstill in the training data (the settling of a dead
-time, the creep of a Stribeck curve: 0.1-1.2 um at 0.5-12 Hz on random virtual machines whose
+time, the creep of a Stribeck curve: 0.03-1.2 um at 0.5-12 Hz on random virtual machines whose
 noise is white) does not repeat in phase, and a twin that replayed it would carry a sinusoid
-its machine does not have. A harmonic that cannot be identified or confirmed is dropped and
-reported, never written to the FMU.
+its machine does not have. Held-out runs of their own start their clocks at 0, as the plant
+does: a harmonic passes there when its phase is tied to each run's start; one whose phase
+wanders from run to run (mains hum) is dropped, because the twin cannot replay it in phase and
+out of phase it adds its energy. A harmonic that cannot be identified or confirmed is dropped
+and reported, never written to the FMU.
 
 **Noise floors** sigma_x (m), sigma_i (A; rad/s for the motor speed of an open-loop run)
 normalise every residual (:func:`noise_floors`). A floor must come from what no effect of the
@@ -334,9 +337,25 @@ def identify_noise(
         found = noise_harmonics(raw.t, raw.position, still, count=slots)
     except ValueError as exc:
         return NoiseModel([], {}, [f"noise harmonics not identified: {exc}"])
+    kept, dropped = _settable(found[:slots], dt, ranges, start_values)
+    kept, unconfirmed = confirmed_harmonics(kept, held, dt)
+    kept, unset = _settable(kept, dt, ranges, start_values)  # in the slots they now take
+    parameters = as_plant_parameters(kept, start_values) if kept else {}
+    return NoiseModel(kept, parameters, dropped + unconfirmed + unset)
+
+
+def _settable(
+    harmonics: Sequence[Harmonic],
+    dt: float,
+    ranges: dict[str, tuple[float, float]],
+    start_values: dict[str, float],
+) -> tuple[list[Harmonic], list[str]]:
+    """The harmonics, in order, whose values fit the FMU's variable ranges in the slots they
+    take and whose frequency lies below the Nyquist frequency of the sample period ``dt`` (s);
+    and why each other one is dropped."""
     nyquist = 0.5 / dt
     kept, dropped = [], []
-    for harmonic in found[:slots]:
+    for harmonic in harmonics:
         slot = as_plant_parameters([*kept, harmonic], start_values)
         problem = _out_of_range(slot, ranges)
         if not 0.0 < harmonic.frequency_hz < nyquist:
@@ -348,10 +367,7 @@ def identify_noise(
             )
         else:
             kept.append(harmonic)
-    kept, unconfirmed = confirmed_harmonics(kept, held, dt)
-    dropped += unconfirmed
-    parameters = as_plant_parameters(kept, start_values) if kept else {}
-    return NoiseModel(kept, parameters, dropped)
+    return kept, dropped
 
 
 def confirmed_harmonics(
@@ -377,7 +393,7 @@ def confirmed_harmonics(
 
     Returns
     -------
-    tuple
+    tuple of (list of Harmonic, list of str)
         The confirmed harmonics (in the order given) and one reason per dropped harmonic.
     """
     stretches = _stretches(held.t, held.regimes == regime_model.STANDSTILL, dt)
@@ -413,7 +429,7 @@ def _energy(pieces: Sequence[np.ndarray]) -> float:
 
 
 def _rms_nm(pieces: Sequence[np.ndarray]) -> str:
-    """RMS of the pieces together, nm, to three digits."""
+    """RMS of the pieces (m) together, written in nm to three digits."""
     values = np.concatenate(pieces)
     return f"{1e9 * float(np.sqrt(np.mean(values**2))):.3g}"
 

@@ -10,9 +10,11 @@ of the order spectra of the motor and screw angle,
 :data:`~twin_cosim.gap.data.context.DEFAULT_CONTEXT` when there is none), the hypotheses are
 fitted on top of the accepted effects (:mod:`twin_cosim.gap.which.replay`), ranked by BIC on the
 training residual and judged on the held-out runs
-(:func:`~twin_cosim.gap.which.acceptance.judge`). The first round fits the whole library; later
+(:func:`~twin_cosim.gap.which.acceptance.judge`). The first round fits the whole library (a
+screen: local fits, a level and a shape from its profile, the leaders searched); later
 rounds the periodic hypotheses (their orders may have changed) and the
-``later_round_candidates`` best of the previous round by held-out reduction. The candidates that
+``later_round_candidates`` best of the previous round by held-out reduction, each from its fit
+of the round before, a level and a shape from its profile too. The candidates that
 pass are judged once more with the calibration corrections replayed
 (:meth:`Selector.replay_corrections`; test 5 of the acceptance rule), as are the pairs below;
 one that fails it does not pass (a later round then goes on to the joint screen, whose refits
@@ -608,14 +610,18 @@ class Selector:
         """Fit every hypothesis (from its fit of the round before, in ``starts``, when there
         is one), replay it on the held-out runs and judge it; best training BIC first.
 
-        The first round screens: every hypothesis is fitted locally from its start values;
-        the leading ones by training BIC (``searched_candidates`` of those whose fit has a
-        global search, :func:`~twin_cosim.gap.which.replay.searches`) are fitted again from
-        their global search, and that fit is theirs. The others keep their local fit: a
-        hypothesis the data do not call for leaves its local fit far behind the leaders', and
-        its search (most of a cold fit's replays) would not change its place. A later round
-        starts each fit from the round before's, where a search of one generation costs about
-        what a screen would.
+        The first round screens (:meth:`_screened`): every hypothesis but a level and a shape
+        is fitted locally from its start values, a level and a shape from its profile over the
+        shape (:func:`~twin_cosim.gap.which.replay.profile_start`: its cost is rough in the
+        shape, and no local fit screens it); the leading ones by training BIC
+        (``searched_candidates`` of those whose fit has a global search,
+        :func:`~twin_cosim.gap.which.replay.searches`) are fitted again from their global
+        search, which replaces a local fit and competes with a profile fit. The others keep
+        their screen fit: a hypothesis the data do not call for leaves its local fit far behind
+        the leaders', and its search (most of a cold fit's replays) would not change its place.
+        A later round (:meth:`_continued`) starts each fit from the round before's, where a
+        search of one generation costs about what a screen would, and fits a level and a shape
+        from its profile too.
         """
         if starts:
             fits = self._continued(names, base, context, starts)
@@ -677,19 +683,21 @@ class Selector:
         return found
 
     def _found(self, candidate: Candidate) -> bool:
-        """Whether a candidate's fit is a start for the next round: one from its global search
-        (or of a hypothesis without one). A local fit the first round's screen left alone
-        found no valley; the next round searches that hypothesis afresh."""
+        """Whether a candidate's fit is a start for the next round: one from a search (its
+        global search or its profile) or of a hypothesis without one. A local fit the first
+        round's screen left alone found no valley; the next round searches that hypothesis
+        afresh."""
         fit = candidate.fit
         return fit.search_replays > 0 or not searches(self.library[fit.hypothesis])
 
     def _screened(
         self, names: list[str], base: dict[str, float], context: dict[str, float]
     ) -> list[FitResult]:
-        """The first round's fits: every hypothesis fitted locally from its start values, the
-        leading ``searched_candidates`` by training BIC among those whose fit has a global
-        search fitted again from it (in the order of ``names``; a leader's replays count its
-        local fit's too)."""
+        """The first round's fits: every hypothesis fitted locally from its start values, a
+        level and a shape from its profile; the leading ``searched_candidates`` by training
+        BIC among those whose fit has a global search fitted again from it (in the order of
+        ``names``; a leader keeps its search, or the better of its profile fit and its search,
+        with the replays of both: :func:`_better_of`)."""
         phase = "first_round_fits"
         shaped = {n for n in names if shape_index(self.library[n]) is not None}
         local = self.pool.tasks(
@@ -1169,10 +1177,9 @@ class Selector:
 
 
 def _better_of(fits: list[FitResult], others: list[FitResult]) -> list[FitResult]:
-    """``fits``, each replaced by the fit of the same hypothesis in ``others`` when that one
-    comes from a search and ``fits``'s from none (a local fit), or when both come from
-    searches and the other fits the training data at least as well; each keeps the replays of
-    both."""
+    """``fits``, each replaced by the fit of the same hypothesis in ``others`` (a search)
+    when its own comes from no search (a local fit), or when its own comes from a search too
+    and the other fits the training data at least as well; each keeps the replays of both."""
     by_name = {f.hypothesis: f for f in others}
     found = []
     for fit in fits:

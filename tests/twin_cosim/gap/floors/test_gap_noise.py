@@ -17,6 +17,7 @@ from twin_cosim.gap.floors import noise as noise_module
 from twin_cosim.gap.floors.noise import (
     Floors,
     Harmonic,
+    NoiseModel,
     as_plant_parameters,
     compare_metrics,
     high_frequency_sigma,
@@ -164,7 +165,7 @@ def test_a_harmonic_outside_the_variable_range_is_dropped():
     assert "noise_frequency_1" in model.dropped[0]
 
 
-def identified_on(held_position: np.ndarray, start: float) -> object:
+def identified_on(held_position: np.ndarray, start: float) -> NoiseModel:
     """The noise model of 2 s of standstill holding 0.1 um at 5.9 Hz (and 5 nm of white noise),
     confirmed on held-out standstill positions (m) that start at ``start`` (s)."""
     rng = np.random.default_rng(3)

@@ -365,3 +365,26 @@ def test_the_judging_cache_keeps_the_latest_replays_within_its_bytes():
     assert cache.kept_bytes == 3200
     assert cache.get(SimulateTask({"backlash": 0.0})) is None
     assert cache.get(SimulateTask({"backlash": 2.0})).judging[0]["x"][0] == 2.0
+
+
+def test_the_judging_cache_keeps_the_latest_training_residuals_within_their_bytes():
+    """A time split's training replays are its judging replays: each put keeps their residual
+    (100 floats, 800 bytes); 2000 bytes hold the two latest. A replaced entry of another size
+    counts at its new size."""
+    cache = JudgingCache(
+        lambda overrides: tuple(sorted(overrides.items())),
+        [0],
+        lambda records: records[0]["x"].copy(),
+        size_bytes=10_000,
+        residual_bytes=2000,
+    )
+    for k in range(3):
+        record = RunRecord(np.full((100, 2), float(k)), ["t", "x"])
+        cache.put(SimulateTask({"backlash": float(k)}), Replays(None, [record]))
+    assert [key[0][1] for key in cache.residuals] == [1.0, 2.0]
+    assert cache.kept_residual_bytes == 1600
+    assert cache.residual({"backlash": 2.0})[0] == 2.0
+    assert cache.residual({"backlash": 0.0}) is None
+    longer = RunRecord(np.full((300, 2), 1.0), ["t", "x"])
+    cache.put(SimulateTask({"backlash": 1.0}), Replays(None, [longer]))
+    assert cache.kept_bytes == 3 * 1600 - 1600 + 4800

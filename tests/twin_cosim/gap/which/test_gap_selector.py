@@ -725,7 +725,13 @@ class ScreenPool:
         ]
         return [
             FitResult(
-                t.hypothesis, {}, dict(t.base), cost[t.hypothesis], 1, "", search_replays=t.search
+                t.hypothesis,
+                {},
+                dict(t.base),
+                cost[t.hypothesis],
+                1,
+                "",
+                search_replays=int(t.search),
             )
             for t, cost in zip(tasks, costs, strict=True)
         ]
@@ -742,7 +748,7 @@ def _screen(pool: ScreenPool) -> list[FitResult]:
     return selector._screened(SCREENED, {"motor_inertia": 3.3e-4}, {})
 
 
-def test_the_first_round_searches_the_leaders_of_its_local_fits_only():
+def test_the_first_round_searches_the_leaders_of_its_screen_fits_only():
     """Every hypothesis is fitted from its start values, but for a level and a shape (the
     Stribeck curve), whose rough cost no local fit screens: it is fitted from its profile. The
     two leading ones by training BIC of those with a search are fitted again from it. A scanned
@@ -763,6 +769,14 @@ def test_the_first_round_searches_the_leaders_of_its_local_fits_only():
     # stribeck (two parameters, 5.0) trails: its profile fit stays its fit
     assert [f.train_cost for f in fits] == [5.0, 2.9, 0.5, 0.4, 3.5]
     assert [f.replays for f in fits] == [1, 2, 1, 1, 2]  # a leader's: its local fit's and its own
+
+
+def test_a_leaders_search_replaces_its_local_fit_even_where_that_fit_the_training_better():
+    """A local fit is no search: the leader's global search is its fit, as it always was."""
+    local = {"coulomb_change": 2.0, "pitch_error": 0.5, "dead_time": 0.4, "inertia_change": 4.0}
+    pool = ScreenPool(local, {"coulomb_change": 2.5, "inertia_change": 3.5}, {"stribeck": 5.0})
+    fits = _screen(pool)
+    assert [f.train_cost for f in fits] == [5.0, 2.5, 0.5, 0.4, 3.5]
 
 
 @pytest.mark.parametrize(("searched", "kept"), [(1.2, 1.0), (0.8, 0.8)])
