@@ -361,10 +361,7 @@ def _settable(
         if not 0.0 < harmonic.frequency_hz < nyquist:
             problem = f"frequency {harmonic.frequency_hz:.4g} Hz outside (0, {nyquist:.4g}) Hz"
         if problem:
-            dropped.append(
-                f"noise harmonic {harmonic.amplitude_m:.3g} m at {harmonic.frequency_hz:.4g} Hz "
-                f"dropped: {problem}"
-            )
+            dropped.append(f"{_named(harmonic)} dropped: {problem}")
         else:
             kept.append(harmonic)
     return kept, dropped
@@ -401,7 +398,7 @@ def confirmed_harmonics(
     left = [held.position[a:b] - held.position[a:b].mean() for a, b in stretches]
     kept, dropped = [], []
     for h in harmonics:
-        name = f"noise harmonic {h.amplitude_m:.3g} m at {h.frequency_hz:.4g} Hz"
+        name = _named(h)
         if not stretches:
             dropped.append(
                 f"{name} dropped: the held-out data hold no standstill stretch of "
@@ -421,6 +418,11 @@ def confirmed_harmonics(
                 f"{_rms_nm(left)} nm without it, {_rms_nm(after)} nm with it)"
             )
     return kept, dropped
+
+
+def _named(harmonic: Harmonic) -> str:
+    """'noise harmonic 109 nm at 5.888 Hz': the amplitude in nm, the frequency in Hz."""
+    return f"noise harmonic {1e9 * harmonic.amplitude_m:.3g} nm at {harmonic.frequency_hz:.4g} Hz"
 
 
 def _energy(pieces: Sequence[np.ndarray]) -> float:
