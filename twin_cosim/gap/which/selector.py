@@ -656,21 +656,20 @@ class Selector:
         tested = [i for i, c in enumerate(candidates) if c.passes]
         if not tested or not self.pool.calibrated:
             return candidates
-        models = [(base, held.vector, held.basis)]
-        for i in tested:
-            overrides = candidates[i].fit.overrides
-            vector = self.judging.vector(self.judging.residuals(candidates[i].replays))
-            models.append((overrides, vector, self.pool.basis(overrides)))
-        tasks = []
-        for overrides, vector, basis in models:
-            coefficients = basis.correction(vector)[0].tolist()
-            tasks.append(
-                SimulateTask(
-                    self.pool.corrected(
-                        overrides, dict(zip(basis.names, coefficients, strict=True))
-                    )
-                )
+        models = [(base, held)] + [
+            (
+                candidates[i].fit.overrides,
+                self.judging.held_out(
+                    candidates[i].replays, self.pool.basis(candidates[i].fit.overrides)
+                ),
             )
+            for i in tested
+        ]
+        tasks = []
+        for overrides, model in models:
+            coefficients = model.basis.correction(model.vector)[0].tolist()
+            correction = dict(zip(model.basis.names, coefficients, strict=True))
+            tasks.append(SimulateTask(self.pool.corrected(overrides, correction)))
         replays = self.pool.tasks("replayed_corrections", tasks)
         before, *afters = (self.judging.vector(self.judging.residuals(r)) for r in replays)
         found = list(candidates)
