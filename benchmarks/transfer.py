@@ -12,8 +12,9 @@ line:
    on this trajectory can reach);
 4. ``twin simulate --machine`` judges each set on the machine: E_pk there beside each twin's
    prediction of it, and for the calibrated twin the prediction's interval over what the
-   diagnosis left uncertain (the intervals of ``plant.yaml``) and whether the machine's E_pk
-   lies inside it.
+   diagnosis left uncertain (the intervals of ``plant.yaml``), widened by what the calibrated
+   twin still missed on the held-out runs (its ``model_error``), and whether the machine's
+   E_pk lies inside it.
 
 The campaign on the calibrated twin is robust over the intervals of ``plant.yaml`` (the
 default of ``twin optimize --plant-parameters`` for a file with intervals); ``--no-robust``
@@ -223,7 +224,8 @@ def report(results: list[dict], out: Path) -> None:
         oracle = f", {e['oracle']:.2f}" if "oracle" in e else ""
         interval = j["calibrated"]["E_pk_um"]
         stated = (
-            f" (interval {interval['low']:.2f}-{interval['high']:.2f} um: "
+            f" (interval {interval['low']:.2f}-{interval['high']:.2f} um, of it"
+            f" +/- {interval.get('margin', 0.0):.2f} um the twin's held-out error: "
             f"{'inside' if interval['inside'] else 'outside'})"
             if "inside" in interval
             else ""

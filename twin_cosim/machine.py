@@ -1,5 +1,7 @@
 """The machine as the judge of a tuned set: its E_pk, ITAE and IAU beside the twin's prediction,
-and the prediction's interval over what the twin's plant file leaves uncertain.
+and the prediction's interval: over what the twin's plant file leaves uncertain (its
+intervals), widened by what the twin still missed on its held-out runs (its ``model_error``,
+:mod:`twin_cosim.model_error`).
 
 A machine is either
 
@@ -106,22 +108,52 @@ def machine_metrics(
 
 
 def prediction(
-    twin: Metrics, machine: Metrics, spread: list[Metrics] | None = None
+    twin: Metrics,
+    machine: Metrics,
+    spread: list[Metrics] | None = None,
+    margins: Mapping[str, float] | None = None,
 ) -> dict[str, dict[str, float]]:
-    """Per judged metric: the machine's value, the twin's, the twin's relative error (%) and,
-    with the twin's metrics on plant samples (``spread``, :func:`plant_samples`), the
-    prediction's interval (``low``, ``high``: the least and largest of the twin's value and
-    the samples') and whether the machine's value lies ``inside`` it."""
+    """Per judged metric: the machine's value, the twin's and the twin's relative error (%);
+    with the twin's metrics on plant samples (``spread``, :func:`plant_samples`) or the margins
+    of the twin's own error (``margins``, :func:`model_error_margins`), the prediction's
+    interval and whether the machine's value lies ``inside`` it.
+
+    The interval runs from the least to the largest of the twin's value and the samples'
+    (``spread_low``, ``spread_high``), widened on both sides by the metric's margin
+    (``margin``, 0 without one) and kept at or above 0 (every judged metric is): ``low``,
+    ``high``."""
     found = {}
     for name in JUDGED:
         real, predicted = getattr(machine, name), getattr(twin, name)
         error = 100.0 * (predicted - real) / real if real else math.nan
         found[name] = {"machine": real, "twin": predicted, "relative_error_pct": error}
-        if spread:
-            values = [predicted, *(getattr(m, name) for m in spread)]
-            low, high = min(values), max(values)
-            found[name] |= {"low": low, "high": high, "inside": bool(low <= real <= high)}
+        if spread or margins:
+            values = [predicted, *(getattr(m, name) for m in spread or [])]
+            margin = (margins or {}).get(name, 0.0)
+            low, high = max(min(values) - margin, 0.0), max(values) + margin
+            found[name] |= {
+                "spread_low": min(values),
+                "spread_high": max(values),
+                "margin": margin,
+                "low": low,
+                "high": high,
+                "inside": bool(low <= real <= high),
+            }
     return found
+
+
+def model_error_margins(scenario: Scenario, plant_file: Path | str | None) -> dict[str, float]:
+    """The margins a plant file's ``model_error`` (what the twin missed on its held-out runs,
+    :mod:`twin_cosim.model_error`) sets on E_pk (um), ITAE (um.s^2) and IAU (A.s) over the
+    scenario's metrics window; none without a file or the section."""
+    if plant_file is None:
+        return {}
+    error = read_plant_parameters(plant_file, scenario.model_name()).model_error
+    if error is None:
+        return {}
+    start, end = scenario.metrics_window
+    duration = scenario.reference.duration if end is None else end
+    return error.margins(duration - start)
 
 
 def plant_samples(scenario: Scenario, plant_file: Path | str | None) -> list[dict[str, float]]:
@@ -160,18 +192,25 @@ def sample_metrics(
 
 def describe(source: str, kind: str, figures: dict[str, dict[str, Any]]) -> str:
     """One line per judged metric: machine, twin prediction, relative error, and the
-    prediction's interval with whether the machine's value lies in it."""
+    prediction's interval (its parts: the plant's intervals, the twin's held-out error) with
+    whether the machine's value lies in it."""
     units = {"E_pk_um": "um", "ITAE": "um.s^2", "IAU": "A.s"}
     lines = [f"on the {kind} {source}:"]
     for name, f in figures.items():
+        unit = units[name]
         line = (
-            f"  {name.removesuffix('_um')}: machine {f['machine']:.4g} {units[name]}, twin "
+            f"  {name.removesuffix('_um')}: machine {f['machine']:.4g} {unit}, twin "
             f"predicted {f['twin']:.4g} ({f['relative_error_pct']:+.1f} %)"
         )
         if "low" in f:
+            parts = []
+            if f["spread_high"] > f["spread_low"]:
+                parts.append(f"the plant's intervals {f['spread_low']:.4g}-{f['spread_high']:.4g}")
+            if f["margin"] > 0.0:
+                parts.append(f"+/- {f['margin']:.3g} {unit} of the twin's held-out error")
             line += (
-                f", interval {f['low']:.4g}-{f['high']:.4g} over the plant's intervals: the "
-                f"machine {'inside' if f['inside'] else 'outside'}"
+                f", interval {f['low']:.4g}-{f['high']:.4g} {unit} ({'; '.join(parts)}): "
+                f"the machine {'inside' if f['inside'] else 'outside'}"
             )
         lines.append(line)
     return "\n".join(lines)

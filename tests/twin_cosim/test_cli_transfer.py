@@ -119,5 +119,7 @@ def test_simulate_states_the_predictions_interval_and_whether_it_holds(tmp_path,
         assert e_pk["low"] <= e_pk["twin"] <= e_pk["high"]
         assert e_pk["inside"] == (name == "wide")
         assert e_pk["inside"] == (e_pk["low"] <= e_pk["machine"] <= e_pk["high"])
-    assert "over the plant's intervals: the machine inside" in found["wide"]
-    assert "over the plant's intervals: the machine outside" in found["narrow"]
+    assert "(the plant's intervals " in found["wide"]
+    assert "held-out error" not in found["wide"]  # a plant file without a model_error
+    assert found["wide"].count("the machine inside") == 3
+    assert "E_pk" in found["narrow"].split("the machine outside")[0].splitlines()[-1]

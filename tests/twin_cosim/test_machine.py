@@ -10,8 +10,9 @@ from scenario_texts import scenario_text
 from twin_cosim.controller_set import FINE_TUNE
 from twin_cosim.cosim import run_scenario
 from twin_cosim.gap.synth import synthesize
-from twin_cosim.machine import machine_metrics, prediction
+from twin_cosim.machine import machine_metrics, model_error_margins, prediction
 from twin_cosim.metrics import compute_metrics
+from twin_cosim.model_error import ModelError
 from twin_cosim.plant import Plant
 from twin_cosim.scenario import load_scenario
 from twin_cosim.scenario.plant_parameters import PlantParameters, write_plant_parameters
@@ -95,3 +96,43 @@ def test_a_measured_run_in_other_units_and_names_is_judged_alike(scenario, tmp_p
     by_other, _ = machine_metrics(scenario, FINE_TUNE, other, columns)
     for name in ("E_pk_um", "ITAE", "IAU"):
         assert getattr(by_other, name) == pytest.approx(getattr(by_si, name), rel=1e-9)
+
+
+def test_the_twin_s_held_out_error_widens_the_interval_to_hold_the_machine(scenario, tmp_path):
+    """A machine with more backlash than the twin knows: outside the interval over the plant's
+    intervals alone, inside once the interval carries the discrepancy a held-out run of that
+    machine shows (its largest position gap: the bound of E_pk on one run)."""
+    machine = write_plant_parameters(
+        tmp_path / "machine.yaml", PlantParameters("drive2mass", {"backlash": 40e-6})
+    )
+    judged, _ = machine_metrics(scenario, FINE_TUNE, machine)
+    twin = twin_metrics(scenario)
+    with Plant(scenario.plant_fmu()) as plant:
+        twin_run = run_scenario(plant, scenario, FINE_TUNE)
+        machine_run = run_scenario(plant, scenario, FINE_TUNE, plant_overrides={"backlash": 40e-6})
+    error = ModelError.of_discrepancy(
+        machine_run["x"] - twin_run["x"], machine_run["current"] - twin_run["current"]
+    )
+    alone = prediction(twin, judged, [twin])["E_pk_um"]
+    assert not alone["inside"] and alone["margin"] == 0.0
+    margins = error.margins(scenario.reference.duration)
+    widened = prediction(twin, judged, [twin], margins)
+    for name, f in widened.items():
+        assert f["inside"], name
+        assert f["low"] == max(f["spread_low"] - margins[name], 0.0)
+        assert f["high"] == f["spread_high"] + margins[name]
+
+
+def test_the_margins_come_from_the_plant_file_over_the_metrics_window(scenario, tmp_path):
+    error = ModelError(position_peak_m=3e-7, position_rms_m=1e-7, current_rms_A=0.01)
+    with_error = write_plant_parameters(
+        tmp_path / "plant.yaml", PlantParameters("drive2mass", {}, model_error=error)
+    )
+    margins = model_error_margins(scenario, with_error)
+    assert margins == error.margins(scenario.reference.duration)
+    assert margins["E_pk_um"] == pytest.approx(0.3)
+    without = write_plant_parameters(tmp_path / "bare.yaml", PlantParameters("drive2mass", {}))
+    assert model_error_margins(scenario, without) == {}
+    assert model_error_margins(scenario, None) == {}
+    figures = prediction(twin_metrics(scenario), twin_metrics(scenario), None, margins)
+    assert figures["E_pk_um"]["high"] - figures["E_pk_um"]["low"] == pytest.approx(0.6)

@@ -279,15 +279,22 @@ def _on_machine(
 ) -> dict[str, Any] | None:
     """The twin's prediction against ``--machine`` (a measured run, its columns by
     ``--columns``, or a virtual machine), with its interval over the plant file's intervals
-    (``--plant-parameters``) when it has them."""
+    widened by its model error (``--plant-parameters``) when it has them."""
     machine = args.machine
     if not machine:
         return None
-    from twin_cosim.machine import machine_metrics, plant_samples, prediction, sample_metrics
+    from twin_cosim.machine import (
+        machine_metrics,
+        model_error_margins,
+        plant_samples,
+        prediction,
+        sample_metrics,
+    )
 
     judged, kind = machine_metrics(scenario, tuned, machine, column_map(args, scenario))
     spread = sample_metrics(scenario, tuned, plant_samples(scenario, args.plant_parameters))
-    return {"source": machine, "kind": kind, **prediction(metrics, judged, spread)}
+    margins = model_error_margins(scenario, args.plant_parameters)
+    return {"source": machine, "kind": kind, **prediction(metrics, judged, spread, margins)}
 
 
 def _print_text(name: str, metrics: Metrics, summary: dict[str, Any], machine: str | None) -> None:

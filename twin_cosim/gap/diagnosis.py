@@ -25,11 +25,14 @@ and the printed verdict are written from its fields):
    figures before and after (RMS gaps, the benchmark's relative errors).
 6. **The calibrated plant** (:func:`calibrated_plant`): the noise harmonics, the kept effects'
    FMU parameters and the calibration correction, each with where it came from (the file
-   ``plant.yaml``, :mod:`twin_cosim.scenario.plant_parameters`).
+   ``plant.yaml``, :mod:`twin_cosim.scenario.plant_parameters`), and what it still misses on
+   the held-out runs, replayed as written (:mod:`twin_cosim.model_error`: the margins of a
+   prediction's interval).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -72,11 +75,13 @@ from twin_cosim.gap.which.replay import (
     JudgingSpec,
     Replays,
     ReplaySpec,
+    SimulateTask,
     TrainingData,
 )
 from twin_cosim.gap.which.replay_pool import JudgingCache, ReplayPool, calibration_moves
 from twin_cosim.gap.which.selector import Round, Selection, Selector, Swap
 from twin_cosim.measured import MeasuredRun
+from twin_cosim.model_error import ModelError
 from twin_cosim.plant import Plant
 from twin_cosim.plant_model import plant_model
 from twin_cosim.scenario import Scenario
@@ -165,7 +170,9 @@ class Diagnosis:
     train_before, holdout_before, holdout_after : Residuals
         The training residual of the nominal twin, and the held-out residual before and after.
     calibrated_plant : PlantParameters
-        The calibrated plant (``plant.yaml``), made by the measured and held-out runs.
+        The calibrated plant (``plant.yaml``), made by the measured and held-out runs, with
+        what it still misses on the held-out runs (its ``model_error``; None for open-loop
+        runs).
     times : dict
         Where the time went, per phase of the selection and of the diagnosis.
     """
@@ -398,9 +405,19 @@ def _diagnose(
         },
     )
     if progress:
-        selector.pool.progress = progress(selector.expected_tasks(), "diagnose")
+        # and the calibrated plant's replay on the held-out runs (its model error)
+        selector.pool.progress = progress(selector.expected_tasks() + 1, "diagnose")
     selection = selector.run(start)
     final = selection.replays
+    plant = calibrated_plant(
+        selection,
+        noise,
+        context.model,
+        context.scenario.plant_parameters,
+        settings.calibration_tolerance,
+        {"measured": context.measured, "holdout": context.holdout or context.split},
+    )
+    plant = dataclasses.replace(plant, model_error=_model_error(judging, selector.pool, plant))
     hold_final = judging.residuals(final)
     significant = selection.rounds[0].significant
     remaining, remaining_where, verdict = _verdict_stage(
@@ -432,14 +449,7 @@ def _diagnose(
         train_before=train0,
         holdout_before=hold0,
         holdout_after=hold_final,
-        calibrated_plant=calibrated_plant(
-            selection,
-            noise,
-            context.model,
-            context.scenario.plant_parameters,
-            settings.calibration_tolerance,
-            {"measured": context.measured, "holdout": context.holdout or context.split},
-        ),
+        calibrated_plant=plant,
         times=times,
     )
 
@@ -654,6 +664,17 @@ def calibrated_plant(
         dict(made),
         intervals=_intervals(selection, parameters, corrections, model),
     )
+
+
+def _model_error(judging: Judging, pool: ReplayPool, plant: PlantParameters) -> ModelError | None:
+    """What the calibrated plant, replayed as ``plant.yaml`` writes it (its calibration
+    correction applied), still misses on the held-out runs (:mod:`twin_cosim.model_error`);
+    None where a held-out run is open-loop (no tracking error of a set of gains to bound)."""
+    if any(run.drive is not None for run in judging.runs):
+        return None
+    replays = pool.tasks("model_error", [SimulateTask(dict(plant.parameters))])[0]
+    left = judging.residuals(replays)
+    return ModelError.of_discrepancy(left.position, left.current)
 
 
 def _intervals(

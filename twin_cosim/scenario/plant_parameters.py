@@ -34,13 +34,18 @@ applies it, so that one excitation run calibrates the twin for every production 
       stribeck_friction: {source: "accepted effect stribeck (step 1)", holdout_reduction: 0.61}
     intervals:                            # what the diagnosis leaves uncertain: the range
       stribeck_friction: [0.19, 0.23]     # of each value, same units (robust tuning samples it)
+    model_error:                          # what the twin still misses on its held-out runs
+      position_peak_m: 8.1e-08            # (twin_cosim.model_error): largest and RMS scale
+      position_rms_m: 2.0e-08             # discrepancy, m, and RMS current discrepancy, A;
+      current_rms_A: 0.005                # a prediction's interval is widened by them
     created_by: {command: "twin diagnose ...", version: 0.1.0, measured: [...], holdout: ...}
 
 It is read with the scenarios' YAML loader and checker (:mod:`twin_cosim.schema`), so a value
 reads the same in both (``2e-5`` is a number). Reading checks the model, that every name is a
 parameter of the model's variable table, and that every value is finite and inside the table's
-range, and that each interval is a pair [low, high] inside that range holding the parameter's
-value; errors name the file and the key. Writing spells every value out where it stands (no
+range, that each interval is a pair [low, high] inside that range holding the parameter's
+value, and that ``model_error`` holds its three figures, each finite and >= 0; errors name the
+file and the key. Writing spells every value out where it stands (no
 YAML anchors and aliases for a person editing the file to decode).
 
 :func:`calibrated_scenario` folds such a file into a copy of a scenario file
@@ -61,11 +66,13 @@ import yaml
 
 from fmu_build.build import DEFAULT_MODEL
 from fmu_build.variable_table import Variable
+from twin_cosim.model_error import FIELDS as MODEL_ERROR_FIELDS
+from twin_cosim.model_error import ModelError
 from twin_cosim.plant_model import PlantModelError, fmu_identity, model_names, model_of, plant_model
 from twin_cosim.scenario.resolved import Scenario
 from twin_cosim.schema import Checker, ScenarioError, load_yaml
 
-TOP_KEYS = {"model", "parameters", "provenance", "intervals", "created_by"}
+TOP_KEYS = {"model", "parameters", "provenance", "intervals", "model_error", "created_by"}
 
 
 class _PlainDumper(yaml.SafeDumper):
@@ -105,6 +112,9 @@ class PlantParameters:
     intervals : dict
         Per parameter name, the range (low, high) its value may take as far as what made the
         file can tell (units of ``parameters``); robust tuning samples within them.
+    model_error : ModelError or None
+        What the twin with these values still misses on the runs held out from what made the
+        file (a diagnosis); a prediction's interval is widened by it.
     """
 
     model: str
@@ -113,6 +123,7 @@ class PlantParameters:
     created_by: dict[str, Any] = field(default_factory=dict)
     source: Path | None = None
     intervals: dict[str, tuple[float, float]] = field(default_factory=dict)
+    model_error: ModelError | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The file's content (YAML-ready)."""
@@ -123,6 +134,8 @@ class PlantParameters:
         }
         if self.intervals:
             content["intervals"] = {k: [low, high] for k, (low, high) in self.intervals.items()}
+        if self.model_error is not None:
+            content["model_error"] = self.model_error.as_dict()
         return {**content, "created_by": self.created_by}
 
 
@@ -232,7 +245,23 @@ def read_plant_parameters(path: Path | str, model: str | None = None) -> PlantPa
     created_by = check.mapping(data.get("created_by"), "created_by")
     checked = check_values(values, found, str(path))
     intervals = check_intervals(data.get("intervals") or {}, checked, found, str(path))
-    return PlantParameters(found, checked, provenance, created_by, path, intervals)
+    model_error = _model_error(check, data.get("model_error"))
+    return PlantParameters(found, checked, provenance, created_by, path, intervals, model_error)
+
+
+def _model_error(check: Checker, raw: Any) -> ModelError | None:
+    """The ``model_error`` section: all of its figures, each finite and >= 0; None without it."""
+    if raw is None:
+        return None
+    section = check.mapping(raw, "model_error", set(MODEL_ERROR_FIELDS))
+    missing = [name for name in MODEL_ERROR_FIELDS if name not in section]
+    if missing:
+        raise check.fail("model_error", f"all of {list(MODEL_ERROR_FIELDS)}; missing {missing}")
+    figures = (
+        check.number(section[name], f"model_error.{name}", minimum=0.0)
+        for name in MODEL_ERROR_FIELDS
+    )
+    return ModelError(*figures)
 
 
 def check_intervals(
@@ -313,12 +342,24 @@ def relocate_paths(data: dict[str, Any], source_dir: Path, target_dir: Path) -> 
                 body[key] = os.path.relpath((source_dir / path).resolve(), target_dir.resolve())
 
 
-def calibrated_scenario(scenario_file: Path | str, plant: PlantParameters, out: Path | str) -> Path:
+def calibrated_scenario(
+    scenario_file: Path | str,
+    plant: PlantParameters,
+    out: Path | str,
+    drive: Mapping[str, float] | None = None,
+) -> Path:
     """Write ``out``: the scenario file with the calibrated values folded into plant.parameters.
 
     Values of a ``plant.parameters_file`` are folded in too (the file key is dropped); the
     calibrated values win. Paths the scenario names (``plant.fmu``, ``reference.csv``,
     ``reference.measured``) are rewritten relative to the new file's folder.
+
+    ``drive``: the drive's plant facts as the scenario's controller had them (its loaded
+    settings, :data:`~twin_cosim.plant_model.DRIVE_FACTS`), written into
+    ``controller.settings`` where the file does not set them: the drive was commissioned with
+    those values, and a calibrated plant does not change them (without this, the facts would
+    follow the calibrated plant, the controller's friction and inertia terms with them, and
+    the file would replay another twin than ``--plant-parameters`` applies).
     """
     scenario_file, out = Path(scenario_file), Path(out)
     data = load_yaml(scenario_file)
@@ -331,10 +372,15 @@ def calibrated_scenario(scenario_file: Path | str, plant: PlantParameters, out: 
         folded = {**extra.parameters, **folded}
     plant_section["parameters"] = {**folded, **plant.parameters}
     data["plant"] = plant_section
+    if drive:
+        controller = dict(data.get("controller") or {})
+        settings = dict(controller.get("settings") or {})
+        controller["settings"] = {**{k: float(v) for k, v in drive.items()}, **settings}
+        data["controller"] = controller
     relocate_paths(data, scenario_file.parent, out.parent)
     data["description"] = (
         f"{data.get('description', '')} Calibrated: the plant parameters of the plant.yaml "
-        "beside this file folded in."
+        "beside this file folded in, the drive's settings as they were."
     ).strip()
     out.write_text(dump_yaml(data))
     return out

@@ -7,14 +7,19 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 from scenario_texts import scenario_text
 
 from twin_cosim import cli
+from twin_cosim.cosim import run_scenario
 from twin_cosim.gap import diagnosis as diagnosis_module
 from twin_cosim.gap import settings as diagnosis_settings
+from twin_cosim.gap.data.residuals import sim_at
 from twin_cosim.gap.synth import parse_effect, synthesize
+from twin_cosim.metrics import indices
+from twin_cosim.plant import Plant
 from twin_cosim.scenario import ScenarioError, load_scenario, with_plant_parameters
 from twin_cosim.scenario.plant_parameters import (
     PlantParameters,
@@ -29,6 +34,7 @@ NOMINAL_COULOMB = 0.625  # N.m, Table 1 (models/drive2mass/variables.yaml)
 SHORT_EXCITATION = scenario_text(
     "short-excitation", speed=0.02, acceleration=0.2, move=1.0, stop=0.2, dwell=0.3, repeat=2
 )
+ERROR = {"position_peak_m": 1e-7, "position_rms_m": 2e-8, "current_rms_A": 5e-3}  # model_error
 HIDDEN = ("coulomb_change:delta_coulomb=0.2", "plant:noise_amplitude_1=3e-7,noise_frequency_1=37")
 
 
@@ -114,6 +120,32 @@ def test_plant_yaml_says_what_the_diagnosis_leaves_uncertain(diagnosed, tmp_path
     assert read_plant_parameters(path).intervals == plant.intervals
 
 
+def test_plant_yaml_says_what_the_twin_still_misses_and_it_bounds_the_held_out_figures(
+    diagnosed, excitation
+):
+    """The effect found, what the calibrated twin misses on the held-out half is the run's
+    white noise (20 nm, 5 mA); replayed with plant.yaml (as ``--plant-parameters`` applies
+    it), the twin's E_pk, ITAE and IAU on that half lie within the margins it sets of the
+    machine's; read back exactly."""
+    diagnosis_dir, diagnosis = diagnosed
+    error = diagnosis.calibrated_plant.model_error
+    assert 15e-9 < error.position_rms_m < 30e-9
+    assert 3 * error.position_rms_m < error.position_peak_m < 6 * error.position_rms_m
+    assert 4e-3 < error.current_rms_A < 6e-3
+    assert read_plant_parameters(diagnosis_dir / "plant.yaml").model_error == error
+    scenario = with_plant_parameters(load_scenario(excitation), diagnosis_dir / "plant.yaml")
+    with Plant(scenario.plant_fmu()) as plant:
+        record = run_scenario(plant, scenario, scenario.tuned)
+    held = diagnosis.context.judged[0]
+    machine = indices(held.t, held.x_ref - held.x, held.current)
+    x_twin, i_twin = (sim_at(record, column, held.t) for column in ("x", "current"))
+    twin = indices(held.t, held.x_ref - x_twin, i_twin)
+    margins = error.margins(float(held.t[-1] - held.t[0]))
+    for name in ("E_pk_um", "ITAE", "IAU"):
+        assert abs(getattr(machine, name) - getattr(twin, name)) <= margins[name]
+    assert margins["E_pk_um"] < 0.01 * machine.E_pk_um  # a twin that misses only noise
+
+
 def test_diagnose_writes_plant_and_calibrated_yaml(diagnosed):
     diagnosis_dir, diagnosis = diagnosed
     written = read_plant_parameters(diagnosis_dir / "plant.yaml", "drive2mass")
@@ -122,6 +154,21 @@ def test_diagnose_writes_plant_and_calibrated_yaml(diagnosed):
     calibrated = load_scenario(diagnosis_dir / "calibrated.yaml")
     for name, value in written.parameters.items():
         assert calibrated.plant_parameters[name] == value
+
+
+def test_calibrated_yaml_replays_the_twin_that_plant_yaml_makes(diagnosis_dir, excitation):
+    """calibrated.yaml and the scenario with ``--plant-parameters plant.yaml``: the same
+    drive settings (the drive's as commissioned, not the calibrated plant's: here a Coulomb
+    level 0.2 N.m above the nominal), the same record."""
+    folded = load_scenario(diagnosis_dir / "calibrated.yaml")
+    applied = with_plant_parameters(load_scenario(excitation), diagnosis_dir / "plant.yaml")
+    assert folded.settings == applied.settings == load_scenario(excitation).settings
+    records = []
+    for scenario in (folded, applied):
+        with Plant(scenario.plant_fmu()) as plant:
+            records.append(run_scenario(plant, scenario, scenario.tuned))
+    assert np.array_equal(records[0]["x"], records[1]["x"])
+    assert np.array_equal(records[0]["current"], records[1]["current"])
 
 
 def test_calibrated_scenario_folds_the_parameters_in(diagnosed, excitation, tmp_path):
@@ -174,6 +221,30 @@ def write(path: Path, data: dict) -> Path:
         (
             {"model": "drive2mass", "parameters": {}, "intervals": {"no_such": [0.0, 1.0]}},
             "intervals.no_such: not a parameter",
+        ),
+        (
+            {"model": "drive2mass", "parameters": {}, "model_error": {"position_peak_m": 1e-7}},
+            "model_error: expected all of ['position_peak_m', 'position_rms_m', 'current_rms_A']",
+        ),
+        (
+            {
+                "model": "drive2mass",
+                "parameters": {},
+                "model_error": {**ERROR, "position_rms_m": -1},
+            },
+            "model_error.position_rms_m: expected a number >= 0",
+        ),
+        (
+            {
+                "model": "drive2mass",
+                "parameters": {},
+                "model_error": {**ERROR, "current_rms_A": math.inf},
+            },
+            "model_error.current_rms_A: expected a finite number",
+        ),
+        (
+            {"model": "drive2mass", "parameters": {}, "model_error": {**ERROR, "peak_um": 0.1}},
+            "model_error: unknown key(s) ['peak_um']",
         ),
     ],
 )

@@ -36,7 +36,7 @@ from twin_cosim.gap.verdict import (
 from twin_cosim.gap.which.acceptance import JointCandidate
 from twin_cosim.gap.which.selector import correlation
 from twin_cosim.measured import PositionLabel, compared_label
-from twin_cosim.plant_model import plant_model
+from twin_cosim.plant_model import DRIVE_FACTS, plant_model
 from twin_cosim.scenario.plant_parameters import calibrated_scenario, write_plant_parameters
 from twin_cosim.versions import versions
 
@@ -75,6 +75,7 @@ def summary(d: Diagnosis) -> dict[str, Any]:
         "holdout_runs": [asdict(h) for h in held],
         "holdout_relative_errors_before": _combined(held, "relative_errors_before"),
         "holdout_relative_errors_after": _combined(held, "relative_errors_after"),
+        "model_error": None if (e := d.calibrated_plant.model_error) is None else e.as_dict(),
     }
     context = d.context
     return jsonable(
@@ -489,6 +490,25 @@ def _validation(d: Diagnosis, position: PositionLabel) -> str:
     )
 
 
+def _model_error_section(d: Diagnosis, x: PositionLabel) -> list[tuple[str, str]]:
+    """What the calibrated twin (``plant.yaml`` replayed as written) still misses on the
+    held-out runs: the margins of a prediction's interval; none for open-loop runs."""
+    error = d.calibrated_plant.model_error
+    if error is None:
+        return []
+    return [
+        (
+            "What the calibrated twin still misses on the held-out runs (plant.yaml, model_error)",
+            f"{x.words}: largest {quantity(error.position_peak_m * x.per_m, x.si_unit)}, RMS "
+            f"{quantity(error.position_rms_m * x.per_m, x.si_unit)}; current: RMS "
+            f"{quantity(error.current_rms_A, 'A')}. A prediction of E_pk, ITAE and IAU for other "
+            "gains (twin simulate --machine with --plant-parameters plant.yaml) widens its "
+            "interval by the bounds these set on one run (twin_cosim.model_error), assuming the "
+            "twin misses no more there.",
+        )
+    ]
+
+
 def _setting(name: str, value: Any) -> str:
     """A setting as a person reads it: ``0.5``, ``500 um``, ``the whole library``."""
     if value is None:
@@ -546,6 +566,7 @@ def sections(d: Diagnosis) -> list[tuple[str, str | list[list[str]]]]:
             "Held-out runs, before and after the accepted effects",
             _table(d.held_out_runs, _run_columns(d.held_out_runs, d.context.compared, x)),
         ),
+        *_model_error_section(d, x),
         (
             "Where the gap lies before the accepted effects (training and held-out data): "
             f"{x.words} residual by regime",
@@ -686,7 +707,9 @@ def write_report(
     made = {**plant.created_by, "command": command, "version": versions()["twin-cosim"]}
     plant = dataclasses.replace(plant, created_by=made)
     plant_file = write_plant_parameters(out / "plant.yaml", plant)
-    calibrated = calibrated_scenario(d.context.scenario.source, plant, out / "calibrated.yaml")
+    scenario = d.context.scenario
+    drive = {name: getattr(scenario.settings, name) for name in DRIVE_FACTS}
+    calibrated = calibrated_scenario(scenario.source, plant, out / "calibrated.yaml", drive)
     return {
         "json": str(out / "diagnosis.json"),
         "markdown": str(out / "report.md"),
