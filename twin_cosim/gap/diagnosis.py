@@ -248,10 +248,12 @@ def _unexplained(before: Residuals, after: Residuals) -> dict[str, float]:
     return shares
 
 
-def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float], Replays]:
+def _noise_stage(
+    context: DiagnosisContext, level: float
+) -> tuple[NoiseModel, dict[str, float], Replays]:
     """Stage 2a: the noise harmonics from the replays of the nominal twin (identified on the
-    training data, confirmed on the held-out data), and the replays of the twin with them (in
-    this process: a few replays do not pay for a pool)."""
+    training data, confirmed on the held-out data at significance ``level``), and the replays
+    of the twin with them (in this process: a few replays do not pay for a pool)."""
     with Plant(context.fmu) as plant:
 
         def replay(parameters: dict[str, float]) -> Replays:
@@ -284,6 +286,7 @@ def _noise_stage(context: DiagnosisContext) -> tuple[NoiseModel, dict[str, float
             context.dt,
             context.ranges,
             context.nominal,
+            level,
         )
         nominal = {**context.nominal, **noise.plant_parameters}
         return noise, nominal, replay(nominal) if noise.plant_parameters else raw
@@ -354,7 +357,7 @@ def _diagnose(
         calibration_moves(context.nominal, {}, calibrated, settings.calibration_tolerance),
         JudgingSpec(context.judging_scenarios, str(context.fmu), context.nominal, context.ranges),
     )
-    noise, nominal, start = _noise_stage(context)
+    noise, nominal, start = _noise_stage(context, settings.significance_level)
     if directions is not None and nominal != context.nominal:  # the noise model moved the twin
         directions.cancel()
         directions = None
