@@ -427,11 +427,12 @@ def _diagnose(
         context, settings, judging, selection, hold_final
     )
     parent_cpu = time.process_time() - cpu_start
+    pool_times = selector.pool.times.as_dict()  # the selection's and the model error's replay
     times = {
-        **selection.times,
+        **pool_times,
         "diagnosis": {
             "parent_cpu_s": parent_cpu,
-            "idle_wall_estimate_s": parent_cpu + selection.times["total"]["idle_wall_s"],
+            "idle_wall_estimate_s": parent_cpu + pool_times["total"]["idle_wall_s"],
         },
     }
     return Diagnosis(

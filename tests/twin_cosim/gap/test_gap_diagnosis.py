@@ -10,10 +10,12 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from tight_spot import build_tight_spot_fmu
 
+from twin_cosim.gap import diagnosis as diagnosis_module
 from twin_cosim.gap.diagnosis import calibrated_plant, diagnose
 from twin_cosim.gap.floors.evidence import CalibrationFloor
 from twin_cosim.gap.floors.noise import NoiseModel
@@ -25,7 +27,11 @@ from twin_cosim.gap.which.replay import FitResult, Replays, Uncertainty
 from twin_cosim.gap.which.selector import Accepted, Round, Selection
 from twin_cosim.measured import read_measured_csv
 from twin_cosim.scenario import load_scenario
-from twin_cosim.scenario.plant_parameters import read_plant_parameters, write_plant_parameters
+from twin_cosim.scenario.plant_parameters import (
+    PlantParameters,
+    read_plant_parameters,
+    write_plant_parameters,
+)
 
 ROOT = Path(__file__).resolve().parents[3]
 SCENARIO = ROOT / "scenarios" / "diagnosis.yaml"
@@ -419,3 +425,12 @@ def test_the_calibration_correction_of_the_last_round_is_applied():
         _selection([first, accepting], effects, coulomb), noise, "drive2mass", {}, 0.03, {}
     )
     assert plant.parameters == {"coulomb_friction": 0.5}
+
+
+def test_open_loop_runs_give_no_model_error():
+    """An open-loop run (HSM150) has no tracking error of a set of gains to bound: no replay,
+    no model_error in plant.yaml."""
+    judging = SimpleNamespace(runs=[SimpleNamespace(drive=None), SimpleNamespace(drive="torque")])
+    pool = SimpleNamespace(tasks=None)  # never asked
+    plant = PlantParameters("drive2mass", {})
+    assert diagnosis_module._model_error(judging, pool, plant) is None

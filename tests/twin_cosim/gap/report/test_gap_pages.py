@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import io
+import json
 import re
 from pathlib import Path
 from types import SimpleNamespace
@@ -22,8 +23,10 @@ from twin_cosim.gap import settings as diagnosis_settings
 from twin_cosim.gap.location import Location
 from twin_cosim.gap.report.pages import _axis_sections
 from twin_cosim.gap.synth import parse_effect, synthesize
+from twin_cosim.gap.verdict import quantity
 from twin_cosim.measured import position_label
 from twin_cosim.scenario import load_scenario
+from twin_cosim.scenario.plant_parameters import read_plant_parameters
 
 EXCITATION = scenario_text(
     "report-excitation", speed=0.02, acceleration=0.2, move=1.0, stop=0.2, dwell=0.3, repeat=2
@@ -135,6 +138,18 @@ def test_the_verdicts_spans_are_the_after_span_table(diagnosed):
     named = re.findall(r"(-?[\d.]+)-([\d.]+) mm", verdict)
     assert named, verdict
     assert set(named) <= {(row[0], row[1]) for row in spans[1:]}
+
+
+def test_the_model_error_is_in_the_json_the_report_and_plant_yaml_alike(diagnosed):
+    """What the calibrated twin still misses on the held-out runs: the same three figures in
+    diagnosis.json and plant.yaml, and in the report with their units."""
+    found = json.loads((diagnosed.folder / "diagnosis.json").read_text())["gap"]["model_error"]
+    written = read_plant_parameters(diagnosed.folder / "plant.yaml").model_error
+    assert found == written.as_dict()
+    markdown = (diagnosed.folder / "report.md").read_text()
+    section = markdown.split("## What the calibrated twin still misses", 1)[1].split("\n## ")[0]
+    assert f"largest {quantity(written.position_peak_m, 'm')}" in section
+    assert f"current: RMS {quantity(written.current_rms_A, 'A')}" in section
 
 
 def test_the_progress_bar_ends_at_100_percent(diagnosed):
