@@ -208,8 +208,9 @@ def describe(source: str, kind: str, figures: dict[str, dict[str, Any]]) -> str:
                 parts.append(f"the plant's intervals {f['spread_low']:.4g}-{f['spread_high']:.4g}")
             if f["margin"] > 0.0:
                 parts.append(f"+/- {f['margin']:.3g} {unit} of the twin's held-out error")
+            detail = f" ({'; '.join(parts)})" if parts else ""
             line += (
-                f", interval {f['low']:.4g}-{f['high']:.4g} {unit} ({'; '.join(parts)}): "
+                f", interval {f['low']:.4g}-{f['high']:.4g} {unit}{detail}: "
                 f"the machine {'inside' if f['inside'] else 'outside'}"
             )
         lines.append(line)

@@ -82,6 +82,27 @@ def effective_samples(duration_s: float) -> float:
     return max(duration_s / EFFECTIVE_SAMPLE_SPACING_S, 1.0)
 
 
+def correlation_time(pieces: list[np.ndarray], dt: float) -> float:
+    """The integral correlation time of a residual, s, at least
+    :data:`EFFECTIVE_SAMPLE_SPACING_S`: per piece (each mean removed) dt (1 + 2 sum rho_k) over
+    the lags before its autocorrelation rho first falls to zero, weighted by the pieces'
+    lengths. White noise has dt; a slow wander (what a settling axis leaves at standstill)
+    tenths of a second, and counting its samples as independent every 10 ms would overstate
+    the evidence against it."""
+    total, weight = 0.0, 0
+    for piece in pieces:
+        centred = np.asarray(piece, dtype=np.float64) - np.mean(piece)
+        energy = float(centred @ centred)
+        if centred.size < 2 or energy == 0.0:
+            continue
+        spectrum = np.fft.rfft(centred, 2 * centred.size)
+        rho = np.fft.irfft(np.abs(spectrum) ** 2)[: centred.size] / energy
+        first_zero = int(np.argmax(rho <= 0.0)) if np.any(rho <= 0.0) else rho.size
+        total += centred.size * dt * (1.0 + 2.0 * float(np.sum(rho[1:first_zero])))
+        weight += centred.size
+    return max(total / weight if weight else 0.0, EFFECTIVE_SAMPLE_SPACING_S)
+
+
 def improvement_z(before: np.ndarray, after: np.ndarray, duration_s: float) -> float:
     """Evidence (z) that ``after`` fits better than ``before`` beyond the noise.
 

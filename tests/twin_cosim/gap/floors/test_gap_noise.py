@@ -14,6 +14,7 @@ from twin_cosim.cosim import run_scenario
 from twin_cosim.gap.data.regimes import CONSTANT_VELOCITY, STANDSTILL
 from twin_cosim.gap.data.residuals import Residuals, run_residuals
 from twin_cosim.gap.floors import noise as noise_module
+from twin_cosim.gap.floors.evidence import EFFECTIVE_SAMPLE_SPACING_S, correlation_time
 from twin_cosim.gap.floors.noise import (
     Floors,
     Harmonic,
@@ -208,7 +209,8 @@ def test_a_sinusoid_whose_drop_is_within_what_the_standstill_holds_besides_is_dr
     """A held-out standstill that holds far more than noise (a slow 2 um wander: what backlash,
     a lag and a Stribeck curve leave while the axis settles) and a bit of the sinusoid in
     phase: subtracting it lowers the energy there, but by less than chance makes of such a
-    residual, and it is dropped; the same bit over white noise of 5 nm is confirmed."""
+    residual (correlated over tenths of a second), and it is dropped; the sinusoid in full
+    over white noise of 5 nm is confirmed."""
     rng = np.random.default_rng(6)
     later = 3.0 + np.arange(6000) * DT  # s
     bit = 0.6e-7 * np.sin(2 * np.pi * 5.9 * later + 0.4)
@@ -219,8 +221,23 @@ def test_a_sinusoid_whose_drop_is_within_what_the_standstill_holds_besides_is_dr
     model = identified_on(bit + wander, start=3.0)
     assert model.harmonics == []
     assert "evidence z" in model.dropped[0]
-    confirmed = identified_on(bit + rng.normal(0, 5e-9, later.size), start=3.0)
+    confirmed = identified_on(wave + rng.normal(0, 5e-9, later.size), start=3.0)
     assert [round(h.frequency_hz, 2) for h in confirmed.harmonics] == [5.9]
+
+
+def test_the_correlation_time_of_white_noise_is_the_floor_and_of_a_wander_its_own():
+    rng = np.random.default_rng(8)
+    white = [rng.normal(0.0, 1.0, 4000) for _ in range(3)]
+    assert correlation_time(white, DT) == EFFECTIVE_SAMPLE_SPACING_S
+    # a first-order process of time constant tau: integral correlation time 2 tau
+    tau = 0.05  # s
+    a = np.exp(-DT / tau)
+    shocks = rng.normal(0.0, 1.0, 400_000)
+    wander = np.empty_like(shocks)
+    wander[0] = 0.0
+    for k in range(1, shocks.size):
+        wander[k] = a * wander[k - 1] + shocks[k]
+    assert correlation_time([wander], DT) == pytest.approx(2 * tau, rel=0.25)
 
 
 def test_without_held_out_standstill_no_harmonic_is_confirmed():
