@@ -223,9 +223,10 @@ def report(results: list[dict], out: Path) -> None:
         errors_nom.append(abs(pred_nom))
         oracle = f", {e['oracle']:.2f}" if "oracle" in e else ""
         interval = j["calibrated"]["E_pk_um"]
+        margin = interval.get("margin", 0.0)
+        held_out = f", of it +/- {margin:.2f} um the twin's held-out error" if margin else ""
         stated = (
-            f" (interval {interval['low']:.2f}-{interval['high']:.2f} um, of it"
-            f" +/- {interval.get('margin', 0.0):.2f} um the twin's held-out error: "
+            f" (interval {interval['low']:.2f}-{interval['high']:.2f} um{held_out}: "
             f"{'inside' if interval['inside'] else 'outside'})"
             if "inside" in interval
             else ""

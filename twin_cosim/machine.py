@@ -145,7 +145,11 @@ def prediction(
 def model_error_margins(scenario: Scenario, plant_file: Path | str | None) -> dict[str, float]:
     """The margins a plant file's ``model_error`` (what the twin missed on its held-out runs,
     :mod:`twin_cosim.model_error`) sets on E_pk (um), ITAE (um.s^2) and IAU (A.s) over the
-    scenario's metrics window; none without a file or the section."""
+    scenario's metrics window; none without a file or the section.
+
+    The window [t_0, t_F] holds N samples of the position loop, and the metrics' rectangle
+    sums span N periods (:mod:`twin_cosim.metrics`): the bounds take T = t_F - t_0 plus one
+    period."""
     if plant_file is None:
         return {}
     error = read_plant_parameters(plant_file, scenario.model_name()).model_error
@@ -153,7 +157,7 @@ def model_error_margins(scenario: Scenario, plant_file: Path | str | None) -> di
         return {}
     start, end = scenario.metrics_window
     duration = scenario.reference.duration if end is None else end
-    return error.margins(duration - start)
+    return error.margins(duration - start + scenario.settings.position_period)
 
 
 def plant_samples(scenario: Scenario, plant_file: Path | str | None) -> list[dict[str, float]]:

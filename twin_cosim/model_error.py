@@ -6,7 +6,8 @@ di(t) = i_machine - i_twin (A): unmodelled effects, effects fitted off, and the 
 measurement noise (the twin has none). On one run with one set of gains the tracking errors
 differ by dx (the reference is the same), so a figure of merit of the machine lies within
 these margins of the twin's (the triangle inequality; Cauchy-Schwarz for the integrals, over a
-metrics window of length T from t_0)::
+metrics window of length T from t_0; for the rectangle sums of :mod:`twin_cosim.metrics` over N
+samples T is N dt, one sample more than the window's span)::
 
     E_pk = max |e|:              |E_pk,machine - E_pk,twin| <= max |dx|
     ITAE = int (t - t_0) |e| dt: |ITAE,machine - ITAE,twin| <= T^2 / sqrt(3) RMS(dx)

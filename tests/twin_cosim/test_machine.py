@@ -115,7 +115,7 @@ def test_the_twin_s_held_out_error_widens_the_interval_to_hold_the_machine(scena
     )
     alone = prediction(twin, judged, [twin])["E_pk_um"]
     assert not alone["inside"] and alone["margin"] == 0.0
-    margins = error.margins(scenario.reference.duration)
+    margins = error.margins(scenario.reference.duration + scenario.settings.position_period)
     widened = prediction(twin, judged, [twin], margins)
     for name, f in widened.items():
         assert f["inside"], name
@@ -129,7 +129,8 @@ def test_the_margins_come_from_the_plant_file_over_the_metrics_window(scenario, 
         tmp_path / "plant.yaml", PlantParameters("drive2mass", {}, model_error=error)
     )
     margins = model_error_margins(scenario, with_error)
-    assert margins == error.margins(scenario.reference.duration)
+    window = scenario.reference.duration + scenario.settings.position_period  # N samples
+    assert margins == error.margins(window)
     assert margins["E_pk_um"] == pytest.approx(0.3)
     without = write_plant_parameters(tmp_path / "bare.yaml", PlantParameters("drive2mass", {}))
     assert model_error_margins(scenario, without) == {}

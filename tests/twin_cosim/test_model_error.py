@@ -37,7 +37,7 @@ def test_the_margins_bound_the_machine_figures_on_the_same_run(seed):
     di += 0.01 * rng.standard_normal(T.size)
     # the machine's scale reads x_machine = x_twin + dx: its tracking error is e - dx
     twin, machine = indices(T, error, current), indices(T, error - dx, current + di)
-    margins = ModelError.of_discrepancy(dx, di).margins(float(T[-1] - T[0]))
+    margins = ModelError.of_discrepancy(dx, di).margins(T.size * DT)  # N samples of DT
     assert abs(machine.E_pk_um - twin.E_pk_um) <= margins["E_pk_um"]
     assert abs(machine.ITAE - twin.ITAE) <= margins["ITAE"]
     assert abs(machine.IAU - twin.IAU) <= margins["IAU"]
@@ -53,6 +53,24 @@ def test_the_peak_margin_is_reached_by_a_constant_offset():
     margin = ModelError.of_discrepancy(dx, np.zeros_like(T)).margins(4.0)["E_pk_um"]
     assert machine.E_pk_um - twin.E_pk_um == pytest.approx(margin, rel=1e-9)
     assert margin == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("samples", [11, 101])
+def test_the_integral_margins_hold_in_the_worst_case_over_n_samples(samples):
+    """The worst cases of the integral bounds over a short window, each in the figure's own
+    sign: a position discrepancy growing with t - t_0 (ITAE), a constant current discrepancy
+    (IAU). ITAE and IAU lie within their margins when the window counts its N samples (N dt),
+    beyond them with the span (N - 1) dt alone."""
+    t = np.arange(samples) * DT
+    error, current = 1e-6 * np.ones_like(t), np.ones_like(t)
+    dx, di = -1e-7 * t / t[-1], np.full_like(t, 0.1)
+    twin, machine = indices(t, error, current), indices(t, error - dx, current + di)
+    found = ModelError.of_discrepancy(dx, di)
+    counted, spanned = found.margins(samples * DT), found.margins(float(t[-1]))
+    for name in ("ITAE", "IAU"):
+        gap = abs(getattr(machine, name) - getattr(twin, name))
+        assert gap <= counted[name] * (1 + 1e-12)  # IAU's worst case reaches it exactly
+        assert gap > spanned[name]
 
 
 def test_the_integral_margins_follow_the_window_length():

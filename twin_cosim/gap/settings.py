@@ -111,6 +111,9 @@ _INTEGER_FIELDS = {
 }
 
 
+_LEVELS = {"significance_level", "acceptance_level"}  # one-sided levels of a normal test
+
+
 def settings_from(
     scenario: Scenario, split: float | None = None, max_effects: int | None = None
 ) -> DiagnosisSettings:
@@ -120,7 +123,7 @@ def settings_from(
     ------
     ValueError
         Naming the file and the key on an unknown key, a value that is not a finite number, a
-        count below 1 or a split outside [0.1, 0.9].
+        count below 1, a significance level outside (0, 0.5) or a split outside [0.1, 0.9].
     """
     allowed = {f.name for f in dataclasses.fields(DiagnosisSettings) if f.name != "hypotheses"}
     check = Checker(scenario.source)
@@ -129,6 +132,8 @@ def settings_from(
         check.number(value, f"diagnose.{key}", minimum=0.0)
         if key in _INTEGER_FIELDS and (value != int(value) or value < 1):
             raise check.fail(f"diagnose.{key}", "a whole number >= 1", value)
+        if key in _LEVELS and not 0.0 < value < 0.5:
+            raise check.fail(f"diagnose.{key}", "a one-sided level in (0, 0.5)", value)
     if split is not None:
         section["split"] = split
     if max_effects is not None:

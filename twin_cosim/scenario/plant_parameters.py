@@ -35,7 +35,7 @@ applies it, so that one excitation run calibrates the twin for every production 
     intervals:                            # what the diagnosis leaves uncertain: the range
       stribeck_friction: [0.19, 0.23]     # of each value, same units (robust tuning samples it)
     model_error:                          # what the twin still misses on its held-out runs
-      position_peak_m: 8.1e-08            # (twin_cosim.model_error): largest and RMS scale
+      position_peak_m: 9.2e-08            # (twin_cosim.model_error): largest and RMS scale
       position_rms_m: 2.0e-08             # discrepancy, m, and RMS current discrepancy, A;
       current_rms_A: 0.005                # a prediction's interval is widened by them
     created_by: {command: "twin diagnose ...", version: 0.1.0, measured: [...], holdout: ...}
@@ -44,9 +44,10 @@ It is read with the scenarios' YAML loader and checker (:mod:`twin_cosim.schema`
 reads the same in both (``2e-5`` is a number). Reading checks the model, that every name is a
 parameter of the model's variable table, and that every value is finite and inside the table's
 range, that each interval is a pair [low, high] inside that range holding the parameter's
-value, and that ``model_error`` holds its three figures, each finite and >= 0; errors name the
-file and the key. Writing spells every value out where it stands (no
-YAML anchors and aliases for a person editing the file to decode).
+value, and that ``model_error`` holds its three figures, each finite and >= 0 (the largest
+position discrepancy at least its RMS); errors name the file and the key. Writing spells every
+value out where it stands (no YAML anchors and aliases for a person editing the file to
+decode).
 
 :func:`calibrated_scenario` folds such a file into a copy of a scenario file
 (``calibrated.yaml`` beside a diagnosis' ``plant.yaml``).
@@ -250,18 +251,24 @@ def read_plant_parameters(path: Path | str, model: str | None = None) -> PlantPa
 
 
 def _model_error(check: Checker, raw: Any) -> ModelError | None:
-    """The ``model_error`` section: all of its figures, each finite and >= 0; None without it."""
+    """The ``model_error`` section: all of its figures, each finite and >= 0, the largest
+    position discrepancy at least its RMS; None without it."""
     if raw is None:
         return None
     section = check.mapping(raw, "model_error", set(MODEL_ERROR_FIELDS))
     missing = [name for name in MODEL_ERROR_FIELDS if name not in section]
     if missing:
         raise check.fail("model_error", f"all of {list(MODEL_ERROR_FIELDS)}; missing {missing}")
-    figures = (
+    figures = [
         check.number(section[name], f"model_error.{name}", minimum=0.0)
         for name in MODEL_ERROR_FIELDS
-    )
-    return ModelError(*figures)
+    ]
+    error = ModelError(*figures)
+    if error.position_peak_m < error.position_rms_m:
+        raise check.fail(
+            "model_error.position_peak_m", "at least position_rms_m", error.position_peak_m
+        )
+    return error
 
 
 def check_intervals(

@@ -30,6 +30,8 @@ def test_defaults_and_overrides():
         ({"nope": 1}, None, None, r"diagnose: unknown key\(s\) \['nope'\]"),
         ({"max_effects": 1.5}, None, None, "diagnose.max_effects: expected a whole number"),
         ({"acceptance_level": float("nan")}, None, None, "expected a finite number"),
+        ({"significance_level": 0.0}, None, None, r"significance_level: expected a one-sided"),
+        ({"acceptance_level": 0.5}, None, None, r"acceptance_level: expected a one-sided"),
         ({}, None, -1, "--max-effects: expected a whole number >= 1, got -1"),
         ({}, 0.95, None, r"split: expected a fraction in \[0.1, 0.9\]"),
     ],

@@ -140,7 +140,7 @@ def test_plant_yaml_says_what_the_twin_still_misses_and_it_bounds_the_held_out_f
     machine = indices(held.t, held.x_ref - held.x, held.current)
     x_twin, i_twin = (sim_at(record, column, held.t) for column in ("x", "current"))
     twin = indices(held.t, held.x_ref - x_twin, i_twin)
-    margins = error.margins(float(held.t[-1] - held.t[0]))
+    margins = error.margins(held.t.size * float(np.median(np.diff(held.t))))  # N samples
     for name in ("E_pk_um", "ITAE", "IAU"):
         assert abs(getattr(machine, name) - getattr(twin, name)) <= margins[name]
     assert margins["E_pk_um"] < 0.01 * machine.E_pk_um  # a twin that misses only noise
@@ -245,6 +245,14 @@ def write(path: Path, data: dict) -> Path:
         (
             {"model": "drive2mass", "parameters": {}, "model_error": {**ERROR, "peak_um": 0.1}},
             "model_error: unknown key(s) ['peak_um']",
+        ),
+        (
+            {
+                "model": "drive2mass",
+                "parameters": {},
+                "model_error": {**ERROR, "position_peak_m": 1e-8},
+            },
+            "model_error.position_peak_m: expected at least position_rms_m",
         ),
     ],
 )
