@@ -43,7 +43,8 @@ class ModelError:
     position_rms_m : float
         RMS of x_machine - x_twin over the held-out runs, m.
     current_rms_A : float
-        RMS of i_machine - i_twin over the held-out runs, A.
+        RMS of i_machine - i_twin over the held-out runs, A (in the unit of the drive command
+        where the runs record a command instead, as EMPS's in V; IAU is then in V.s).
     """
 
     position_peak_m: float
