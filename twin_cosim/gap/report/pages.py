@@ -496,12 +496,13 @@ def _model_error_section(d: Diagnosis, x: PositionLabel) -> list[tuple[str, str]
     error = d.calibrated_plant.model_error
     if error is None:
         return []
+    words, unit = compared_label(d.context.compared)  # the current, or a drive's command (V)
     return [
         (
             "What the calibrated twin still misses on the held-out runs (plant.yaml, model_error)",
             f"{x.words}: largest {quantity(error.position_peak_m * x.per_m, x.si_unit)}, RMS "
-            f"{quantity(error.position_rms_m * x.per_m, x.si_unit)}; current: RMS "
-            f"{quantity(error.current_rms_A, 'A')}. A prediction of E_pk, ITAE and IAU for other "
+            f"{quantity(error.position_rms_m * x.per_m, x.si_unit)}; {words}: RMS "
+            f"{quantity(error.current_rms_A, unit)}. A prediction of E_pk, ITAE and IAU for other "
             "gains (twin simulate --machine with --plant-parameters plant.yaml) widens its "
             "interval by the bounds these set on one run (twin_cosim.model_error), assuming the "
             "twin misses no more there.",

@@ -24,7 +24,7 @@ from twin_cosim.gap.location import Location
 from twin_cosim.gap.report.pages import _axis_sections
 from twin_cosim.gap.synth import parse_effect, synthesize
 from twin_cosim.gap.verdict import quantity
-from twin_cosim.measured import position_label
+from twin_cosim.measured import compared_label, position_label
 from twin_cosim.scenario import load_scenario
 from twin_cosim.scenario.plant_parameters import read_plant_parameters
 
@@ -149,7 +149,8 @@ def test_the_model_error_is_in_the_json_the_report_and_plant_yaml_alike(diagnose
     markdown = (diagnosed.folder / "report.md").read_text()
     section = markdown.split("## What the calibrated twin still misses", 1)[1].split("\n## ")[0]
     assert f"largest {quantity(written.position_peak_m, 'm')}" in section
-    assert f"current: RMS {quantity(written.current_rms_A, 'A')}" in section
+    words, unit = compared_label("current")
+    assert f"{words}: RMS {quantity(written.current_rms_A, unit)}" in section
 
 
 def test_the_progress_bar_ends_at_100_percent(diagnosed):
