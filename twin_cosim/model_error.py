@@ -15,9 +15,10 @@ samples T is N dt, one sample more than the window's span)::
 
 A prediction for other gains on another trajectory (the tuned set on the production run)
 carries these margins over from the held-out runs: it assumes that what the twin misses is no
-larger there. That holds where the held-out runs cover the production run's regimes (speeds,
-reversals, dwells); it is what makes a prediction's interval hold a machine whose diagnosis
-missed an effect or fitted one off, which an interval over the fitted parameters alone cannot.
+larger there. That is an assumption, not a bound: plausible where the held-out runs cover the
+production run's regimes (speeds, reversals, dwells). It is what lets a prediction's interval
+hold a machine whose diagnosis missed an effect or fitted one off, which an interval over the
+fitted parameters alone cannot (docs/transfer.md: 5 of 5 drawn machines inside).
 """
 
 from __future__ import annotations
